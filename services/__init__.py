@@ -1,0 +1,1 @@
+"""humanoid-autonomy: services (bus adapters) and the pure algorithm packages they wrap."""

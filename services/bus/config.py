@@ -1,0 +1,134 @@
+"""Bus configuration: one frozen dataclass, defaults in code, optional YAML override.
+
+Defaults keep everything on this machine: peer mode, loopback TCP only, multicast scouting off.
+Every session listens on a free loopback port and connects to the *hub* endpoint, on which the
+launcher (``humanoid up``) listens; gossip over that first link lets the peers find each other, and
+they stay connected directly if the hub goes away. Another host is a configuration change:
+see the README ("Running on several hosts").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from services.errors import InvalidRequestError
+
+DEFAULT_HUB = "tcp/127.0.0.1:7447"
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    """How a process joins the bus.
+
+    Attributes:
+        robot: the ``<robot>`` segment of every key (``hrp/<robot>/...``).
+        mode: zenoh mode, ``peer`` or ``client`` (``router`` needs zenohd).
+        hub: the endpoint the launcher listens on and every other session connects to.
+        listen: endpoints this session listens on (``tcp/127.0.0.1:0`` = a free loopback port).
+        connect: extra endpoints to connect to (other hosts, a zenoh router).
+        multicast_scouting: UDP multicast discovery; off so nothing leaves the machine by default.
+        shared_memory: zenoh shared-memory transport between local processes.
+        zenoh: raw zenoh config overrides, ``{"path/in/config": value}``, applied last.
+    """
+
+    robot: str = "hrp2"
+    mode: str = "peer"
+    hub: str = DEFAULT_HUB
+    listen: tuple[str, ...] = ("tcp/127.0.0.1:0",)
+    connect: tuple[str, ...] = ()
+    multicast_scouting: bool = False
+    shared_memory: bool = True
+    zenoh: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("peer", "client"):
+            raise InvalidRequestError(f"bus mode {self.mode!r} is not one of: peer, client")
+        if not self.robot.replace("_", "").isalnum() or not self.robot[:1].isalpha():
+            raise InvalidRequestError(f"robot name {self.robot!r} must be lower_snake_case")
+
+    def with_hub_port(self, port: int) -> BusConfig:
+        """The same config with the hub on loopback port ``port`` (tests run hubs side by side)."""
+        return dataclasses.replace(self, hub=f"tcp/127.0.0.1:{port}")
+
+    def zenoh_config(self, *, as_hub: bool = False) -> Any:
+        """Build the ``zenoh.Config`` (``as_hub``: listen on the hub endpoint instead of connecting)."""
+        import zenoh
+
+        listen = [self.hub] if as_hub else list(self.listen)
+        connect = list(self.connect) + ([] if as_hub else [self.hub])
+        conf = zenoh.Config()
+        entries: dict[str, Any] = {
+            "mode": self.mode,
+            "listen/endpoints": listen,
+            "connect/endpoints": connect,
+            "scouting/multicast/enabled": self.multicast_scouting,
+            # Retry the hub quickly: services usually start before or just after it.
+            "connect/retry": {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2},
+            "connect/timeout_ms": 0 if self.mode == "peer" else -1,
+            "connect/exit_on_failure": False,
+            "transport/shared_memory/enabled": self.shared_memory,
+        }
+        entries.update(self.zenoh)
+        for path, value in entries.items():
+            try:
+                conf.insert_json5(path, json.dumps(value))
+            except Exception as exc:  # zenoh raises ZError with its own message
+                raise InvalidRequestError(f"bad zenoh config entry {path}={value!r}: {exc}") from None
+        return conf
+
+
+def load_bus_config(path: str | Path | None = None, **overrides: Any) -> BusConfig:
+    """Defaults, then the ``bus:`` section of a YAML file, then ``overrides``."""
+    values: dict[str, Any] = {}
+    if path is not None:
+        values.update(_yaml_section(path, "bus"))
+    values.update({k: v for k, v in overrides.items() if v is not None})
+    return from_mapping(BusConfig, values, where=str(path or "defaults"))
+
+
+def _yaml_section(path: str | Path, section: str) -> dict[str, Any]:
+    try:
+        doc = yaml.safe_load(Path(path).read_text()) or {}
+    except FileNotFoundError:
+        raise InvalidRequestError(f"config file {path} does not exist") from None
+    except yaml.YAMLError as exc:
+        raise InvalidRequestError(f"config file {path} is not valid YAML: {exc}") from None
+    if not isinstance(doc, dict):
+        raise InvalidRequestError(f"config file {path} must be a mapping at the top level")
+    sub = doc.get(section) or {}
+    if not isinstance(sub, dict):
+        raise InvalidRequestError(f"section {section!r} of {path} must be a mapping")
+    return sub
+
+
+def load_section(path: str | Path | None, section: str, config_type: type) -> Any:
+    """Defaults of ``config_type`` overridden by the ``<section>:`` mapping of a YAML file."""
+    values = _yaml_section(path, section) if path is not None else {}
+    return from_mapping(config_type, values, where=f"{path}:{section}" if path else "defaults")
+
+
+def from_mapping(config_type: type, values: dict[str, Any], *, where: str) -> Any:
+    """Build a frozen config dataclass, rejecting unknown keys with the list of valid ones."""
+    fields = {f.name: f for f in dataclasses.fields(config_type)}
+    unknown = sorted(set(values) - set(fields))
+    if unknown:
+        raise InvalidRequestError(
+            f"unknown {config_type.__name__} option(s) {', '.join(unknown)} in {where}; "
+            f"valid options: {', '.join(fields)}"
+        )
+    converted = {}
+    for name, value in values.items():
+        default = getattr(config_type, name, None)
+        if isinstance(default, tuple) and isinstance(value, list):
+            value = tuple(value)
+        converted[name] = value
+    try:
+        return config_type(**converted)
+    except TypeError as exc:
+        raise InvalidRequestError(f"bad {config_type.__name__} in {where}: {exc}") from None

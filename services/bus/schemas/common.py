@@ -1,0 +1,44 @@
+"""Messages every service shares: heartbeats, error envelopes, launcher events."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import msgspec
+
+from services.bus.spec import TopicSpec
+
+
+class Heartbeat(msgspec.Struct, kw_only=True, frozen=True):
+    """Published at 2 Hz on ``hrp/<robot>/<service>/heartbeat`` once a service is ready."""
+
+    service: str
+    pid: int
+    seq: int
+    wall_time_s: float  # time.time() of the publisher [s]
+    uptime_s: float  # since the service became ready [s]
+    requests_served: int
+    requests_failed: int
+
+
+class ErrorInfo(msgspec.Struct, kw_only=True, frozen=True):
+    """An error reply: ``code`` is one of services.errors.ERROR_CODES; ``message`` says what to do."""
+
+    code: str
+    message: str
+    details: dict[str, Any] = msgspec.field(default_factory=dict)
+
+
+class LauncherEvent(msgspec.Struct, kw_only=True, frozen=True):
+    """A lifecycle event of the launcher: started, ready, died, restarting, gave_up, stopped."""
+
+    service: str
+    event: str
+    pid: int = 0
+    attempt: int = 0
+    exit_code: int | None = None
+    message: str = ""
+    wall_time_s: float = 0.0
+
+
+LAUNCHER_EVENTS = TopicSpec("launcher", "events", LauncherEvent, "service lifecycle events of `humanoid up`")

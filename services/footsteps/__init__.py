@@ -1,0 +1,1 @@
+"""footsteps package of humanoid-autonomy."""

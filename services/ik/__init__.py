@@ -1,0 +1,1 @@
+"""ik package of humanoid-autonomy."""

@@ -1,0 +1,1 @@
+"""model package of humanoid-autonomy."""

@@ -1,0 +1,1 @@
+"""navigation package of humanoid-autonomy."""

@@ -1,0 +1,1 @@
+"""reaching package of humanoid-autonomy."""

@@ -1,0 +1,1 @@
+"""walking package of humanoid-autonomy."""
