@@ -1,0 +1,63 @@
+"""Retry policies: what the supervisor does when an action reports a failure of a given kind.
+
+Following the motion-autonomy paper ("Each action can report failures ... it is thus possible to
+implement error recovery strategies by analyzing the reports of the actions"), each failure reason
+maps to a bounded number of retries and a remedy run before the retry.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from supervisor.report import REASONS
+
+REMEDIES = ("none", "relocalize", "replan", "wait_service")
+
+
+@dataclass(frozen=True)
+class RetryRule:
+    """``retries`` more attempts after the first, each preceded by ``remedy``, ``backoff_s`` apart."""
+
+    retries: int
+    remedy: str = "none"
+    backoff_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.remedy not in REMEDIES:
+            raise ValueError(f"unknown remedy {self.remedy!r}; known: {', '.join(REMEDIES)}")
+        if self.retries < 0:
+            raise ValueError("retries must be >= 0")
+
+
+@dataclass(frozen=True)
+class RetryPolicy:
+    """A rule per failure reason; reasons without a rule are not retried."""
+
+    rules: tuple[tuple[str, RetryRule], ...]
+
+    def rule(self, reason: str) -> RetryRule:
+        for name, rule in self.rules:
+            if name == reason:
+                return rule
+        return RetryRule(0)
+
+    def __post_init__(self) -> None:
+        unknown = [name for name, _ in self.rules if name not in REASONS]
+        if unknown:
+            raise ValueError(f"retry rules for unknown reasons {unknown}; known: {', '.join(REASONS)}")
+
+
+DEFAULT_POLICY = RetryPolicy(
+    rules=(
+        # A missed grasp: the object moved or was localized badly; look again, reach again.
+        ("not_grasped", RetryRule(2, "relocalize")),
+        # The plan hit something: plan again from the state the robot is in now.
+        ("collision", RetryRule(2, "replan")),
+        # A planner found no solution: a fresh localization may move the goal into reach.
+        ("infeasible", RetryRule(1, "relocalize")),
+        # A service died or is restarting: wait for its liveliness token, then retry.
+        ("unavailable", RetryRule(3, "wait_service", backoff_s=0.5)),
+        ("timeout", RetryRule(2, "wait_service", backoff_s=0.5)),
+        ("internal", RetryRule(1, "none", backoff_s=0.5)),
+    )
+)

@@ -1,0 +1,146 @@
+"""The supervisor's script language: one action per line.
+
+::
+
+    # fetch the orange ball (comments start with '#')
+    localize green_box
+    goto green_box distance=0.7
+    localize orange_ball
+    reach right orange_ball
+    grasp right as ball          # 'as NAME' names what the action returns (here: the object held)
+    turn 180
+    put ball on=yellow_table
+
+A line is ``ACTION ARG... [KEY=VALUE...] [as NAME]``. Arguments are words (object names use
+underscores: ``orange_ball``) or numbers. ``$NAME`` or a bare ``NAME`` bound by an earlier ``as``
+refers to what that action returned. Parsing checks every line against the action signatures
+before anything runs, and errors name the line and suggest the closest action.
+"""
+
+from __future__ import annotations
+
+import difflib
+import shlex
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from services.errors import InvalidRequestError
+
+
+@dataclass(frozen=True)
+class Signature:
+    """An action's arguments: positional names, optional keyword names, and a one-line help."""
+
+    positional: tuple[str, ...]
+    keywords: tuple[str, ...] = ()
+    optional_positional: int = 0  # how many trailing positionals may be omitted
+    help: str = ""
+
+    def usage(self, name: str) -> str:
+        required = self.positional[: len(self.positional) - self.optional_positional]
+        optional = self.positional[len(required) :]
+        parts = [name, *required, *(f"[{p}]" for p in optional), *(f"[{k}=...]" for k in self.keywords)]
+        return " ".join(parts)
+
+
+# The actions of the supervisor (the ball-fetching experiment of the motion-autonomy paper).
+ACTIONS: dict[str, Signature] = {
+    "detect": Signature(("object",), help="is the object in view now (no head motion)"),
+    "localize": Signature(("object",), help="find the object's 3D position, looking around if needed"),
+    "goto": Signature(("target",), ("distance",), help="walk in front of a place/object or to 'x,y,yaw'"),
+    "turn": Signature(("angle_deg",), help="turn in place (positive = left)"),
+    "reach": Signature(("hand", "target"), help="reach a hand to an object or 'x,y,z', stepping if needed"),
+    "grasp": Signature(("hand",), help="close the hand; returns the object held"),
+    "open": Signature(("hand",), help="open the hand, releasing what it holds"),
+    "put": Signature(("object",), ("on",), help="put the held object on a place"),
+    "look_at": Signature(("object",), help="turn the head toward an object"),
+}
+
+HANDS = ("left", "right")
+
+
+@dataclass(frozen=True)
+class Step:
+    """One parsed line of a script."""
+
+    line: int
+    action: str
+    args: tuple[str, ...]
+    kwargs: dict[str, str] = field(default_factory=dict)
+    bind: str | None = None  # the name given with 'as NAME'
+
+    def text(self) -> str:
+        words = [self.action, *self.args, *(f"{k}={v}" for k, v in self.kwargs.items())]
+        if self.bind:
+            words += ["as", self.bind]
+        return " ".join(words)
+
+
+def parse_line(text: str, line: int = 1) -> Step | None:
+    """Parse one line; None for blank/comment lines; InvalidRequestError saying what is wrong."""
+    try:
+        words = shlex.split(text, comments=True)
+    except ValueError as exc:
+        raise InvalidRequestError(f"line {line}: {exc}") from None
+    if not words:
+        return None
+    action, rest = words[0].lower(), words[1:]
+    signature = ACTIONS.get(action)
+    if signature is None:
+        hint = difflib.get_close_matches(action, ACTIONS, n=1)
+        suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
+        raise InvalidRequestError(
+            f"line {line}: unknown action '{action}'{suggestion} Actions: {', '.join(ACTIONS)}"
+        )
+    bind = None
+    if len(rest) >= 2 and rest[-2] == "as":
+        bind = rest[-1]
+        rest = rest[:-2]
+    args: list[str] = []
+    kwargs: dict[str, str] = {}
+    for word in rest:
+        if "=" in word:
+            key, value = word.split("=", 1)
+            if key not in signature.keywords:
+                valid = ", ".join(signature.keywords) or "none"
+                raise InvalidRequestError(f"line {line}: '{action}' has no option '{key}' (options: {valid})")
+            kwargs[key] = value
+        else:
+            args.append(word.removeprefix("$"))
+    required = len(signature.positional) - signature.optional_positional
+    if not required <= len(args) <= len(signature.positional):
+        raise InvalidRequestError(
+            f"line {line}: '{action}' takes {signature.usage(action)}, got {len(args)} argument(s)"
+        )
+    if "hand" in signature.positional:
+        hand = args[signature.positional.index("hand")]
+        if hand not in HANDS:
+            raise InvalidRequestError(f"line {line}: hand '{hand}' is not one of {', '.join(HANDS)}")
+    return Step(line=line, action=action, args=tuple(args), kwargs=kwargs, bind=bind)
+
+
+def parse_script(text: str) -> list[Step]:
+    """Parse a whole script; every error of every line is reported at once."""
+    steps: list[Step] = []
+    errors: list[str] = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        try:
+            step = parse_line(raw, number)
+        except InvalidRequestError as exc:
+            errors.append(exc.message)
+            continue
+        if step is not None:
+            steps.append(step)
+    if errors:
+        raise InvalidRequestError("; ".join(errors), {"errors": errors})
+    if not steps:
+        raise InvalidRequestError("the script has no action (only blank lines or comments)")
+    return steps
+
+
+def load_script(path: str | Path) -> list[Step]:
+    try:
+        text = Path(path).read_text()
+    except FileNotFoundError:
+        raise InvalidRequestError(f"script {path} does not exist") from None
+    return parse_script(text)

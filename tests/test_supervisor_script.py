@@ -1,0 +1,139 @@
+"""The supervisor's script language, console mapping and retry runner (no bus needed)."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from services.errors import InvalidRequestError, UnavailableError
+from supervisor.console import interpret
+from supervisor.report import ActionReport
+from supervisor.retry import RetryPolicy, RetryRule
+from supervisor.runner import Runner
+from supervisor.script import parse_script
+
+KNOWN = ("orange_ball", "green_box", "yellow_table")
+
+
+def test_script_parses_actions_options_bindings_and_comments() -> None:
+    steps = parse_script(
+        """
+        # fetch
+        localize green_box
+        goto green_box distance=0.7   # stand in front
+        grasp right as ball
+        put ball on=yellow_table
+        """
+    )
+    assert [s.action for s in steps] == ["localize", "goto", "grasp", "put"]
+    assert steps[1].kwargs == {"distance": "0.7"}
+    assert steps[2].bind == "ball"
+    assert steps[3].line == 6
+
+
+def test_script_errors_name_every_bad_line_and_suggest() -> None:
+    with pytest.raises(InvalidRequestError) as info:
+        parse_script("localise orange_ball\ngrasp middle\ngoto box speed=2\nturn")
+    message = info.value.message
+    assert "line 1: unknown action 'localise'; did you mean 'localize'?" in message
+    assert "line 2: hand 'middle' is not one of left, right" in message
+    assert "line 3: 'goto' has no option 'speed' (options: distance)" in message
+    assert "line 4: 'turn' takes turn angle_deg, got 0 argument(s)" in message
+
+
+def test_empty_script_is_an_error() -> None:
+    with pytest.raises(InvalidRequestError, match="no action"):
+        parse_script("# nothing\n\n")
+
+
+@pytest.mark.parametrize(
+    ("text", "actions"),
+    [
+        ("take the orange ball", ["localize", "reach", "grasp"]),
+        ("Go to the yellow table.", ["localize", "goto"]),
+        ("put it on the table", ["localize", "put"]),
+        ("look at the green box", ["look_at"]),
+        ("turn left", ["turn"]),
+    ],
+)
+def test_console_maps_plain_commands_to_actions(text: str, actions: list[str]) -> None:
+    assert [s.action for s in interpret(text, KNOWN).steps] == actions
+
+
+def test_console_resolves_short_names_and_turn_angles() -> None:
+    assert interpret("put it on the table", KNOWN).steps[1].kwargs == {"on": "yellow_table"}
+    assert interpret("turn right 45 degrees", KNOWN).steps[0].args == ("-45",)
+    assert interpret("turn around", KNOWN).steps[0].args == ("180",)
+    assert interpret("stop", KNOWN).control == "stop"
+
+
+def test_console_suggests_the_closest_command_and_lists_known_objects() -> None:
+    with pytest.raises(InvalidRequestError, match="The closest I know: 'take the orange ball'"):
+        interpret("tkae the orange ball", KNOWN)
+    with pytest.raises(InvalidRequestError, match="Known objects: orange ball, green box, yellow table"):
+        interpret("go to the kitchen", KNOWN)
+
+
+def _flaky(failures: list[str]):
+    """An action that fails with the given reasons in turn, then succeeds."""
+    calls = []
+
+    def action(step):
+        calls.append(step)
+        if len(calls) <= len(failures):
+            return ActionReport(step.action, step.args, ok=False, reason=failures[len(calls) - 1])
+        return ActionReport(step.action, step.args, details={"object": "orange_ball"})
+
+    return action, calls
+
+
+def test_runner_retries_within_the_policy_runs_remedies_and_binds_names() -> None:
+    grasp, calls = _flaky(["not_grasped"])
+    remedies_run = []
+    events = []
+    runner = Runner(
+        {
+            "grasp": grasp,
+            "put": lambda step: ActionReport("put", step.args, details={"on": step.kwargs["on"]}),
+        },
+        remedies={"relocalize": lambda step, report: remedies_run.append(report.reason)},
+        on_event=events.append,
+    )
+    result = runner.run(parse_script("grasp right as ball\nput ball on=yellow_table"))
+    assert result.ok and result.retries == 1
+    assert remedies_run == ["not_grasped"]
+    assert result.reports[1].args == ("orange_ball",)  # the bound name was resolved
+    assert [e.kind for e in events] == [
+        "started",
+        "failed",
+        "retried",
+        "started",
+        "finished",
+        "started",
+        "finished",
+    ]
+    assert len(calls) == 2
+
+
+def test_runner_gives_up_after_the_bounded_retries_and_stops_the_script() -> None:
+    grasp, calls = _flaky(["not_grasped"] * 10)
+    policy = RetryPolicy((("not_grasped", RetryRule(2, "none")),))
+    result = Runner({"grasp": grasp, "open": grasp}, policy=policy).run(
+        parse_script("grasp right\nopen right")
+    )
+    assert not result.ok
+    assert result.failure is not None and result.failure.reason == "not_grasped"
+    assert result.failure.attempts == 3 and len(calls) == 3 and len(result.reports) == 1
+
+
+def test_runner_turns_typed_exceptions_into_reports_and_honours_stop() -> None:
+    def down(step):
+        raise UnavailableError("footsteps is restarting")
+
+    stop = threading.Event()
+    policy = RetryPolicy((("unavailable", RetryRule(5, "none")),))
+    runner = Runner({"reach": down}, policy=policy, stop=stop, on_event=lambda e: stop.set())
+    report = runner.run(parse_script("reach right orange_ball")).reports[0]
+    assert not report.ok and report.reason in ("unavailable", "stopped")
+    assert report.attempts <= 2
