@@ -1,0 +1,174 @@
+"""Plain data types of the robot model interface (frozen dataclasses, no pinocchio objects)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from services.errors import InvalidRequestError
+
+SIDES = ("left", "right")
+
+
+def check_side(side: str) -> str:
+    """Return ``side`` if it is "left" or "right", else raise :class:`InvalidRequestError`."""
+    if side not in SIDES:
+        raise InvalidRequestError(f"side must be 'left' or 'right', got {side!r}", {"valid": list(SIDES)})
+    return side
+
+
+class JointIndex(NamedTuple):
+    """Where one actuated (1-DoF) joint sits in q (``idx_q``) and in v (``idx_v``)."""
+
+    idx_q: int
+    idx_v: int
+
+
+@dataclass(frozen=True)
+class RobotFrames:
+    """Names of the pinocchio frames with a role. All frames follow REP-103 body conventions (x forward,
+    y left, z up in half-sitting) except camera optical frames (z forward along the optical axis,
+    x right, y down in the image).
+
+    - ``left_sole``/``right_sole``: centre of the sole rectangle, on the sole surface, z up (normal).
+    - ``left_grasp``/``right_grasp``: between the fingertips (centre of the open gripper); z points
+      from the grasp point back towards the wrist, y is the closing direction axis of the fingers.
+    - ``gaze``: in the head, x is the gaze axis (middle of the wide stereo pair).
+    - ``torso``: chest frame after the chest pitch joint; ``base``: the waist (free-flyer) frame.
+    """
+
+    left_sole: str
+    right_sole: str
+    left_grasp: str
+    right_grasp: str
+    gaze: str
+    torso: str
+    base: str
+
+    def sole(self, side: str) -> str:
+        """Sole frame name of ``side`` ("left" or "right")."""
+        return self.left_sole if check_side(side) == "left" else self.right_sole
+
+    def grasp(self, side: str) -> str:
+        """Grasp frame name of ``side`` ("left" or "right")."""
+        return self.left_grasp if check_side(side) == "left" else self.right_grasp
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """A segment swept by a sphere, fixed to a pinocchio frame: points in that frame [m]."""
+
+    name: str
+    frame: str
+    p0_local: tuple[float, float, float]
+    p1_local: tuple[float, float, float]
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """A pinhole camera on a robot frame (optical convention: z forward, x right, y down).
+
+    Intrinsics [px] are for ``width_px`` x ``height_px``; use :meth:`scaled` for another resolution.
+    """
+
+    frame: str
+    width_px: int
+    height_px: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def K(self) -> np.ndarray:  # noqa: N802 (the usual name of the intrinsic matrix)
+        """3x3 intrinsic matrix [px]."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def hfov_rad(self) -> float:
+        """Horizontal field of view [rad]."""
+        return 2.0 * math.atan2(self.width_px / 2.0, self.fx)
+
+    @property
+    def vfov_rad(self) -> float:
+        """Vertical field of view [rad]."""
+        return 2.0 * math.atan2(self.height_px / 2.0, self.fy)
+
+    def scaled(self, width_px: int, height_px: int) -> CameraSpec:
+        """The same camera rendered at another resolution (same field of view)."""
+        if width_px <= 0 or height_px <= 0:
+            raise InvalidRequestError(f"image size must be positive, got {width_px}x{height_px}")
+        sx = width_px / self.width_px
+        sy = height_px / self.height_px
+        return CameraSpec(
+            self.frame, width_px, height_px, self.fx * sx, self.fy * sy, self.cx * sx, self.cy * sy
+        )
+
+
+@dataclass(frozen=True)
+class StereoPair:
+    """Two camera names (keys of ``RobotModel.cameras``) and their baseline [m] (right is at -baseline
+    along the left camera's optical x axis)."""
+
+    left: str
+    right: str
+    baseline_m: float
+
+
+@dataclass(frozen=True)
+class FootstepBounds:
+    """Bounds of the left sole pose in the right sole frame (footstep paper §4; the right sole in the
+    left sole frame is mirrored: dy and dtheta change sign) [m, rad]."""
+
+    dx_min_m: float
+    dx_max_m: float
+    dy_min_m: float
+    dy_max_m: float
+    dtheta_min_rad: float
+    dtheta_max_rad: float
+
+    def for_swing(
+        self, swing_side: str
+    ) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+        """((dx_min, dx_max), (dy_min, dy_max), (dtheta_min, dtheta_max)) of ``swing_side`` sole in the
+        frame of the other sole."""
+        if check_side(swing_side) == "left":
+            return (
+                (self.dx_min_m, self.dx_max_m),
+                (self.dy_min_m, self.dy_max_m),
+                (self.dtheta_min_rad, self.dtheta_max_rad),
+            )
+        return (
+            (self.dx_min_m, self.dx_max_m),
+            (-self.dy_max_m, -self.dy_min_m),
+            (-self.dtheta_max_rad, -self.dtheta_min_rad),
+        )
+
+
+@dataclass(frozen=True)
+class GripperSpec:
+    """Gripper joint values: ``open_q`` and ``closed_q`` (in the joint's unit, m or rad)."""
+
+    open_q: float
+    closed_q: float
+
+
+@dataclass(frozen=True)
+class RobotParams:
+    """Per-robot parameters, one YAML file per robot (``services/model/data/<robot>.yaml``)."""
+
+    footstep_bounds: FootstepBounds
+    step_height_m: float
+    com_height_m: float
+    step_duration_s: float
+    double_support_s: float
+    manipulability_threshold: float
+    ee_error_threshold_m: float
+    fall_base_height_m: float
+    fall_tilt_rad: float
+    gripper: GripperSpec
+    extra: dict[str, float] = field(default_factory=dict)
