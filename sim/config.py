@@ -1,0 +1,86 @@
+"""Configuration of the simulation (one frozen dataclass; YAML section ``sim:`` overrides the defaults)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from services.errors import InvalidRequestError
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Options of the sim world and service.
+
+    Attributes:
+        model: robot model name (``services.model.load_robot``): ``hrp2_like`` or ``talos``.
+        scene: scene loaded at start-up (a name in ``sim/scenes`` or a YAML path).
+        seed: seed of the start-up layout (None: the nominal layout of the scene file).
+        realtime: pace the simulation at wall-clock speed and keep stepping while idle (robot standing);
+            off (default): execute as fast as possible and freeze physics between requests.
+        physics_dt_s: physics step [s] (1 kHz).
+        control_dt_s: trajectory sample period and state publishing period [s] (5 ms = 200 Hz).
+        solver_iterations: pybullet constraint solver iterations per step.
+        position_gain, velocity_gain: pybullet position-control gains of every joint (the motor is a
+            constraint: ``kp (q* - q) / dt + kd (v* - v)``, forces capped at the URDF effort limits).
+        max_start_jump_rad: a trajectory whose first sample is farther than this from the current
+            joint positions is rejected (plan from the current state, ``sim/state``) [rad].
+        gripper_timeout_s: longest opening/closing motion of a gripper [s].
+        settle_s: physics time run after a reset so that objects come to rest [s].
+        loaded_foot_force_n: a sole carries weight (and its slip is measured) above this normal force [N].
+        contact_force_n: contacts weaker than this are ignored when looking for collisions [N].
+        render_near_m, render_far_m: clipping planes of the cameras [m].
+    """
+
+    model: str = "hrp2_like"
+    scene: str = "empty"
+    seed: int | None = None
+    realtime: bool = False
+    physics_dt_s: float = 0.001
+    control_dt_s: float = 0.005
+    solver_iterations: int = 20
+    position_gain: float = 0.3
+    velocity_gain: float = 1.0
+    max_start_jump_rad: float = 0.2
+    gripper_timeout_s: float = 2.5
+    settle_s: float = 0.3
+    loaded_foot_force_n: float = 30.0
+    contact_force_n: float = 0.05
+    render_near_m: float = 0.05
+    render_far_m: float = 30.0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "physics_dt_s",
+            "control_dt_s",
+            "position_gain",
+            "velocity_gain",
+            "max_start_jump_rad",
+            "gripper_timeout_s",
+            "render_near_m",
+            "render_far_m",
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise InvalidRequestError(f"sim config: {name} must be a positive number, got {value!r}")
+        if self.settle_s < 0 or self.contact_force_n < 0 or self.loaded_foot_force_n < 0:
+            raise InvalidRequestError(
+                "sim config: settle_s, contact_force_n and loaded_foot_force_n must be >= 0"
+            )
+        if self.solver_iterations < 1:
+            raise InvalidRequestError(
+                f"sim config: solver_iterations must be >= 1, got {self.solver_iterations}"
+            )
+        ratio = self.control_dt_s / self.physics_dt_s
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise InvalidRequestError(
+                f"sim config: control_dt_s ({self.control_dt_s}) must be a multiple of physics_dt_s "
+                f"({self.physics_dt_s})"
+            )
+        if self.render_near_m >= self.render_far_m:
+            raise InvalidRequestError("sim config: render_near_m must be below render_far_m")
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control period."""
+        return round(self.control_dt_s / self.physics_dt_s)

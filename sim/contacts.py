@@ -1,0 +1,113 @@
+"""Which robot-scene contacts are planned, and which are collisions.
+
+Planned contacts:
+
+* a sole (foot link) on the floor;
+* a hand (gripper links) on an object it holds, or on an object named in ``allowed`` (the grasp target,
+  a table the hand puts something on);
+* an object held by the robot touching a hand, an ``allowed`` object, or an object it already touched
+  when the motion started (lifting it off its support).
+
+Every other contact between the robot (or an object it holds) and the scene is a collision. Contacts
+among scene objects (a ball resting on a box) are never reported. Self-contacts of the robot are not
+simulated (planners check self-collision on the capsule model).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import pybullet as p
+
+# Indices in the tuples returned by pybullet.getContactPoints.
+_BODY_A, _BODY_B, _LINK_A, _LINK_B, _POS_ON_A, _DISTANCE, _NORMAL_FORCE = 1, 2, 3, 4, 5, 8, 9
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A contact between the robot side (``robot_link``: a link name or ``held:<object>``) and ``other``
+    (an object name or ``floor``) at ``position`` [m] (world) with ``normal_force_n`` [N]."""
+
+    robot_link: str
+    other: str
+    position: tuple[float, float, float]
+    normal_force_n: float
+
+
+@dataclass
+class ContactRules:
+    """Everything needed to tell planned contacts from collisions (pybullet ids)."""
+
+    client: int
+    robot_id: int
+    floor_id: int
+    names: dict[int, str]  # body id -> object name (scene objects)
+    link_name: dict[int, str]  # robot link index -> link name
+    foot_links: frozenset[int]
+    hand_links: frozenset[int]
+    held: dict[str, int] = field(default_factory=dict)  # held object name -> body id
+    allowed: frozenset[str] = frozenset()
+    already_touching: frozenset[tuple[str, str]] = frozenset()  # (held object, other) at motion start
+    min_force_n: float = 0.05
+
+    def other_name(self, body: int) -> str:
+        return "floor" if body == self.floor_id else self.names.get(body, f"body{body}")
+
+    def robot_contacts(self) -> list[tuple[int, int, tuple[float, float, float], float]]:
+        """(robot link, other body, position, normal force) of every current robot-scene contact."""
+        out = []
+        for c in p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client):
+            if c[_BODY_B] == self.robot_id or c[_NORMAL_FORCE] < self.min_force_n:
+                continue
+            out.append((c[_LINK_A], c[_BODY_B], c[_POS_ON_A], c[_NORMAL_FORCE]))
+        return out
+
+    def held_contacts(self) -> list[tuple[str, int, tuple[float, float, float], float]]:
+        """(held object, other body, position, normal force) of contacts of held objects with the scene."""
+        held_ids = set(self.held.values())
+        out = []
+        for name, body in self.held.items():
+            for c in p.getContactPoints(bodyA=body, physicsClientId=self.client):
+                other = c[_BODY_B]
+                if other == self.robot_id or other in held_ids or c[_NORMAL_FORCE] < self.min_force_n:
+                    continue
+                out.append((name, other, c[_POS_ON_A], c[_NORMAL_FORCE]))
+        return out
+
+    def touching_pairs(self) -> frozenset[tuple[str, str]]:
+        """(held object, other) pairs in contact now (recorded when a motion starts)."""
+        return frozenset((name, self.other_name(other)) for name, other, _, _ in self.held_contacts())
+
+    def collisions(self) -> list[Contact]:
+        """Unplanned contacts now, one per (robot link or held object, other) pair (strongest point)."""
+        found: dict[tuple[str, str], Contact] = {}
+        held_names = {body: name for name, body in self.held.items()}
+        for link, other, pos, force in self.robot_contacts():
+            other_name = self.other_name(other)
+            if other == self.floor_id and link in self.foot_links:
+                continue
+            if link in self.hand_links and (other in held_names or other_name in self.allowed):
+                continue
+            _keep(found, Contact(self.link_name.get(link, f"link{link}"), other_name, tuple(pos), force))
+        for name, other, pos, force in self.held_contacts():
+            other_name = self.other_name(other)
+            if other_name in self.allowed or (name, other_name) in self.already_touching:
+                continue
+            _keep(found, Contact(f"held:{name}", other_name, tuple(pos), force))
+        return list(found.values())
+
+
+def _keep(found: dict[tuple[str, str], Contact], contact: Contact) -> None:
+    key = (contact.robot_link, contact.other)
+    if key not in found or found[key].normal_force_n < contact.normal_force_n:
+        found[key] = contact
+
+
+def floor_force(client: int, robot_id: int, floor_id: int, links: Iterable[int]) -> dict[int, float]:
+    """Total normal force [N] of the floor on each of ``links``."""
+    forces = dict.fromkeys(links, 0.0)
+    for c in p.getContactPoints(bodyA=robot_id, bodyB=floor_id, physicsClientId=client):
+        if c[_LINK_A] in forces:
+            forces[c[_LINK_A]] += c[_NORMAL_FORCE]
+    return forces

@@ -1,0 +1,301 @@
+"""The ``sim`` service: the pybullet world (sim/world.py) on the bus.
+
+Run: ``python -m sim.service [--scene ball_fetch] [--seed 3] [--model talos] [--realtime]`` (plus the
+common service options: ``--config``, ``--robot``, ``--hub``, ``--log-level``); the same options can
+be given in the ``sim:`` section of the config file (:class:`sim.config.SimConfig`).
+
+Time: physics only advances inside requests (execute, gripper, reset) by default, as fast as the CPU
+allows, and stays frozen in between, so that runs are reproducible and idle services cost nothing.
+With ``realtime`` the sim is paced at wall-clock speed and keeps stepping while idle (the robot stands,
+the clock advances), like a real robot. ``joint_state``, ``base_pose`` and ``clock`` are published at
+every 5 ms of sim time whenever physics runs.
+
+pybullet is not thread-safe: one lock serializes every access to the world (a render waits for a
+running execute to finish).
+"""
+
+from __future__ import annotations
+
+import argparse
+import threading
+import time
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from services.bus.schemas import sim as msg
+from services.bus.service import Service, config_with, handles, run_service
+from services.errors import InvalidRequestError
+from services.model import load_robot
+from sim.config import SimConfig
+from sim.scene import load_scene
+from sim.world import World
+
+_RESYNC_BEHIND_S = 0.1  # realtime pacing gives up catching up when this far behind the wall clock
+
+
+class SimService(Service):
+    """Simulated robot and world (pybullet): executes trajectories, renders the head cameras, grasps."""
+
+    name = "sim"
+    Config = SimConfig
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--scene", help="scene at start-up (a name in sim/scenes or a YAML path)")
+        parser.add_argument(
+            "--seed", type=int, help="seed of the start-up layout (default: the nominal layout)"
+        )
+        parser.add_argument("--model", help="robot model: hrp2_like (default) or talos")
+        parser.add_argument(
+            "--realtime", action="store_true", help="pace at wall-clock speed and step while idle"
+        )
+
+    @classmethod
+    def configure(cls, config: SimConfig, args: argparse.Namespace) -> SimConfig:
+        changes: dict[str, Any] = {
+            k: getattr(args, k) for k in ("scene", "seed", "model") if getattr(args, k) is not None
+        }
+        if args.realtime:
+            changes["realtime"] = True
+        config = config_with(config, **changes)
+        load_robot(config.model)  # fail at start-up with a message rather than inside the running service
+        load_scene(config.scene)
+        return config
+
+    def start(self) -> None:
+        cfg: SimConfig = self.config
+        self.lock = threading.RLock()
+        self.world = World(cfg.model, cfg.scene, cfg.seed, cfg)
+        self._pub_state = self.publisher(msg.JOINT_STATE)
+        self._pub_base = self.publisher(msg.BASE_POSE)
+        self._pub_clock = self.publisher(msg.CLOCK)
+        self._pace_anchor: tuple[float, float] | None = None  # (sim time, wall time)
+        self._pacing_in_tick = True
+        self.world.on_tick = self._on_tick
+        self._stop_idle = threading.Event()
+        self._idle_thread: threading.Thread | None = None
+        if cfg.realtime:
+            self._idle_thread = threading.Thread(target=self._idle_loop, name="sim:idle", daemon=True)
+            self._idle_thread.start()
+        self.log.info(
+            "world ready: robot %s, scene %s, %s",
+            cfg.model,
+            cfg.scene,
+            "realtime" if cfg.realtime else "as fast as possible, frozen while idle",
+        )
+
+    def stop(self) -> None:
+        self._stop_idle.set()
+        if self._idle_thread is not None:
+            self._idle_thread.join(timeout=1.0)
+        with self.lock:
+            self.world.on_tick = None
+            self.world.close()
+
+    # ------------------------------------------------------------------------------ publishing, pacing
+    def _on_tick(self, world: World) -> None:
+        state = world.state()
+        xyzquat = pin.SE3ToXYZQUAT(world.base_pose())
+        lin, ang = world.base_velocity()
+        t = state.sim_time_s
+        self._pub_state.put(msg.JointState(sim_time_s=t, q=state.q, v=state.v))
+        self._pub_base.put(
+            msg.BasePose(
+                sim_time_s=t,
+                position=xyzquat[:3].tolist(),
+                quaternion=xyzquat[3:].tolist(),
+                linear_velocity=lin.tolist(),
+                angular_velocity=ang.tolist(),
+            )
+        )
+        self._pub_clock.put(msg.Clock(sim_time_s=t))
+        if self.config.realtime and self._pacing_in_tick:
+            delay = self._pace_delay(t)
+            if delay > 0.0:
+                time.sleep(delay)
+
+    def _pace_delay(self, sim_time_s: float) -> float:
+        """Wall time to wait so that sim time does not run ahead of the wall clock [s]."""
+        now = time.monotonic()
+        if self._pace_anchor is None:
+            self._pace_anchor = (sim_time_s, now)
+            return 0.0
+        sim0, wall0 = self._pace_anchor
+        ahead = (sim_time_s - sim0) - (now - wall0)
+        if ahead < -_RESYNC_BEHIND_S:  # too slow to keep up: do not burst to catch up later
+            self._pace_anchor = (sim_time_s, now)
+            return 0.0
+        return ahead
+
+    def _idle_loop(self) -> None:
+        while not self._stop_idle.is_set():
+            with self.lock:
+                self._pacing_in_tick = False
+                try:
+                    self.world.step_control()
+                    delay = self._pace_delay(self.world.sim_time_s)
+                finally:
+                    self._pacing_in_tick = True
+            if delay > 0.0:
+                self._stop_idle.wait(delay)
+
+    # ------------------------------------------------------------------------------ endpoints
+    @handles(msg.STATE)
+    def state(self, request: msg.StateRequest) -> msg.StateReply:
+        with self.lock:
+            w = self.world
+            s = w.state()
+            return msg.StateReply(
+                sim_time_s=s.sim_time_s,
+                model=w.robot.name,
+                scene=w.layout.scene.name,
+                seed=w.layout.seed,
+                joint_names=list(w.robot.joint_names),
+                q=s.q,
+                v=s.v,
+                held=dict(w.held),
+                fallen=w.fallen(),
+            )
+
+    @handles(msg.EXECUTE)
+    def execute(self, request: msg.ExecuteRequest) -> msg.ExecuteReply:
+        with self.lock:
+            r = self.world.execute(
+                np.asarray(request.q, dtype=float),
+                request.dt_s,
+                tuple(request.allowed_contacts),
+                request.stop_on_collision,
+                request.hold_s,
+            )
+        return msg.ExecuteReply(
+            outcome=r.outcome,
+            message=r.message,
+            sim_time_s=r.state.sim_time_s,
+            duration_s=r.duration_s,
+            samples_executed=r.samples_executed,
+            q=r.state.q,
+            v=r.state.v,
+            tracking_error_rad=r.tracking_error_rad,
+            tracking_rms_rad=r.tracking_rms_rad,
+            worst_joint=r.worst_joint,
+            base_error_m=r.base_error_m,
+            foot_slip_m=r.foot_slip_m,
+            collisions=[
+                msg.Contact(
+                    robot_link=c.robot_link,
+                    other=c.other,
+                    position=[float(x) for x in c.position],
+                    normal_force_n=float(c.normal_force_n),
+                )
+                for c in r.collisions
+            ],
+            fall_base_height_m=r.fall_base_height_m,
+            fall_tilt_rad=r.fall_tilt_rad,
+        )
+
+    @handles(msg.RENDER)
+    def render(self, request: msg.RenderRequest) -> msg.RenderReply:
+        with self.lock:
+            w = self.world
+            images = w.render(
+                request.camera,
+                request.width_px,
+                request.height_px,
+                depth=request.depth,
+                segmentation=request.segmentation,
+            )
+            t = w.sim_time_s
+            pair = w.robot.stereo_pairs.get(request.camera)
+        return msg.RenderReply(
+            sim_time_s=t,
+            baseline_m=pair.baseline_m if pair is not None else 0.0,
+            images=[
+                msg.CameraImage(
+                    name=im.name,
+                    width_px=im.intrinsics.width_px,
+                    height_px=im.intrinsics.height_px,
+                    K=im.intrinsics.K,
+                    T_world_camera=im.T_world_camera,
+                    rgb=im.rgb,
+                    depth_m=im.depth_m,
+                    segmentation=im.segmentation,
+                    labels=dict(im.labels),
+                )
+                for im in images
+            ],
+        )
+
+    @handles(msg.GRIPPER)
+    def gripper(self, request: msg.GripperRequest) -> msg.GripperReply:
+        with self.lock:
+            r = self.world.gripper(request.side, request.action)
+        return msg.GripperReply(
+            side=r.side,
+            action=r.action,
+            outcome=r.outcome,
+            held=r.held,
+            released=r.released,
+            finger_q=r.finger_q,
+            sim_time_s=r.sim_time_s,
+        )
+
+    @handles(msg.RESET)
+    def reset(self, request: msg.ResetRequest) -> msg.ResetReply:
+        with self.lock:
+            w = self.world
+            layout = w.reset(request.scene or None, request.seed)
+            self._pace_anchor = None
+            return msg.ResetReply(
+                scene=layout.scene.name,
+                seed=layout.seed,
+                objects=[o.name for o in layout.objects],
+                q=w.state().q,
+                sim_time_s=w.sim_time_s,
+            )
+
+    @handles(msg.GROUND_TRUTH)
+    def ground_truth(self, request: msg.GroundTruthRequest) -> msg.GroundTruthReply:
+        with self.lock:
+            w = self.world
+            objects = w.ground_truth()
+            xyzquat = pin.SE3ToXYZQUAT(w.base_pose())
+            return msg.GroundTruthReply(
+                sim_time_s=w.sim_time_s,
+                scene=w.layout.scene.name,
+                seed=w.layout.seed,
+                base_position=xyzquat[:3].tolist(),
+                base_quaternion=xyzquat[3:].tolist(),
+                objects=[
+                    msg.ObjectState(
+                        name=o.name,
+                        kind=o.kind,
+                        position=o.position.tolist(),
+                        quaternion=o.quaternion.tolist(),
+                        colour=list(o.colour),
+                        size_m=list(o.size_m),
+                        radius_m=o.radius_m,
+                        length_m=o.length_m,
+                        mass_kg=o.mass_kg,
+                        held_by=o.held_by,
+                    )
+                    for o in objects.values()
+                ],
+            )
+
+    @handles(msg.SNAPSHOT)
+    def snapshot(self, request: msg.SnapshotRequest) -> msg.SnapshotReply:
+        eye = tuple(request.eye) if request.eye is not None else None
+        target = tuple(request.target) if request.target is not None else None
+        for name, value in (("eye", eye), ("target", target)):
+            if value is not None and len(value) != 3:
+                raise InvalidRequestError(f"snapshot {name} must be [x, y, z] in metres, got {list(value)}")
+        with self.lock:
+            png = self.world.snapshot(request.viewpoint, request.width_px, request.height_px, eye, target)
+            t = self.world.sim_time_s
+        return msg.SnapshotReply(sim_time_s=t, png=np.frombuffer(png, dtype=np.uint8))
+
+
+if __name__ == "__main__":
+    raise SystemExit(run_service(SimService))
