@@ -1,0 +1,110 @@
+"""Support polygons on flat ground: convex hull of the soles in contact, and signed distances to it.
+
+Sign convention: the signed distance of a point is > 0 outside the polygon (its Euclidean distance to
+the polygon) and < 0 inside (minus its distance to the boundary). A ZMP "inside with 10 mm margin" has a
+signed distance <= -0.010 m.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from services.walking.footsteps import SolePose, sole_corners
+from services.walking.timing import DOUBLE, LEFT, RIGHT
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull (h, 2) of points (m, 2), counter-clockwise, without repeated points (monotone chain)."""
+    pts = np.unique(np.asarray(points, dtype=float), axis=0)
+    if pts.shape[0] < 3:
+        return pts
+
+    def cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list[np.ndarray] = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 1e-12:
+            lower.pop()
+        lower.append(p)
+    upper: list[np.ndarray] = []
+    for p in pts[::-1]:
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-12:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def signed_distance(points: np.ndarray, hull: np.ndarray) -> np.ndarray:
+    """Signed distance [m] of points (n, 2) (or one point (2,)) to a convex CCW polygon (h >= 3, 2)."""
+    P = np.atleast_2d(np.asarray(points, dtype=float))
+    a = hull
+    b = np.roll(hull, -1, axis=0)
+    e = b - a  # (h, 2)
+    ap = P[:, None, :] - a[None, :, :]  # (n, h, 2)
+    t = np.clip(np.einsum("nhk,hk->nh", ap, e) / np.einsum("hk,hk->h", e, e), 0.0, 1.0)
+    closest = a[None] + t[..., None] * e[None]
+    dist = np.linalg.norm(P[:, None, :] - closest, axis=2).min(axis=1)
+    cross = e[None, :, 0] * ap[..., 1] - e[None, :, 1] * ap[..., 0]
+    inside = np.all(cross >= 0.0, axis=1)
+    out = np.where(inside, -dist, dist)
+    return out if np.ndim(points) > 1 else out[:1]
+
+
+def sole_polygon(pose_xy_yaw: np.ndarray, length_m: float, width_m: float) -> np.ndarray:
+    """The 4 corners (4, 2) [m] of a sole rectangle centred at (x, y) with yaw, counter-clockwise."""
+    x, y, yaw = (float(v) for v in pose_xy_yaw)
+    return sole_corners(SolePose(x, y, yaw), length_m, width_m)
+
+
+def support_hull(
+    phase: int, left_xy_yaw: np.ndarray, right_xy_yaw: np.ndarray, length_m: float, width_m: float
+) -> np.ndarray:
+    """Support polygon for a phase code: both soles (DOUBLE), the left sole (LEFT) or the right (RIGHT)."""
+    if phase == LEFT:
+        return sole_polygon(left_xy_yaw, length_m, width_m)
+    if phase == RIGHT:
+        return sole_polygon(right_xy_yaw, length_m, width_m)
+    if phase != DOUBLE:
+        raise ValueError(f"unknown support phase code {phase}")
+    return convex_hull(
+        np.vstack(
+            [sole_polygon(left_xy_yaw, length_m, width_m), sole_polygon(right_xy_yaw, length_m, width_m)]
+        )
+    )
+
+
+def distances_to_support(
+    points_m: np.ndarray,
+    phase: np.ndarray,
+    left_sole: np.ndarray,
+    right_sole: np.ndarray,
+    length_m: float,
+    width_m: float,
+) -> np.ndarray:
+    """Signed distance (n,) [m] of each point (n, 2) to the support polygon of its sample.
+
+    ``left_sole`` / ``right_sole`` are (n, 4) = (x, y, z, yaw) or (n, 3) = (x, y, yaw) sole trajectories;
+    the polygon is rebuilt only where the phase or the supporting sole poses change.
+    """
+    P = np.asarray(points_m, dtype=float)
+    L = _xy_yaw(left_sole)
+    R = _xy_yaw(right_sole)
+    n = P.shape[0]
+    key = np.column_stack([phase.astype(float), L, R])
+    key[phase == LEFT, 4:] = 0.0  # the swinging foot does not change the polygon
+    key[phase == RIGHT, 1:4] = 0.0
+    change = np.ones(n, dtype=bool)
+    change[1:] = np.any(np.abs(np.diff(key, axis=0)) > 1e-12, axis=1)
+    starts = np.flatnonzero(change)
+    stops = np.append(starts[1:], n)
+    out = np.empty(n)
+    for s, e in zip(starts, stops, strict=True):
+        hull = support_hull(int(phase[s]), L[s], R[s], length_m, width_m)
+        out[s:e] = signed_distance(P[s:e], hull)
+    return out
+
+
+def _xy_yaw(sole: np.ndarray) -> np.ndarray:
+    sole = np.asarray(sole, dtype=float)
+    return sole[:, [0, 1, 3]] if sole.shape[1] == 4 else sole
