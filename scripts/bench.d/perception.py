@@ -1,0 +1,225 @@
+"""Perception benchmark: 3D error of the ball's localization and time per stereo pair.
+
+For 30 seeded placements of the orange ball (radius 5 cm) at each of 1.0, 1.5 and 2.5 m from the left
+camera, localize it with vision.localize and compare with ground truth. Reports ``err_cm`` =
+{"1.0": {"median", "max"}, ...} and ``ms_per_pair`` (detection in both images + stereo; rendering
+excluded) for the default stereo method, and the same figures for every method ("centroid", "bm",
+"sgbm") on the same images, which is how the default was chosen. Writes bench/out/perception.json.
+
+Goals (issue 8): median <= 1 cm at 1.5 m, <= 3 cm at 2.5 m, <= 20 ms per pair.
+
+The image source is any iterable of :class:`StereoSample`; :func:`synthetic_source` ray-casts them
+(vision.synthetic). A sim-rendered source only has to yield the same samples.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from services.errors import NotFoundError
+from vision import synthetic
+from vision.camera import CameraIntrinsics, StereoRig
+from vision.histogram import ObjectModel, learn_model
+from vision.localize import LocalizeConfig, locate
+from vision.stereo import METHODS, StereoConfig
+
+REPO = Path(__file__).resolve().parents[2]
+OUT = REPO / "bench" / "out" / "perception.json"
+DISTANCES_M = (1.0, 1.5, 2.5)
+GOALS_CM = {"1.5": 1.0, "2.5": 3.0}
+GOAL_MS = 20.0
+DEFAULT_METHOD = StereoConfig().method
+
+
+class StereoSample(NamedTuple):
+    """One rectified stereo pair with ground truth: images BGR uint8, intrinsics, baseline [m], the left
+    camera pose in the world (4x4, optical frame), the ball centre in the world [m], nominal distance [m]."""
+
+    left_bgr: np.ndarray
+    right_bgr: np.ndarray
+    intrinsics: CameraIntrinsics
+    baseline_m: float
+    T_world_left_camera: np.ndarray
+    ball_world: np.ndarray
+    distance_m: float
+
+
+def default_rig() -> StereoRig:
+    """640x480, 60 deg horizontal field of view, 0.144 m baseline (HRP-2's wide pair)."""
+    return StereoRig(CameraIntrinsics.from_hfov(640, 480, np.deg2rad(60.0)), 0.144)
+
+
+def synthetic_source(
+    n_per_distance: int = 30,
+    distances_m: Iterable[float] = DISTANCES_M,
+    seed: int = 0,
+    supersample: int = 2,
+    noise_sigma: float = 2.0,
+    rig: StereoRig | None = None,
+) -> Iterator[StereoSample]:
+    """Seeded ray-cast stereo pairs of the ball on a green box, a yellow table aside, textured room."""
+    rig = rig or default_rig()
+    for distance in distances_m:
+        rng = np.random.default_rng([seed, round(distance * 1000)])
+        for _ in range(n_per_distance):
+            place = synthetic.random_ball_placement(rng, rig, distance)
+            left, right = synthetic.render_stereo(
+                place.scene, rig, place.T_world_left_camera, supersample, noise_sigma, rng
+            )
+            yield StereoSample(
+                left.image_bgr,
+                right.image_bgr,
+                rig.intrinsics,
+                rig.baseline_m,
+                place.T_world_left_camera,
+                place.ball_centre_world,
+                distance,
+            )
+
+
+def learn_synthetic_ball_model(seed: int = 12345, supersample: int = 2) -> ObjectModel:
+    """The ball's model learned from one render (not one of the benchmark's) and its label mask."""
+    rig = default_rig()
+    rng = np.random.default_rng(seed)
+    place = synthetic.random_ball_placement(rng, rig, 1.2)
+    render = synthetic.render(place.scene, rig.intrinsics, place.T_world_left_camera, supersample, 2.0, rng)
+    mask = place.scene.mask_of(render.labels, "orange_ball")
+    return learn_model("orange_ball", [render.image_bgr], [mask], shape="sphere", source="synthetic render")
+
+
+def _stats(values: list[float]) -> dict[str, float]:
+    a = np.asarray(values, float)
+    if a.size == 0:
+        return {"median": float("nan"), "max": float("nan"), "n": 0}
+    return {"median": round(float(np.median(a)), 3), "max": round(float(a.max()), 3), "n": int(a.size)}
+
+
+def run(
+    image_source: Iterable[StereoSample], ball_model: ObjectModel, methods: Iterable[str] = METHODS
+) -> dict:
+    """Localize the ball in every sample with every stereo method; errors [cm] and times [ms]."""
+    methods = list(methods)
+    errors: dict[str, dict[str, list[float]]] = {m: {} for m in methods}
+    times: dict[str, list[float]] = {m: [] for m in methods}
+    failures: dict[str, list[str]] = {m: [] for m in methods}
+    used: dict[str, dict[str, int]] = {m: {} for m in methods}
+    for sample in image_source:
+        rig = StereoRig(sample.intrinsics, sample.baseline_m)
+        key = f"{sample.distance_m:.1f}"
+        for method in methods:
+            config = LocalizeConfig(stereo=StereoConfig(method=method))
+            t0 = time.perf_counter()
+            try:
+                loc = locate(
+                    ball_model, sample.left_bgr, sample.right_bgr, rig, sample.T_world_left_camera, config
+                )
+            except NotFoundError as e:
+                failures[method].append(f"{key} m: {e.message}")
+                continue
+            times[method].append((time.perf_counter() - t0) * 1e3)
+            err_cm = 100.0 * float(np.linalg.norm(np.asarray(loc.position_world) - sample.ball_world))
+            errors[method].setdefault(key, []).append(err_cm)
+            used[method][loc.method] = used[method].get(loc.method, 0) + 1
+    result: dict = {"methods": {}}
+    for method in methods:
+        result["methods"][method] = {
+            "err_cm": {k: _stats(v) for k, v in sorted(errors[method].items())},
+            "ms_per_pair": round(float(np.mean(times[method])), 2) if times[method] else float("nan"),
+            "ms_per_pair_p95": round(float(np.percentile(times[method], 95)), 2)
+            if times[method]
+            else float("nan"),
+            "failures": failures[method],
+            "estimator_used": used[method],
+        }
+    return result
+
+
+def _table(result: dict) -> str:
+    keys = sorted({k for m in result["methods"].values() for k in m["err_cm"]}, key=float)
+    head = (
+        f"{'method':<9}"
+        + "".join(f"{k + ' m med/max [cm]':>22}" for k in keys)
+        + f"{'ms/pair':>9}{'p95':>7}{'fail':>6}"
+    )
+    lines = [head, "-" * len(head)]
+    for name, m in result["methods"].items():
+        cells = "".join(
+            f"{m['err_cm'][k]['median']:>11.2f} / {m['err_cm'][k]['max']:<8.2f}"
+            if k in m["err_cm"]
+            else f"{'-':>22}"
+            for k in keys
+        )
+        mark = " (default)" if name == DEFAULT_METHOD else ""
+        lines.append(
+            f"{name:<9}{cells}{m['ms_per_pair']:>9.2f}{m['ms_per_pair_p95']:>7.2f}{len(m['failures']):>6}{mark}"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="scripts/bench perception",
+        description="3D localization error of the ball at 1.0/1.5/2.5 m and ms per stereo pair "
+        "(synthetic ray-cast stereo pairs); writes bench/out/perception.json.",
+    )
+    parser.add_argument("--n", type=int, default=30, help="placements per distance (default 30)")
+    parser.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
+    parser.add_argument("--supersample", type=int, default=2, help="rays per pixel per axis (default 2)")
+    parser.add_argument("--noise", type=float, default=2.0, help="sensor noise std [grey levels] (default 2)")
+    parser.add_argument("--methods", default=",".join(METHODS), help=f"comma list of {METHODS}")
+    parser.add_argument(
+        "--out", type=Path, default=OUT, help=f"JSON output (default {OUT.relative_to(REPO)})"
+    )
+    args = parser.parse_args(argv)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        parser.error(f"unknown method {bad[0]!r}; choose from {METHODS}")
+    if DEFAULT_METHOD not in methods:
+        methods.insert(0, DEFAULT_METHOD)
+
+    model = learn_synthetic_ball_model(supersample=args.supersample)
+    source = synthetic_source(args.n, DISTANCES_M, args.seed, args.supersample, args.noise)
+    result = run(source, model, methods)
+    default = result["methods"][DEFAULT_METHOD]
+    doc = {
+        "err_cm": default["err_cm"],
+        "ms_per_pair": default["ms_per_pair"],
+        "method": DEFAULT_METHOD,
+        "n_per_distance": args.n,
+        "goals": {"err_cm_median": GOALS_CM, "ms_per_pair": GOAL_MS},
+        "meets_goals": bool(
+            all(default["err_cm"].get(k, {}).get("median", np.inf) <= g for k, g in GOALS_CM.items())
+            and default["ms_per_pair"] <= GOAL_MS
+            and not default["failures"]
+        ),
+        "source": (
+            f"vision.synthetic ray caster, 640x480, hfov 60 deg, baseline 0.144 m, ball radius 5 cm, "
+            f"supersample {args.supersample}, noise {args.noise}, seed {args.seed}"
+        ),
+        **{k: v for k, v in result.items()},
+    }
+    print(_table(result))
+    print(
+        f"goals: median <= 1 cm at 1.5 m, <= 3 cm at 2.5 m, <= {GOAL_MS:.0f} ms per pair -> "
+        f"{'met' if doc['meets_goals'] else 'NOT met'}"
+    )
+    for name, m in result["methods"].items():
+        for f in m["failures"][:3]:
+            print(f"  {name} failure: {f}", file=sys.stderr)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

@@ -1,0 +1,251 @@
+"""One call from a stereo pair to object positions in the world: detection, matching, stereo.
+
+The pipeline of "Object Recognition and Localization" in Yoshida et al. (``001_771c0ce3779b0683.txt``):
+per learned model, back projection of its Hue-Saturation histogram onto both images (vision.backproject),
+CamShift from every blob of the back projection (vision.camshift), the left detection matched to a
+right one on the same rows (rectified pair), then the 3D position by stereo inside the CamShift window
+(vision.stereo) and into the world frame through the left camera's pose (from the robot's kinematics;
+the caller computes T_world_left_camera).
+
+Failures raise NotFoundError whose message says why and whose ``details["reason"]`` is one of
+``not_in_view``, ``ambiguous``, ``not_in_right_view``, ``no_disparity``, ``stereo_mismatch``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from services.errors import InvalidRequestError, NotFoundError
+from vision.backproject import back_project
+from vision.camera import StereoRig
+from vision.camshift import Detection, DetectionConfig, RotatedBox, Window, check_unambiguous, detect_all
+from vision.histogram import ObjectModel, to_hsv
+from vision.stereo import (
+    StereoConfig,
+    dense_disparity_median,
+    dense_point,
+    disparity_range,
+    sphere_centre_pixel,
+    to_world,
+    triangulate_centroids,
+)
+
+
+@dataclass(frozen=True)
+class LocalizeConfig:
+    """Detection and stereo parameters of :func:`localize`."""
+
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    stereo: StereoConfig = field(default_factory=StereoConfig)
+    max_size_ratio: float = 2.0  # left/right blob sizes of one object differ by less than this factor
+
+
+@dataclass(frozen=True)
+class ObjectLocation:
+    """A localized object.
+
+    position_world, position_camera: centre [m] in the world frame and in the left optical frame.
+    size_m: (width, height) of the CamShift box at the object's depth [m] (a ball: its diameter twice).
+    confidence: min of the left and right detection confidences, in [0, 1].
+    disparity_px: disparity used [px]; method: "centroid", "bm" or "sgbm" (see vision.stereo).
+    left, right: the detections in each image (pixel boxes, windows, centroids).
+    """
+
+    name: str
+    position_world: tuple[float, float, float]
+    position_camera: tuple[float, float, float]
+    size_m: tuple[float, float]
+    confidence: float
+    disparity_px: float
+    method: str
+    left: Detection
+    right: Detection
+
+    @property
+    def box_left(self) -> RotatedBox:
+        return self.left.box
+
+    @property
+    def box_right(self) -> RotatedBox:
+        return self.right.box
+
+    @property
+    def window_left(self) -> Window:
+        return self.left.window
+
+
+@dataclass
+class StereoFrame:
+    """A stereo pair with the per-image work shared by every model (HSV, grey)."""
+
+    left_bgr: np.ndarray
+    right_bgr: np.ndarray
+    rig: StereoRig
+    T_world_left_camera: np.ndarray
+    hsv_left: np.ndarray = field(init=False)
+    hsv_right: np.ndarray = field(init=False)
+    _gray: tuple[np.ndarray, np.ndarray] | None = field(init=False, default=None)
+
+    def __post_init__(self) -> None:
+        k = self.rig.intrinsics
+        k.check_image(self.left_bgr, "left image")
+        k.check_image(self.right_bgr, "right image")
+        T = np.asarray(self.T_world_left_camera, float)
+        if T.shape != (4, 4) or not np.allclose(T[3], [0, 0, 0, 1]):
+            raise InvalidRequestError(
+                f"T_world_left_camera must be a 4x4 homogeneous transform, got {T.shape}"
+            )
+        self.T_world_left_camera = T
+        self.hsv_left = to_hsv(self.left_bgr)
+        self.hsv_right = to_hsv(self.right_bgr)
+
+    @property
+    def gray(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._gray is None:
+            self._gray = (
+                cv2.cvtColor(self.left_bgr, cv2.COLOR_BGR2GRAY),
+                cv2.cvtColor(self.right_bgr, cv2.COLOR_BGR2GRAY),
+            )
+        return self._gray
+
+
+def _match_right(
+    left: Detection, candidates: list[Detection], frame: StereoFrame, config: LocalizeConfig
+) -> Detection:
+    """The right-image candidate on the same rows as ``left``, in the disparity range, of similar size."""
+    d_lo, d_hi = disparity_range(frame.rig, config.stereo)
+    size_l = float(np.mean(left.box[1]))
+    best, best_cost = None, np.inf
+    for c in candidates:
+        disparity = left.centre_px[0] - c.centre_px[0]
+        row_tol = config.stereo.max_row_difference_px + 0.05 * size_l
+        size_ratio = float(np.mean(c.box[1])) / size_l
+        if not (0.9 * d_lo <= disparity <= 1.1 * d_hi):
+            continue
+        if abs(left.centre_px[1] - c.centre_px[1]) > row_tol:
+            continue
+        if not (1 / config.max_size_ratio <= size_ratio <= config.max_size_ratio):
+            continue
+        cost = abs(np.log(size_ratio)) + abs(np.log(max(c.score, 1e-9) / max(left.score, 1e-9)))
+        if cost < best_cost:
+            best, best_cost = c, cost
+    if best is None:
+        raise NotFoundError(
+            f"'{left.name}' is seen in the left image at pixel "
+            f"({left.centre_px[0]:.0f}, {left.centre_px[1]:.0f}) "
+            f"but nowhere on the same rows of the right image within disparities [{d_lo:.0f}, {d_hi:.0f}] px "
+            "(occluded or out of the right camera's view)",
+            {"reason": "not_in_right_view"},
+        )
+    return best
+
+
+def locate_in_frame(
+    model: ObjectModel, frame: StereoFrame, config: LocalizeConfig | None = None
+) -> ObjectLocation:
+    """Localize ``model``'s object in a prepared :class:`StereoFrame` (NotFoundError when not found)."""
+    config = config or LocalizeConfig()
+    det_cfg = config.detection
+    bp_left = back_project(frame.hsv_left, model)
+    try:
+        left = check_unambiguous(detect_all(bp_left, model.name, det_cfg), det_cfg, f"'{model.name}'")
+    except NotFoundError as e:
+        e.details.setdefault("object", model.name)
+        raise
+    bp_right = back_project(frame.hsv_right, model)
+    right = _match_right(left, detect_all(bp_right, model.name, det_cfg), frame, config)
+
+    rig = frame.rig
+    method = config.stereo.method
+    if method == "centroid" and (left.touches_border or right.touches_border):
+        method = "bm"  # a silhouette cut by the border moves the centroid; correlation is unaffected
+    if method == "centroid":
+        uv_left, uv_right = left.centre_px, right.centre_px
+        p_camera = triangulate_centroids(rig, uv_left, uv_right)
+        if model.shape == "sphere":
+            radius = 0.25 * (left.box[1][0] + left.box[1][1]) * p_camera[2] / rig.intrinsics.fx
+            p_right = p_camera - rig.T_left_right[:3, 3]
+            uv_left = sphere_centre_pixel(rig, uv_left, radius, float(np.linalg.norm(p_camera)))
+            uv_right = sphere_centre_pixel(rig, uv_right, radius, float(np.linalg.norm(p_right)))
+            p_camera = triangulate_centroids(rig, uv_left, uv_right)
+        disparity = uv_left[0] - uv_right[0]
+    else:
+        x, y, w, h = left.window
+        mask = bp_left[y : y + h, x : x + w] >= det_cfg.threshold
+        gray_l, gray_r = frame.gray
+        disparity, _ = dense_disparity_median(rig, gray_l, gray_r, left.window, mask, config.stereo, method)
+        z = rig.depth_of_disparity(disparity)
+        radius = (
+            0.25 * (left.box[1][0] + left.box[1][1]) * z / rig.intrinsics.fx
+            if model.shape == "sphere"
+            else None
+        )
+        p_camera = dense_point(rig, left.centre_px, disparity, radius)
+    z = float(p_camera[2])
+    size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))
+    p_world = to_world(p_camera, frame.T_world_left_camera)
+    return ObjectLocation(
+        model.name,
+        tuple(float(v) for v in p_world),
+        tuple(float(v) for v in p_camera),
+        size_m,
+        float(min(left.confidence, right.confidence)),
+        float(disparity),
+        method,
+        left,
+        right,
+    )
+
+
+def localize(
+    models: Sequence[ObjectModel],
+    left_bgr: np.ndarray,
+    right_bgr: np.ndarray,
+    rig: StereoRig,
+    T_world_left_camera: np.ndarray,
+    config: LocalizeConfig | None = None,
+    require_all: bool = True,
+) -> list[ObjectLocation]:
+    """Localize every model's object in a rectified stereo pair.
+
+    left_bgr, right_bgr: BGR uint8 images matching ``rig.intrinsics``; T_world_left_camera: 4x4 pose of
+    the left camera optical frame (x right, y down, z forward) in the world frame.
+    Returns one ObjectLocation per object found, in the order of ``models``. With ``require_all`` a
+    missing object raises NotFoundError (``details["missing"]`` maps each missing name to its reason,
+    ``details["found"]`` lists the names found); otherwise missing objects are left out.
+    """
+    config = config or LocalizeConfig()
+    frame = StereoFrame(left_bgr, right_bgr, rig, T_world_left_camera)
+    found: list[ObjectLocation] = []
+    missing: dict[str, str] = {}
+    messages: list[str] = []
+    for model in models:
+        try:
+            found.append(locate_in_frame(model, frame, config))
+        except NotFoundError as e:
+            missing[model.name] = str(e.details.get("reason", "not_found"))
+            messages.append(e.message)
+    if missing and require_all:
+        if len(models) == 1:
+            raise NotFoundError(messages[0], {"object": models[0].name, "reason": missing[models[0].name]})
+        raise NotFoundError(
+            "; ".join(messages),
+            {"missing": missing, "found": [f.name for f in found], "reason": next(iter(missing.values()))},
+        )
+    return found
+
+
+def locate(
+    model: ObjectModel,
+    left_bgr: np.ndarray,
+    right_bgr: np.ndarray,
+    rig: StereoRig,
+    T_world_left_camera: np.ndarray,
+    config: LocalizeConfig | None = None,
+) -> ObjectLocation:
+    """Localize one object (see :func:`localize`); NotFoundError saying why when it is not found."""
+    return localize([model], left_bgr, right_bgr, rig, T_world_left_camera, config)[0]
