@@ -69,8 +69,30 @@ def _dec_hook(type_: type, obj: Any) -> Any:
 _encoder = msgspec.json.Encoder(enc_hook=_enc_hook)
 
 
+class _HasArraysError(Exception):
+    """Raised by the plain encoder's hook on the first array: the message needs a binary frame."""
+
+
+def _plain_enc_hook(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        raise _HasArraysError
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise NotImplementedError(f"cannot encode objects of type {type(obj).__name__}")
+
+
+_plain_encoder = msgspec.json.Encoder(enc_hook=_plain_enc_hook)
+
+
 def encode(msg: Any) -> bytes:
     """Encode a msgspec Struct (or any msgspec-encodable value) into one frame."""
+    try:  # most messages have no array: one msgspec call
+        return _plain_encoder.encode(msg)
+    except _HasArraysError:
+        return _encode_binary(msg)
+
+
+def _encode_binary(msg: Any) -> bytes:
     _local.blobs = []
     _local.offset = 0
     try:
@@ -107,6 +129,8 @@ def _decoder(type_: Any) -> msgspec.json.Decoder:
 def decode(buf: bytes | bytearray | memoryview, type_: type[T]) -> T:
     """Decode one frame as ``type_``; raise InvalidRequestError saying what is wrong and where."""
     try:
+        if buf[:1] != b"H":  # not a binary frame (those start with MAGIC): plain JSON, one call
+            return _decoder(type_).decode(buf)
         header, blob = split(buf)
         _local.blob = blob
         try:
@@ -117,6 +141,14 @@ def decode(buf: bytes | bytearray | memoryview, type_: type[T]) -> T:
         raise InvalidRequestError(f"invalid {_type_name(type_)}: {exc}") from None
     except msgspec.DecodeError as exc:
         raise InvalidRequestError(f"malformed payload for {_type_name(type_)}: {exc}") from None
+
+
+def from_builtins(obj: Any, type_: type[T]) -> T:
+    """Build a message from JSON-like values (arrays as nested lists); InvalidRequestError if wrong."""
+    try:
+        return msgspec.convert(obj, type_, dec_hook=_dec_hook)
+    except msgspec.ValidationError as exc:
+        raise InvalidRequestError(f"invalid {_type_name(type_)}: {exc}") from None
 
 
 def to_builtins(msg: Any) -> Any:

@@ -68,9 +68,10 @@ class BusConfig:
             "listen/endpoints": listen,
             "connect/endpoints": connect,
             "scouting/multicast/enabled": self.multicast_scouting,
-            # Retry the hub quickly: services usually start before or just after it.
+            # Keep retrying the hub, quickly: a service may start before it (or outlive a restart of it).
+            # -1 = retry forever in the background (0 would give up after the first attempt).
             "connect/retry": {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2},
-            "connect/timeout_ms": 0 if self.mode == "peer" else -1,
+            "connect/timeout_ms": -1,
             "connect/exit_on_failure": False,
             "transport/shared_memory/enabled": self.shared_memory,
         }

@@ -15,8 +15,11 @@
 
 What the base does for every service:
 
-* each endpoint's queries are queued by the zenoh callback (which must not block) and served in
-  order by one worker thread per endpoint;
+* each endpoint and each subscription gets a zenoh FIFO channel and one worker thread that takes
+  the queries (samples) from it in order and runs the handler. zenoh's own threads only push into
+  the channel (no Python, no GIL), so a slow handler never stalls the network; the endpoints of a
+  service run concurrently, each endpoint serves one request at a time. A handler declared
+  ``blocking=False`` (microseconds, never waits) runs in zenoh's callback instead: no hand-off;
 * a payload that does not decode, or does not match the request type, gets an ``invalid_request``
   error reply naming the field and the expected type; an exception in a handler gets ``internal``;
   a :class:`~services.errors.HumanoidError` gets its own code. The service keeps serving;
@@ -32,10 +35,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
-import itertools
 import logging
 import os
-import queue
 import signal
 import threading
 import time
@@ -47,15 +48,25 @@ from typing import Any, ClassVar
 import zenoh
 
 from services.bus import keys
-from services.bus.codec import decode, encode
+from services.bus.codec import decode, encode, to_builtins
 from services.bus.config import BusConfig, load_bus_config, load_section
 from services.bus.schemas.common import ErrorInfo, Heartbeat
-from services.bus.session import Client, TypedPublisher, open_session, request_id_bytes
+from services.bus.session import (
+    Client,
+    RequestIds,
+    TypedPublisher,
+    close_session,
+    open_session,
+    request_id_bytes,
+)
 from services.bus.spec import EndpointSpec, TopicSpec
 from services.errors import HumanoidError, InternalError
 
 HEARTBEAT_PERIOD_S = 0.5
-_QUEUE_LIMIT = 64
+#: Queries (or samples) waiting for a busy handler; when full, zenoh holds further ones back.
+QUEUE_CAPACITY = 64
+#: A stopping service exits after this long even if a handler is still running [s].
+EXIT_DEADLINE_S = 0.9
 
 
 @dataclass(frozen=True)
@@ -63,21 +74,35 @@ class NoConfig:
     """For services without options."""
 
 
-def handles(spec: EndpointSpec) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Mark a method as the handler of ``spec``: ``handler(self, request) -> reply``."""
+def handles(
+    spec: EndpointSpec, *, blocking: bool = True
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Mark a method as the handler of ``spec``: ``handler(self, request) -> reply``.
+
+    ``blocking=False`` declares a handler that takes microseconds and never waits (no bus call, no
+    I/O, no lock held by a slow thread): it then runs in zenoh's callback thread, which saves the
+    hand-off to a worker thread (a context switch per request). A planner keeps the default.
+    """
 
     def mark(fn: Callable[..., Any]) -> Callable[..., Any]:
         fn.__bus_endpoint__ = spec  # type: ignore[attr-defined]
+        fn.__bus_blocking__ = blocking  # type: ignore[attr-defined]
         return fn
 
     return mark
 
 
-def subscribes(spec: TopicSpec) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Mark a method as the subscriber of ``spec``: ``handler(self, message) -> None``."""
+def subscribes(
+    spec: TopicSpec, *, blocking: bool = True
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Mark a method as the subscriber of ``spec``: ``handler(self, message) -> None``.
+
+    ``blocking=False``: as for :func:`handles`, the handler runs in zenoh's callback thread.
+    """
 
     def mark(fn: Callable[..., Any]) -> Callable[..., Any]:
         fn.__bus_topic__ = spec  # type: ignore[attr-defined]
+        fn.__bus_blocking__ = blocking  # type: ignore[attr-defined]
         return fn
 
     return mark
@@ -103,9 +128,49 @@ class Service:
     def stop(self) -> None:
         """Called on shutdown, before the session closes."""
 
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """Command-line options of this service beyond the common ones (``python -m <module> --help``)."""
+
+    @classmethod
+    def configure(cls, config: Any, args: argparse.Namespace) -> Any:
+        """The config to run with, given the YAML one and the parsed options of :meth:`add_arguments`."""
+        return config
+
     # Helpers ----------------------------------------------------------------------------------------
-    def publisher(self, spec: TopicSpec) -> TypedPublisher:
-        return TypedPublisher(self.session, self.bus.robot, spec)
+    def publisher(self, spec: TopicSpec, **options: Any) -> TypedPublisher:
+        """A typed publisher on this service's session (options: see TypedPublisher)."""
+        return TypedPublisher(self.session, self.bus.robot, spec, **options)
+
+
+@dataclass
+class _EndpointStats:
+    served: int = 0
+    failed: int = 0
+
+
+class _Mirror:
+    """A publisher of request/reply copies that knows, for free, whether anyone subscribes.
+
+    With no recorder (or ``humanoid echo``) listening, serving a request publishes nothing.
+    """
+
+    def __init__(self, session: zenoh.Session, key: str) -> None:
+        self.matching = False
+        self._pub = session.declare_publisher(key)
+        self._listener = self._pub.declare_matching_listener(self._on_matching)  # zenoh thread, rare
+        self.matching = self._pub.matching_status.matching
+
+    def _on_matching(self, status: Any) -> None:
+        self.matching = status.matching
+
+    def put(self, payload: bytes, attachment: bytes) -> None:
+        self._pub.put(payload, attachment=attachment)
+
+    def undeclare(self) -> None:
+        with contextlib.suppress(zenoh.ZError):
+            self._listener.undeclare()
+        self._pub.undeclare()
 
 
 class _Runtime:
@@ -114,9 +179,9 @@ class _Runtime:
     def __init__(self, service: Service) -> None:
         self.service = service
         self.stopping = threading.Event()
-        self.served = 0
-        self.failed = 0
-        self._ids = itertools.count(int.from_bytes(os.urandom(3), "little") << 32)
+        self.stats: dict[str, _EndpointStats] = {}
+        self._ids = RequestIds()
+        self._channels: list[Any] = []  # queryables and subscribers: undeclared first at shutdown
         self._declared: list[Any] = []
         self._threads: list[threading.Thread] = []
 
@@ -124,102 +189,133 @@ class _Runtime:
         svc = self.service
         for attr in dir(type(svc)):
             fn = getattr(type(svc), attr)
+            blocking = getattr(fn, "__bus_blocking__", True)
             spec = getattr(fn, "__bus_endpoint__", None)
             if spec is not None:
-                self._declare_endpoint(spec, getattr(svc, attr))
+                self._declare_endpoint(spec, getattr(svc, attr), blocking)
             topic = getattr(fn, "__bus_topic__", None)
             if topic is not None:
-                self._declare_subscription(topic, getattr(svc, attr))
+                self._declare_subscription(topic, getattr(svc, attr), blocking)
 
-    def _declare_endpoint(self, spec: EndpointSpec, handler: Callable[[Any], Any]) -> None:
+    def _declare_endpoint(self, spec: EndpointSpec, handler: Callable[[Any], Any], blocking: bool) -> None:
         svc = self.service
         robot = svc.bus.robot
         if spec.service != svc.name:
             raise ValueError(f"{svc.name} cannot serve {spec.path}: it belongs to service {spec.service}")
         mirrors = tuple(
-            svc.session.declare_publisher(k(robot, spec.service, spec.name))
+            _Mirror(svc.session, k(robot, spec.service, spec.name))
             for k in (keys.request_mirror, keys.reply_mirror, keys.error_mirror)
         )
-        pending: queue.Queue[Any] = queue.Queue(maxsize=_QUEUE_LIMIT)
-
-        def on_query(query: zenoh.Query) -> None:  # zenoh thread: never block here
-            try:
-                pending.put_nowait(query)
-            except queue.Full:
-                query.reply_err(_error_frame("unavailable", f"{spec.path} is overloaded, retry later"))
-                query.drop()
-
-        endpoint_key = keys.key(robot, spec.service, spec.name)
-        self._declared.append(svc.session.declare_queryable(endpoint_key, on_query))
         self._declared.extend(mirrors)
-        self._start_worker(f"{spec.path}", lambda: self._serve(spec, handler, pending, mirrors))
+        stats = self.stats.setdefault(spec.path, _EndpointStats())
+        key = keys.key(robot, spec.service, spec.name)
 
-    def _serve(self, spec: EndpointSpec, handler: Callable[[Any], Any], pending: queue.Queue[Any], mirrors):
-        mirror_request, mirror_reply, mirror_error = mirrors
-        while not self.stopping.is_set():
-            try:
-                query = pending.get(timeout=0.1)
-            except queue.Empty:
-                continue
-            rid = request_id_bytes(next(self._ids))
-            try:
-                raw = query.payload.to_bytes() if query.payload is not None else b""
-                mirror_request.put(raw, attachment=rid)
-                request = decode(raw or b"{}", spec.request)
-                reply = handler(request)
-                if not isinstance(reply, spec.reply):
-                    raise InternalError(
-                        f"{spec.path} handler returned {type(reply).__name__}, expected {spec.reply.__name__}"
-                    )
-                frame = encode(reply)
-                query.reply(query.key_expr, frame)
-                mirror_reply.put(frame, attachment=rid)
-                self.served += 1
-            except Exception as exc:  # every failure becomes an error reply; the service keeps serving
-                self.failed += 1
-                if isinstance(exc, HumanoidError):
-                    code, message, details = exc.code, exc.message, exc.details
-                    self.service.log.info("%s -> %s: %s", spec.path, code, message)
-                else:
-                    code, message, details = "internal", f"{type(exc).__name__}: {exc}", {}
-                    self.service.log.error("%s raised:\n%s", spec.path, traceback.format_exc())
-                frame = _error_frame(code, message, details)
+        def serve_one(query: zenoh.Query) -> None:
+            self._serve_one(spec, handler, query, mirrors, stats)
+
+        if not blocking:
+            self._channels.append(svc.session.declare_queryable(key, serve_one))
+            return
+        queryable = svc.session.declare_queryable(key, zenoh.handlers.FifoChannel(QUEUE_CAPACITY))
+        self._channels.append(queryable)
+        # recv() on the handler, not the queryable: undeclare() must not wait for a blocked recv().
+        channel = queryable.handler
+
+        def work() -> None:
+            while True:
                 try:
-                    query.reply_err(frame)
-                    mirror_error.put(frame, attachment=rid)
+                    query = channel.recv()  # blocks without the GIL; ZError once undeclared
                 except zenoh.ZError:
-                    self.service.log.warning("could not send the error reply of %s", spec.path)
-            finally:
-                query.drop()
+                    return
+                serve_one(query)
 
-    def _declare_subscription(self, spec: TopicSpec, handler: Callable[[Any], Any]) -> None:
+        self._start_worker(spec.path, work)
+
+    def _serve_one(
+        self,
+        spec: EndpointSpec,
+        handler: Callable[[Any], Any],
+        query: zenoh.Query,
+        mirrors: tuple[_Mirror, _Mirror, _Mirror],
+        stats: _EndpointStats,
+    ) -> None:
+        raw = query.payload.to_bytes() if query.payload is not None else b""
+        ok, frame = self._handle(spec, handler, raw)
+        try:
+            if ok:
+                query.reply(query.key_expr, frame)
+            else:
+                query.reply_err(frame)
+        except zenoh.ZError as exc:
+            self.service.log.warning("could not reply to a %s request: %s", spec.path, exc)
+        finally:
+            with contextlib.suppress(zenoh.ZError):
+                query.drop()  # the final message: the caller stops waiting now
+        if ok:
+            stats.served += 1
+        else:
+            stats.failed += 1
+        mirror_request, mirror_reply, mirror_error = mirrors
+        outcome = mirror_reply if ok else mirror_error
+        if mirror_request.matching or outcome.matching:
+            rid = request_id_bytes(self._ids.next())
+            with contextlib.suppress(zenoh.ZError):
+                mirror_request.put(raw, rid)
+                outcome.put(frame, rid)
+
+    def _handle(self, spec: EndpointSpec, handler: Callable[[Any], Any], raw: bytes) -> tuple[bool, bytes]:
+        """Run one request: ``(True, reply frame)`` or ``(False, error frame)``; never raises."""
+        log = self.service.log
+        try:
+            request = decode(raw or b"{}", spec.request)
+            reply = handler(request)
+            if not isinstance(reply, spec.reply):
+                raise InternalError(
+                    f"{spec.path} handler returned {type(reply).__name__}, expected {spec.reply.__name__}"
+                )
+            return True, encode(reply)
+        except HumanoidError as exc:
+            log.info("%s -> %s: %s", spec.path, exc.code, exc.message)
+            return False, error_frame(exc.code, exc.message, exc.details)
+        except Exception as exc:  # a bug in the handler: reply internal, keep serving
+            if self.stopping.is_set() and isinstance(exc, zenoh.ZError):
+                log.info("%s interrupted by the shutdown: %s", spec.path, exc)
+            else:
+                log.error("%s raised:\n%s", spec.path, traceback.format_exc())
+            return False, error_frame("internal", f"{type(exc).__name__}: {exc}")
+
+    def _declare_subscription(self, spec: TopicSpec, handler: Callable[[Any], Any], blocking: bool) -> None:
         svc = self.service
-        inbox: queue.Queue[Any] = queue.Queue(maxsize=_QUEUE_LIMIT)
+        key = keys.key(svc.bus.robot, spec.service, spec.name)
 
-        def on_sample(sample: zenoh.Sample) -> None:
+        def consume_one(sample: zenoh.Sample) -> None:
             try:
-                inbox.put_nowait(sample.payload.to_bytes())
-            except queue.Full:
-                svc.log.warning("dropping a %s message: handler too slow", spec.path)
+                handler(decode(sample.payload.to_bytes(), spec.message))
+            except HumanoidError as exc:
+                svc.log.warning("dropped a %s message: %s", spec.path, exc.message)
+            except Exception:
+                svc.log.error("subscriber of %s raised:\n%s", spec.path, traceback.format_exc())
+
+        if not blocking:
+            self._channels.append(svc.session.declare_subscriber(key, consume_one))
+            return
+        subscriber = svc.session.declare_subscriber(key, zenoh.handlers.FifoChannel(QUEUE_CAPACITY))
+        self._channels.append(subscriber)
+        channel = subscriber.handler
 
         def consume() -> None:
-            while not self.stopping.is_set():
+            while True:
                 try:
-                    raw = inbox.get(timeout=0.1)
-                except queue.Empty:
-                    continue
-                try:
-                    handler(decode(raw, spec.message))
-                except Exception:
-                    svc.log.error("subscriber of %s raised:\n%s", spec.path, traceback.format_exc())
+                    sample = channel.recv()
+                except zenoh.ZError:
+                    return
+                consume_one(sample)
 
-        key = keys.key(svc.bus.robot, spec.service, spec.name)
-        self._declared.append(svc.session.declare_subscriber(key, on_sample))
         self._start_worker(f"sub:{spec.path}", consume)
 
     def announce(self) -> None:
         svc = self.service
-        self._declared.append(svc.session.liveliness().declare_token(keys.alive(svc.bus.robot, svc.name)))
+        self._token = svc.session.liveliness().declare_token(keys.alive(svc.bus.robot, svc.name))
         self._start_worker("heartbeat", self._heartbeat)
 
     def _heartbeat(self) -> None:
@@ -227,16 +323,18 @@ class _Runtime:
         pub = svc.session.declare_publisher(keys.heartbeat(svc.bus.robot, svc.name))
         self._declared.append(pub)
         started = time.monotonic()
-        for seq in itertools.count():
+        seq = 0
+        while True:
             beat = Heartbeat(
                 service=svc.name,
                 pid=os.getpid(),
                 seq=seq,
                 wall_time_s=time.time(),
                 uptime_s=time.monotonic() - started,
-                requests_served=self.served,
-                requests_failed=self.failed,
+                requests_served=sum(s.served for s in self.stats.values()),
+                requests_failed=sum(s.failed for s in self.stats.values()),
             )
+            seq += 1
             try:
                 pub.put(encode(beat))
             except zenoh.ZError:
@@ -249,22 +347,29 @@ class _Runtime:
         thread.start()
         self._threads.append(thread)
 
-    def shutdown(self) -> None:
+    def withdraw(self) -> None:
+        """Stop being visible and taking work: liveliness token, queryables and subscribers go."""
         self.stopping.set()
+        token = getattr(self, "_token", None)
+        for declared in ([token] if token is not None else []) + self._channels:
+            with contextlib.suppress(zenoh.ZError):
+                declared.undeclare()
+
+    def shutdown(self, deadline: float) -> None:
+        """Wait for the workers (until ``deadline``, monotonic) and undeclare the publishers."""
         for thread in self._threads:
-            thread.join(timeout=0.3)
+            thread.join(timeout=max(0.0, deadline - time.monotonic()))
         for declared in reversed(self._declared):
             with contextlib.suppress(zenoh.ZError):
                 declared.undeclare()
 
 
-def _error_frame(code: str, message: str, details: dict[str, Any] | None = None) -> bytes:
+def error_frame(code: str, message: str, details: dict[str, Any] | None = None) -> bytes:
+    """The payload of an error reply (:class:`ErrorInfo` JSON)."""
     return encode(ErrorInfo(code=code, message=message, details=_jsonable(details or {})))
 
 
 def _jsonable(details: dict[str, Any]) -> dict[str, Any]:
-    from services.bus.codec import to_builtins
-
     try:
         return to_builtins(details)
     except Exception:
@@ -286,50 +391,99 @@ def serve(
         runtime.declare()
         service.start()
         runtime.announce()
-        service.log.info("ready (pid %d) on %s", os.getpid(), keys.key(bus.robot, service.name, "alive"))
+        service.log.info("ready (pid %d) on %s", os.getpid(), keys.alive(bus.robot, service.name))
         if ready is not None:
             ready(service)
         stop.wait()
+        deadline = time.monotonic() + 0.5
         service.log.info("stopping")
+        runtime.withdraw()
         try:
             service.stop()
         finally:
-            runtime.shutdown()
+            runtime.shutdown(deadline)
     finally:
-        session.close()
+        close_session(session)
 
 
 def service_argparser(service_type: type[Service]) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=f"humanoid service {service_type.name}",
+        prog=f"python -m {service_type.__module__}",
         description=(service_type.__doc__ or service_type.name).strip().splitlines()[0],
     )
     parser.add_argument("--config", help="YAML file: a 'bus:' section and a section named after the service")
     parser.add_argument("--robot", help="robot name in the key expressions (default: hrp2)")
     parser.add_argument("--hub", help="zenoh endpoint of the hub, e.g. tcp/127.0.0.1:7447")
     parser.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING or ERROR")
+    parser.add_argument(
+        "--parent-pid",
+        type=int,
+        help="stop when this process (the launcher) is gone: no orphan service if it is killed",
+    )
+    service_type.add_arguments(parser)
     return parser
 
 
-def run_service(service_type: type[Service], argv: list[str] | None = None) -> int:
-    """Command-line entry of a service process: parse options, serve until SIGTERM/SIGINT."""
+def run_service(
+    service_type: type[Service], argv: list[str] | None = None, *, config: Any | None = None
+) -> int:
+    """Command-line entry of a service process: parse options, serve until SIGTERM/SIGINT.
+
+    ``config`` replaces the one read from the YAML section (services with options of their own).
+    """
     args = service_argparser(service_type).parse_args(argv)
     configure_logging(args.log_level)
+    log = logging.getLogger(f"humanoid.{service_type.name}")
     try:
         bus = load_bus_config(args.config, robot=args.robot, hub=args.hub)
-        config = load_section(args.config, service_type.name, service_type.Config)
+        if config is None:
+            config = load_section(args.config, service_type.name, service_type.Config)
+        config = service_type.configure(config, args)
     except HumanoidError as exc:
-        logging.getLogger("humanoid").error("%s", exc.message)
+        log.error("%s", exc.message)
         return 2
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: Any) -> None:
-        stop.set()
+        if not stop.is_set():
+            stop.set()
+            _exit_after(EXIT_DEADLINE_S, log)
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
-    serve(service_type, config, bus, stop)
+    if args.parent_pid:
+        _watch_parent(args.parent_pid, stop, log)
+    try:
+        serve(service_type, config, bus, stop)
+    except HumanoidError as exc:
+        log.error("%s", exc.message)
+        return 2
     return 0
+
+
+def _exit_after(delay_s: float, log: logging.Logger) -> None:
+    """Hard exit if the orderly shutdown overruns (a handler stuck in a long computation)."""
+
+    def expire() -> None:
+        log.warning("shutdown took longer than %.1f s: exiting now", delay_s)
+        logging.shutdown()
+        os._exit(0)
+
+    timer = threading.Timer(delay_s, expire)
+    timer.daemon = True
+    timer.start()
+
+
+def _watch_parent(parent_pid: int, stop: threading.Event, log: logging.Logger) -> None:
+    def watch() -> None:
+        while not stop.wait(0.25):
+            if os.getppid() != parent_pid:
+                log.warning("launcher (pid %d) is gone: stopping", parent_pid)
+                stop.set()
+                _exit_after(EXIT_DEADLINE_S, log)
+                return
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def configure_logging(level: str = "INFO") -> None:

@@ -1,9 +1,13 @@
-"""Opening zenoh sessions from a :class:`BusConfig`, and the typed publisher/client built on them."""
+"""Opening zenoh sessions from a :class:`BusConfig`, and the typed publisher/subscriber/client on them."""
 
 from __future__ import annotations
 
+import contextlib
+import itertools
+import os
 import struct
 import time
+from collections.abc import Iterator
 from typing import Any, TypeVar
 
 import zenoh
@@ -12,19 +16,47 @@ from services.bus import keys
 from services.bus.codec import decode, encode
 from services.bus.config import BusConfig
 from services.bus.schemas.common import ErrorInfo
+from services.bus.shm import cleanup_segments
 from services.bus.spec import EndpointSpec, TopicSpec
 from services.errors import RequestTimeoutError, UnavailableError, error_from_code
 
 R = TypeVar("R")
 _REQUEST_ID = struct.Struct("<Q")
+_ID_MASK = 0xFFFF_FFFF
 
 
 def open_session(bus: BusConfig, *, as_hub: bool = False) -> zenoh.Session:
-    """Open a zenoh session; close it (or use ``with``) before the interpreter exits."""
-    return zenoh.open(bus.zenoh_config(as_hub=as_hub))
+    """Open a zenoh session; close it (or use :func:`bus_session`) before the interpreter exits."""
+    try:
+        return zenoh.open(bus.zenoh_config(as_hub=as_hub))
+    except zenoh.ZError as exc:
+        if as_hub:
+            raise UnavailableError(
+                f"cannot listen on the hub endpoint {bus.hub} ({exc}); is another `humanoid up` running? "
+                "Stop it or choose another hub (--hub, or `hub:` in the bus section of the config)"
+            ) from None
+        raise UnavailableError(f"cannot open a zenoh session: {exc}") from None
+
+
+@contextlib.contextmanager
+def bus_session(bus: BusConfig, *, as_hub: bool = False) -> Iterator[zenoh.Session]:
+    """A session closed on exit, then this process's orphaned shared-memory segments removed."""
+    session = open_session(bus, as_hub=as_hub)
+    try:
+        yield session
+    finally:
+        close_session(session)
+
+
+def close_session(session: zenoh.Session) -> None:
+    """Close ``session`` and unlink the ``/dev/shm`` segments nobody else holds (see services.bus.shm)."""
+    with contextlib.suppress(zenoh.ZError):
+        session.close()
+    cleanup_segments()
 
 
 def request_id_bytes(request_id: int) -> bytes:
+    """The attachment carrying a request id: u64 little endian (values fit in 32 bits, see RequestIds)."""
     return _REQUEST_ID.pack(request_id & 0xFFFF_FFFF_FFFF_FFFF)
 
 
@@ -36,13 +68,40 @@ def request_id_from(attachment: Any) -> int | None:
     return _REQUEST_ID.unpack(raw)[0] if len(raw) == _REQUEST_ID.size else None
 
 
+class RequestIds:
+    """Request ids of one service process: a random non-zero 32-bit start, then +1 (wrapping, never 0).
+
+    32 bits because the recorder stores them as the MCAP message ``sequence`` (a u32); the random
+    start keeps the ids of a restarted service apart from the ones it gave before.
+    """
+
+    def __init__(self) -> None:
+        self._count = itertools.count(int.from_bytes(os.urandom(4), "little"))
+
+    def next(self) -> int:
+        while True:
+            value = next(self._count) & _ID_MASK
+            if value:
+                return value
+
+
 class TypedPublisher:
     """Publishes messages of one :class:`TopicSpec` (encoded with the bus codec)."""
 
-    def __init__(self, session: zenoh.Session, robot: str, spec: TopicSpec) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        robot: str,
+        spec: TopicSpec,
+        *,
+        congestion_control: zenoh.CongestionControl | None = None,
+    ) -> None:
+        """``congestion_control``: zenoh's default DROP drops messages to a subscriber whose queue is
+        full (right for camera streams); BLOCK makes ``put`` wait instead."""
         self.spec = spec
         self.key = keys.key(robot, spec.service, spec.name)
-        self._pub = session.declare_publisher(self.key)
+        options = {} if congestion_control is None else {"congestion_control": congestion_control}
+        self._pub = session.declare_publisher(self.key, **options)
 
     def put(self, msg: Any) -> None:
         if not isinstance(msg, self.spec.message):
@@ -50,7 +109,44 @@ class TypedPublisher:
         self._pub.put(encode(msg))
 
     def undeclare(self) -> None:
-        self._pub.undeclare()
+        with contextlib.suppress(zenoh.ZError):
+            self._pub.undeclare()
+
+
+class TypedSubscriber:
+    """Receives decoded messages of one :class:`TopicSpec` outside a service (tools, benchmarks).
+
+    Messages wait in a zenoh FIFO channel of ``capacity`` messages; ``recv`` takes them in order.
+    A message that does not decode raises :class:`~services.errors.InvalidRequestError` from ``recv``.
+    """
+
+    def __init__(self, session: zenoh.Session, robot: str, spec: TopicSpec, capacity: int = 256) -> None:
+        self.spec = spec
+        self.key = keys.key(robot, spec.service, spec.name)
+        self._sub = session.declare_subscriber(self.key, zenoh.handlers.FifoChannel(capacity))
+        self._handler = self._sub.handler
+
+    def recv(self, timeout_s: float | None = None) -> Any:
+        """The next message, or TimeoutError after ``timeout_s``.
+
+        Without a timeout it blocks in zenoh without the GIL (the lowest latency, but Ctrl-C waits
+        for the next message); with one it polls, sleeping up to 1 ms between looks.
+        """
+        if timeout_s is None:
+            sample = self._handler.recv()
+        else:
+            deadline = time.monotonic() + timeout_s
+            pause = 0.00005
+            while (sample := self._handler.try_recv()) is None:
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"no message on {self.key} within {timeout_s:.1f} s")
+                time.sleep(pause)
+                pause = min(0.001, pause * 2)
+        return decode(sample.payload.to_bytes(), self.spec.message)
+
+    def undeclare(self) -> None:
+        with contextlib.suppress(zenoh.ZError):
+            self._sub.undeclare()
 
 
 class Client:
@@ -64,6 +160,7 @@ class Client:
         self.session = session
         self.robot = robot
         self.default_timeout_s = default_timeout_s
+        self._keys: dict[tuple[str, str], str] = {}
 
     def call(self, spec: EndpointSpec, request: Any, timeout_s: float | None = None) -> Any:
         """Send ``request`` to ``spec`` and return the decoded reply (an instance of ``spec.reply``)."""
@@ -74,22 +171,22 @@ class Client:
     def call_raw(self, service: str, name: str, payload: bytes, timeout_s: float | None = None) -> bytes:
         """Send raw request bytes; return the raw ok-reply bytes or raise the typed error."""
         timeout = self.default_timeout_s if timeout_s is None else timeout_s
-        key = keys.key(self.robot, service, name)
+        key = self._keys.get((service, name))
+        if key is None:
+            key = self._keys[(service, name)] = keys.key(self.robot, service, name)
         started = time.monotonic()
         replies = self.session.get(key, payload=payload, timeout=timeout)
         for reply in replies:
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
-            raw = reply.err.payload.to_bytes()
-            try:
-                info = decode(raw, ErrorInfo)
-            except Exception:
-                info = ErrorInfo(code="internal", message=raw.decode("utf-8", "replace"))
-            raise error_from_code(info.code, info.message, info.details)
+            raise error_from_reply(reply.err.payload.to_bytes())
         waited = time.monotonic() - started
         if waited < 0.9 * timeout and not self.is_alive(service):
             token = keys.alive(self.robot, service)
-            raise UnavailableError(f"service {service!r} is not running (no liveliness token at {token})")
+            raise UnavailableError(
+                f"service {service!r} is not running (no liveliness token at {token}); "
+                f"start it with `humanoid up --services {service}`"
+            )
         raise RequestTimeoutError(f"{service}/{name} gave no reply within {timeout:.1f} s")
 
     def is_alive(self, service: str, timeout_s: float = 0.5) -> bool:
@@ -97,16 +194,11 @@ class Client:
 
     def alive_services(self, timeout_s: float = 0.5) -> set[str]:
         """Names of the services whose liveliness token is present now."""
-        found = set()
-        for reply in self.session.liveliness().get(keys.all_alive(self.robot), timeout=timeout_s):
-            if reply.ok is not None:
-                found.add(keys.parse(str(reply.ok.key_expr))[1])
-        return found
+        return alive_services(self.session, self.robot, timeout_s)
 
     def wait_for(self, services: list[str] | tuple[str, ...], timeout_s: float = 20.0) -> None:
         """Block until every named service is alive; UnavailableError naming the missing ones."""
         deadline = time.monotonic() + timeout_s
-        missing = set(services)
         while True:
             missing = set(services) - self.alive_services()
             if not missing:
@@ -116,3 +208,21 @@ class Client:
                     f"service(s) {', '.join(sorted(missing))} not alive after {timeout_s:.0f} s"
                 )
             time.sleep(0.05)
+
+
+def alive_services(session: zenoh.Session, robot: str, timeout_s: float = 0.5) -> set[str]:
+    """Names of the services of ``robot`` whose liveliness token is present now."""
+    found = set()
+    for reply in session.liveliness().get(keys.all_alive(robot), timeout=timeout_s):
+        if reply.ok is not None:
+            found.add(keys.parse(str(reply.ok.key_expr))[1])
+    return found
+
+
+def error_from_reply(raw: bytes) -> Exception:
+    """The typed exception of an error-reply frame (:class:`ErrorInfo` JSON)."""
+    try:
+        info = decode(raw, ErrorInfo)
+    except Exception:
+        info = ErrorInfo(code="internal", message=raw.decode("utf-8", "replace"))
+    return error_from_code(info.code, info.message, info.details)

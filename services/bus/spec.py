@@ -41,13 +41,33 @@ class TopicSpec:
 
 
 def json_schema(type_: Any) -> dict[str, Any]:
-    """The JSON schema of a message type (arrays shown as lists of numbers)."""
+    """The JSON schema of a message type, with ``$ref`` definitions inlined (Foxglove reads these).
+
+    Array fields (binary on the bus) accept anything here: in JSON views they are nested lists, or a
+    summary (shape, dtype) when too large, or a reference to an image channel.
+    """
     import msgspec
     import numpy as np
 
     def hook(t: Any) -> dict[str, Any]:
         if t is np.ndarray:
-            return {"type": "array", "items": {}, "description": "numpy array (binary on the bus)"}
+            return {"description": "numpy array (raw bytes on the bus)"}
         raise NotImplementedError(f"no JSON schema for {t!r}")
 
-    return msgspec.json.schema(type_, schema_hook=hook)
+    schema = msgspec.json.schema(type_, schema_hook=hook)
+    defs = schema.pop("$defs", {})
+    return _inline(schema, defs, ())
+
+
+def _inline(node: Any, defs: dict[str, Any], seen: tuple[str, ...]) -> Any:
+    if isinstance(node, list):
+        return [_inline(item, defs, seen) for item in node]
+    if not isinstance(node, dict):
+        return node
+    ref = node.get("$ref")
+    if isinstance(ref, str) and ref.startswith("#/$defs/"):
+        name = ref.removeprefix("#/$defs/")
+        if name in seen or name not in defs:  # a recursive type: leave it open
+            return {"type": "object", "title": name}
+        return _inline(defs[name], defs, (*seen, name))
+    return {k: _inline(v, defs, seen) for k, v in node.items()}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import msgspec
 import numpy as np
 
-from services.bus.spec import EndpointSpec
+from services.bus.spec import EndpointSpec, TopicSpec
 
 
 class EchoRequest(msgspec.Struct, kw_only=True, frozen=True):
@@ -16,9 +16,67 @@ class EchoRequest(msgspec.Struct, kw_only=True, frozen=True):
 
 
 class EchoReply(msgspec.Struct, kw_only=True, frozen=True):
+    """The request's content, unchanged (a deterministic reply: replay finds no difference)."""
+
     text: str = ""
     blob: np.ndarray | None = None
-    pid: int = 0  # process id of the diag service that answered
+
+
+class RaiseRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Ask for an error reply, to check a client's error handling end to end.
+
+    ``code`` is one of services.errors.ERROR_CODES, or ``bug`` for an unexpected exception in the
+    handler (which the service reports as ``internal`` and survives).
+    """
+
+    code: str
+    message: str
+
+
+class RaiseReply(msgspec.Struct, kw_only=True, frozen=True):
+    """Never sent: the endpoint always answers with an error."""
+
+
+class Ping(msgspec.Struct, kw_only=True, frozen=True):
+    """A message the diag service republishes unchanged on ``diag/pong`` (pub/sub round trips)."""
+
+    seq: int
+    text: str = ""
+    blob: np.ndarray | None = None
+
+
+class StreamRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Publish ``count`` stereo pairs of ``width`` x ``height`` RGB images on ``diag/frames``."""
+
+    count: int = 100
+    width: int = 640  # [px]
+    height: int = 480  # [px]
+
+
+class StreamReply(msgspec.Struct, kw_only=True, frozen=True):
+    sent: int
+    elapsed_s: float  # time spent publishing [s]
+
+
+class StereoFrame(msgspec.Struct, kw_only=True, frozen=True):
+    """A synthetic stereo pair (throughput tests): two HxWx3 uint8 RGB images."""
+
+    seq: int
+    stamp_s: float  # time.time() at publication [s]
+    left: np.ndarray
+    right: np.ndarray
 
 
 ECHO = EndpointSpec("diag", "echo", EchoRequest, EchoReply, "returns the request (round-trip checks)")
+ECHO_WORKER = EndpointSpec(
+    "diag",
+    "echo_worker",
+    EchoRequest,
+    EchoReply,
+    "diag/echo served by a worker thread (measures the hand-off)",
+)
+RAISE = EndpointSpec("diag", "raise", RaiseRequest, RaiseReply, "answers with the error asked for")
+STREAM = EndpointSpec("diag", "stream", StreamRequest, StreamReply, "publishes stereo pairs on diag/frames")
+PING = TopicSpec("diag", "ping", Ping, "republished unchanged on diag/pong")
+PONG = TopicSpec("diag", "pong", Ping, "the messages received on diag/ping")
+FRAMES = TopicSpec("diag", "frames", StereoFrame, "synthetic stereo pairs published by diag/stream")

@@ -1,0 +1,597 @@
+"""The bus's ``humanoid`` subcommands: up, status, call, echo, record, replay, log-info.
+
+Imports stay light at module level: ``humanoid --help`` should not open zenoh or load numpy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import difflib
+import json
+import sys
+import threading
+import time
+from typing import Any
+
+EXAMPLES_CALL = """examples:
+  humanoid call diag/echo '{"text": "hello"}'
+  humanoid call diag/echo '{"blob": [[1, 2], [3, 4]]}'     # arrays as nested lists
+"""
+
+
+def add_cli(subparsers: Any) -> None:
+    """Register the bus subcommands on the ``humanoid`` parser."""
+    _add_up(subparsers)
+    _add_status(subparsers)
+    _add_call(subparsers)
+    _add_echo(subparsers)
+    _add_record(subparsers)
+    _add_replay(subparsers)
+    _add_log_info(subparsers)
+
+
+def _bus_options(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("bus")
+    group.add_argument("--config", help="YAML file with a 'bus:' section (and per-service sections)")
+    group.add_argument("--hub", help="zenoh endpoint of the hub (default tcp/127.0.0.1:7447)")
+    group.add_argument("--robot", help="robot name in the keys hrp/<robot>/... (default hrp2)")
+
+
+def _bus(args: argparse.Namespace) -> Any:
+    from services.bus.config import load_bus_config
+
+    return load_bus_config(args.config, hub=args.hub, robot=args.robot)
+
+
+def _fail(message: str, code: int = 2) -> int:
+    print(f"error: {message}", file=sys.stderr)
+    return code
+
+
+# ---------------------------------------------------------------------------------------------------
+# up
+# ---------------------------------------------------------------------------------------------------
+def _add_up(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "up",
+        help="start the services, restart those that die, stop all on Ctrl-C",
+        description="Start every service of the stack (or those named), each in its own process; wait "
+        "until all are alive; print a status table; restart a service that dies; Ctrl-C or SIGTERM stops "
+        "everything within 2 s.",
+    )
+    p.add_argument("--services", help="comma-separated service names (default: every service found)")
+    p.add_argument("--record", metavar="FILE", help="also record every message to this MCAP file")
+    p.add_argument("--log-dir", help="write each service's output to LOG_DIR/<service>.log")
+    p.add_argument("--ready-timeout", type=float, help="seconds every service has to become alive (30)")
+    p.add_argument("--duration", type=float, help="stop by itself this many seconds after all are ready")
+    p.add_argument("--list", action="store_true", help="list the services found and exit")
+    _bus_options(p)
+    p.set_defaults(func=cmd_up)
+
+
+def cmd_up(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from services.bus.config import load_section
+    from services.bus.discovery import RECORDER, discover
+    from services.bus.launcher import Launcher, LauncherConfig, format_table, run_up
+    from services.bus.service import configure_logging
+
+    configure_logging("INFO")
+    found, problems = discover()
+    for problem in problems:
+        print(f"warning: {problem}", file=sys.stderr)
+    startable = {name: e for name, e in found.items() if name != RECORDER}
+    if args.list:
+        rows = [(name, e.module) for name, e in sorted(startable.items())]
+        print(format_table(("SERVICE", "MODULE"), rows))
+        return 0
+    if args.services:
+        names = [n.strip() for n in args.services.split(",") if n.strip()]
+        unknown = [n for n in names if n not in startable]
+        if unknown:
+            hint = " (the recorder starts with --record FILE)" if RECORDER in unknown else ""
+            known = ", ".join(sorted(startable))
+            return _fail(f"unknown service(s) {', '.join(unknown)}{hint}; services found: {known}")
+    else:
+        names = sorted(startable)
+    entries = [startable[n] for n in names] + [found[RECORDER]]
+    bus = _bus(args)
+    config = load_section(args.config, "launcher", LauncherConfig)
+    if args.ready_timeout is not None:
+        config = dataclasses.replace(config, ready_timeout_s=args.ready_timeout)
+    if args.log_dir:
+        config = dataclasses.replace(config, log_dir=args.log_dir)
+    launcher = Launcher(
+        bus, entries, config, config_path=args.config, record=args.record, duration_s=args.duration
+    )
+    return run_up(launcher)
+
+
+# ---------------------------------------------------------------------------------------------------
+# status
+# ---------------------------------------------------------------------------------------------------
+def _add_status(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "status",
+        help="the live services, their heartbeat age and requests served",
+        description="List the services whose liveliness token is present, with the age of their last "
+        "heartbeat (a service stuck holding the GIL keeps its token but stops beating).",
+    )
+    p.add_argument("--wait", type=float, default=0.8, help="seconds to listen for heartbeats (0.8)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    _bus_options(p)
+    p.set_defaults(func=cmd_status)
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    from services.bus import keys
+    from services.bus.codec import decode
+    from services.bus.launcher import format_table
+    from services.bus.schemas.common import Heartbeat
+    from services.bus.session import alive_services, bus_session
+
+    bus = _bus(args)
+    beats: dict[str, tuple[Heartbeat, float]] = {}
+    lock = threading.Lock()
+
+    def on_beat(sample: Any) -> None:  # zenoh thread: decode and store only
+        try:
+            beat = decode(sample.payload.to_bytes(), Heartbeat)
+        except Exception:
+            return
+        with lock:
+            beats[beat.service] = (beat, time.time())
+
+    with bus_session(bus) as session:
+        sub = session.declare_subscriber(keys.all_heartbeats(bus.robot), on_beat)
+        deadline = time.monotonic() + max(0.1, args.wait)
+        alive: set[str] = set()
+        while time.monotonic() < deadline:
+            alive |= alive_services(session, bus.robot, timeout_s=0.3)
+            time.sleep(0.05)
+        alive = alive or alive_services(session, bus.robot, timeout_s=0.5)
+        sub.undeclare()
+    now = time.time()
+    rows = []
+    for name in sorted(alive):
+        entry: dict[str, Any] = {"service": name, "alive": True}
+        with lock:
+            got = beats.get(name)
+        if got is not None:
+            beat, _received = got
+            entry.update(
+                pid=beat.pid,
+                heartbeat_age_s=round(max(0.0, now - beat.wall_time_s), 3),
+                uptime_s=round(beat.uptime_s, 1),
+                requests_served=beat.requests_served,
+                requests_failed=beat.requests_failed,
+            )
+        else:
+            entry.update(
+                pid=None, heartbeat_age_s=None, uptime_s=None, requests_served=None, requests_failed=None
+            )
+        rows.append(entry)
+    if args.json:
+        print(json.dumps({"hub": bus.hub, "robot": bus.robot, "services": rows}, indent=2))
+        return 0 if rows else 1
+    if not rows:
+        print(f"no service is alive for robot {bus.robot!r} (hub {bus.hub}); is `humanoid up` running?")
+        return 1
+    table = []
+    for r in rows:
+        age = r["heartbeat_age_s"]
+        table.append(
+            (
+                r["service"],
+                str(r["pid"] or "-"),
+                f"{age:.2f} s" if age is not None else f"none in {args.wait:.1f} s (stuck?)",
+                f"{r['uptime_s']:.0f} s" if r["uptime_s"] is not None else "-",
+                str(r["requests_served"] if r["requests_served"] is not None else "-"),
+                str(r["requests_failed"] if r["requests_failed"] is not None else "-"),
+            )
+        )
+    print(format_table(("SERVICE", "PID", "HEARTBEAT AGE", "UPTIME", "SERVED", "FAILED"), table))
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------------
+# call
+# ---------------------------------------------------------------------------------------------------
+def _add_call(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "call",
+        help="send a request to a running service and print the reply as JSON",
+        description="Send a JSON request to SERVICE/ENDPOINT, validated against the endpoint's schema, and "
+        "print the reply as JSON (arrays as nested lists).",
+        epilog=EXAMPLES_CALL,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("endpoint", help="SERVICE/ENDPOINT, e.g. diag/echo")
+    p.add_argument("request", nargs="?", default="{}", help="the request as a JSON object (default {})")
+    p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for the reply (30)")
+    p.add_argument(
+        "--max-elements",
+        type=int,
+        default=10_000,
+        help="print larger arrays as <ndarray dtype shape> (default 10000; 0: print every array in full)",
+    )
+    _bus_options(p)
+    p.set_defaults(func=cmd_call)
+
+
+def build_request(endpoint: str, text: str) -> tuple[Any, Any]:
+    """``(spec, request)`` from the command line; InvalidRequestError saying what to fix."""
+    import msgspec
+
+    from services.bus import schemas
+    from services.bus.codec import from_builtins
+    from services.errors import InvalidRequestError
+
+    specs = schemas.endpoints()
+    spec = specs.get(endpoint)
+    if spec is None:
+        close = difflib.get_close_matches(endpoint, list(specs), n=3)
+        hint = f" (did you mean {', '.join(close)}?)" if close else ""
+        raise InvalidRequestError(
+            f"unknown endpoint {endpoint!r}{hint}; valid endpoints: {', '.join(sorted(specs))}"
+        )
+    try:
+        value = msgspec.json.decode(text.encode())
+    except msgspec.DecodeError as exc:
+        raise InvalidRequestError(
+            f"the request for {endpoint} is not valid JSON ({exc}); "
+            f"fields: {describe_fields(spec.request)}. Example: humanoid call {endpoint} '{{}}'"
+        ) from None
+    if not isinstance(value, dict):
+        raise InvalidRequestError(
+            f"the request for {endpoint} must be a JSON object, not {type(value).__name__}; "
+            f"fields: {describe_fields(spec.request)}"
+        )
+    valid = set(spec.request.__struct_fields__)
+    unknown = sorted(set(value) - valid)
+    if unknown:
+        raise InvalidRequestError(
+            f"unknown field(s) {', '.join(unknown)} for {endpoint}; fields: {describe_fields(spec.request)}"
+        )
+    try:
+        request = from_builtins(value, spec.request)
+    except InvalidRequestError as exc:
+        raise InvalidRequestError(f"{exc.message}; fields: {describe_fields(spec.request)}") from None
+    return spec, request
+
+
+def describe_fields(type_: Any) -> str:
+    """``name (type, default ...)`` for each field of a message type."""
+    import msgspec
+
+    parts = []
+    for f in msgspec.structs.fields(type_):
+        kind = _type_text(f.type)
+        if f.required:
+            parts.append(f"{f.name} ({kind}, required)")
+        else:
+            default = f.default if f.default is not msgspec.NODEFAULT else f.default_factory()
+            parts.append(f"{f.name} ({kind}, default {json.dumps(default, default=str)})")
+    return ", ".join(parts) or "none"
+
+
+def _type_text(t: Any) -> str:
+    text = getattr(t, "__name__", None) if not hasattr(t, "__args__") else None
+    text = text or str(t).replace("typing.", "")
+    return text.replace("numpy.ndarray", "array").replace("NoneType", "None").replace("ndarray", "array")
+
+
+def cmd_call(args: argparse.Namespace) -> int:
+    from services.bus.codec import decode, encode
+    from services.bus.session import Client, bus_session
+    from services.errors import HumanoidError, InvalidRequestError
+
+    try:
+        spec, request = build_request(args.endpoint, args.request)
+    except InvalidRequestError as exc:
+        return _fail(exc.message)
+    bus = _bus(args)
+    with bus_session(bus) as session:
+        client = Client(session, bus.robot)
+        try:
+            client.wait_for([spec.service], timeout_s=min(3.0, args.timeout))
+            raw = client.call_raw(spec.service, spec.name, encode(request), args.timeout)
+            reply = decode(raw, spec.reply)
+        except HumanoidError as exc:
+            print(f"error: {exc.code}: {exc.message}", file=sys.stderr)
+            if exc.details:
+                print(json.dumps({"details": exc.details}, indent=2, default=str), file=sys.stderr)
+            return 1
+    print(json.dumps(_printable(reply, args.max_elements), indent=2))
+    return 0
+
+
+def _printable(msg: Any, max_elements: int) -> Any:
+    """JSON-ready builtins of a message; arrays as lists, or summarised past ``max_elements``."""
+    import msgspec
+    import numpy as np
+
+    def hook(obj: Any) -> Any:
+        if isinstance(obj, np.ndarray):
+            if max_elements and obj.size > max_elements:
+                return f"<ndarray {obj.dtype} {tuple(obj.shape)}>"
+            return obj.tolist()
+        if isinstance(obj, np.generic):
+            return obj.item()
+        raise NotImplementedError(f"cannot print objects of type {type(obj).__name__}")
+
+    return msgspec.to_builtins(msg, enc_hook=hook)
+
+
+# ---------------------------------------------------------------------------------------------------
+# echo
+# ---------------------------------------------------------------------------------------------------
+def _add_echo(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "echo",
+        help="print the messages on a key expression (binary arrays summarised)",
+        description="Print every message published on KEY, a zenoh key expression (hrp/hrp2/diag/**) or "
+        "SERVICE/NAME for hrp/<robot>/SERVICE/NAME. Arrays of binary frames are shown as "
+        "<ndarray dtype shape>, undecodable payloads as hex.",
+    )
+    p.add_argument("key", help="key expression, or SERVICE/NAME (wildcards * and ** allowed)")
+    p.add_argument("--count", type=int, help="exit after this many messages")
+    p.add_argument("--duration", type=float, help="exit after this many seconds")
+    p.add_argument("--compact", action="store_true", help="one line per message")
+    _bus_options(p)
+    p.set_defaults(func=cmd_echo)
+
+
+def resolve_key(key: str, robot: str) -> str:
+    """A key expression from the command line: ``hrp/...`` as is, else ``hrp/<robot>/<key>``."""
+    from services.bus import keys
+
+    key = key.strip("/")
+    return key if key.startswith(keys.PREFIX + "/") or key == "**" else f"{keys.PREFIX}/{robot}/{key}"
+
+
+def cmd_echo(args: argparse.Namespace) -> int:
+    import queue
+
+    import zenoh
+
+    from services.bus.frames import summarize
+    from services.bus.session import bus_session, request_id_from
+
+    bus = _bus(args)
+    key = resolve_key(args.key, bus.robot)
+    try:
+        zenoh.KeyExpr(key)
+    except zenoh.ZError as exc:
+        return _fail(f"{key!r} is not a valid key expression: {exc}")
+    inbox: queue.Queue[tuple[str, bytes, int | None]] = queue.Queue(maxsize=1000)
+
+    def on_sample(sample: Any) -> None:  # zenoh thread: hand over only
+        with contextlib.suppress(queue.Full):  # a slow terminal drops messages, never blocks zenoh
+            inbox.put_nowait(
+                (str(sample.key_expr), sample.payload.to_bytes(), request_id_from(sample.attachment))
+            )
+
+    count = 0
+    deadline = time.monotonic() + args.duration if args.duration else None
+    with bus_session(bus) as session:
+        sub = session.declare_subscriber(key, on_sample)
+        try:
+            print(f"listening on {key} (Ctrl-C to stop)", file=sys.stderr, flush=True)
+            while (args.count is None or count < args.count) and (
+                deadline is None or time.monotonic() < deadline
+            ):
+                try:
+                    sample_key, data, rid = inbox.get(timeout=0.1)
+                except queue.Empty:
+                    continue
+                count += 1
+                stamp = time.strftime("%H:%M:%S") + f".{int(time.time() * 1000) % 1000:03d}"
+                extra = f"  request {rid}" if rid is not None else ""
+                content = summarize(data)
+                text = (
+                    json.dumps(content, default=str)
+                    if args.compact
+                    else json.dumps(content, indent=2, default=str)
+                )
+                print(f"--- {sample_key}  [{len(data)} B]  {stamp}{extra}\n{text}", flush=True)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            sub.undeclare()
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------------
+# record / replay / log-info
+# ---------------------------------------------------------------------------------------------------
+def _add_record(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "record",
+        help="record every message on hrp/** to an MCAP file (until Ctrl-C)",
+        description="Run the recorder in the foreground: every message on the bus goes to FILE (MCAP: open "
+        "it in Foxglove, play it back with `humanoid replay`). Ctrl-C or SIGTERM finishes the file.",
+    )
+    p.add_argument("file", help="MCAP file to write")
+    p.add_argument("--duration", type=float, help="stop after this many seconds")
+    p.add_argument("--key-expr", help="what to record (default hrp/**)")
+    _bus_options(p)
+    p.set_defaults(func=cmd_record)
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    import dataclasses
+    import signal
+    from pathlib import Path
+
+    from services.bus.config import load_section
+    from services.bus.recorder import RecorderConfig, RecorderService
+    from services.bus.service import configure_logging, serve
+
+    configure_logging("INFO")
+    config = load_section(args.config, "record", RecorderConfig)
+    config = dataclasses.replace(config, output=str(Path(args.file).resolve()))
+    if args.key_expr:
+        config = dataclasses.replace(config, key_expr=args.key_expr)
+    bus = _bus(args)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    if args.duration:
+        timer = threading.Timer(args.duration, stop.set)
+        timer.daemon = True
+        timer.start()
+    serve(RecorderService, config, bus, stop)
+    print(f"log written to {config.output}")
+    return 0
+
+
+def _add_replay(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "replay",
+        help="republish a log with its timing, or re-send its requests and diff the replies",
+        description="Republish every message of an MCAP log on its key with the original relative timing "
+        "(heartbeats left out). With --requests, re-send every recorded request to the running services "
+        "instead and report the replies that differ from the recorded ones.",
+    )
+    p.add_argument("file", help="MCAP file written by `humanoid record`")
+    p.add_argument("--speed", type=float, default=1.0, help="playback speed factor (2 = twice as fast)")
+    p.add_argument(
+        "--topics",
+        action="append",
+        metavar="GLOB",
+        help="only keys matching this shell glob (* matches across /), e.g. 'hrp/*/sim/*'; repeatable, "
+        "or comma-separated",
+    )
+    p.add_argument("--heartbeats", action="store_true", help="also republish the recorded heartbeats")
+    p.add_argument(
+        "--requests", action="store_true", help="re-send the recorded requests and compare replies"
+    )
+    p.add_argument("--timeout", type=float, default=30.0, help="--requests: seconds per request (30)")
+    p.add_argument("--quiet", action="store_true", help="no line per message")
+    _bus_options(p)
+    p.set_defaults(func=cmd_replay)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from collections import Counter
+
+    from services.bus.launcher import format_table
+    from services.bus.mcaplog import LogReader
+    from services.bus.replay import key_filter, replay, replay_requests
+    from services.bus.session import bus_session
+    from services.errors import HumanoidError
+
+    patterns = [p.strip() for arg in args.topics or [] for p in arg.split(",") if p.strip()] or None
+    try:
+        reader = LogReader(args.file)
+    except HumanoidError as exc:
+        return _fail(exc.message)
+    bus = _bus(args)
+    with bus_session(bus) as session:
+        _wait_for_peers(session)
+        try:
+            if args.requests:
+                accept = key_filter(patterns) if patterns else None
+
+                def show(outcome: Any) -> None:
+                    if not args.quiet or outcome.status != "same":
+                        detail = f": {outcome.detail}" if outcome.detail else ""
+                        print(
+                            f"{outcome.endpoint} #{outcome.request_id}: {outcome.status}{detail}", flush=True
+                        )
+
+                outcomes = replay_requests(
+                    session, reader, timeout_s=args.timeout, accept=accept, on_outcome=show
+                )
+                by_endpoint: dict[str, Counter[str]] = {}
+                for o in outcomes:
+                    by_endpoint.setdefault(o.endpoint, Counter())[o.status] += 1
+                rows = [
+                    (
+                        ep,
+                        str(sum(c.values())),
+                        str(c["same"]),
+                        str(c["differs"]),
+                        str(c["failed"] + c["no_record"]),
+                    )
+                    for ep, c in sorted(by_endpoint.items())
+                ]
+                print(format_table(("ENDPOINT", "REQUESTS", "SAME", "DIFFERS", "FAILED"), rows))
+                differs = sum(o.status != "same" for o in outcomes)
+                print(f"{len(outcomes)} requests re-sent, {differs} with a different or missing reply")
+                return 1 if differs else 0
+
+            def show_msg(msg: Any) -> None:
+                if not args.quiet:
+                    print(f"{msg.key}  [{len(msg.data)} B]", flush=True)
+
+            stats = replay(
+                session,
+                reader,
+                speed=args.speed,
+                accept=key_filter(patterns, heartbeats=args.heartbeats),
+                on_message=show_msg,
+            )
+        except KeyboardInterrupt:
+            return 130
+        except HumanoidError as exc:
+            return _fail(exc.message)
+    tail = " (the log's last chunk was cut off)" if reader.unreadable_tail else ""
+    print(f"replayed {stats.published} messages in {stats.duration_s:.2f} s, skipped {stats.skipped}{tail}")
+    return 0
+
+
+def _wait_for_peers(session: Any, timeout_s: float = 3.0) -> None:
+    """Give a fresh session time to connect and learn the peers' subscriptions before publishing."""
+    deadline = time.monotonic() + timeout_s
+    while not list(session.info.peers_zid()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.2)  # declarations follow the connection
+
+
+def _add_log_info(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "log-info",
+        help="channels, message counts, duration and schemas of an MCAP log",
+        description="Summarise an MCAP log: duration, channels with their encodings, schema names and "
+        "message counts. Works on a log whose recorder was killed (it reads what was written).",
+    )
+    p.add_argument("file", help="MCAP file")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_log_info)
+
+
+def cmd_log_info(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from services.bus.launcher import format_table
+    from services.bus.mcaplog import LogReader
+    from services.errors import HumanoidError
+
+    try:
+        info = LogReader(args.file).info()
+    except HumanoidError as exc:
+        return _fail(exc.message)
+    if args.json:
+        doc = dataclasses.asdict(info)
+        doc["duration_s"] = info.duration_s
+        print(json.dumps(doc, indent=2))
+        return 0
+    state = "complete" if info.complete else "no summary (recorder stopped abruptly)"
+    if info.unreadable_tail:
+        state += ", last chunk cut off"
+    print(f"file:      {info.path} ({info.size_bytes / 1e6:.2f} MB, {state})")
+    print(f"duration:  {info.duration_s:.3f} s")
+    if info.messages:
+        start = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(info.start_ns / 1e9))
+        print(f"start:     {start}")
+    print(f"messages:  {info.messages}")
+    print(f"channels:  {len(info.channels)}")
+    rows = [
+        (c.topic, c.role, c.message_encoding, c.schema_name or "-", str(c.messages)) for c in info.channels
+    ]
+    print(format_table(("TOPIC", "ROLE", "ENCODING", "SCHEMA", "MESSAGES"), rows))
+    return 0

@@ -1,0 +1,105 @@
+"""Messages of the ``perception`` service (colour-histogram objects localized by stereo; vision/).
+
+Frames: world (z up) [m]; the left camera's optical frame (x right, y down, z forward) [m]. Pixels:
+(u, v) = (column, row) with pixel (row i, column j) centred at (j + 0.5, i + 0.5), as ``sim/render``
+and the robot models' camera matrices. Configurations ``q`` follow the pinocchio layout of the robot
+model (``[x, y, z, qx, qy, qz, qw, joints...]``).
+"""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+
+from services.bus.spec import EndpointSpec
+
+# ---------------------------------------------------------------------------------------------- locate
+
+
+class StereoImages(msgspec.Struct, kw_only=True, frozen=True):
+    """A rectified stereo pair sent with the request instead of rendered by ``sim/render``."""
+
+    left_rgb: np.ndarray  # (H, W, 3) uint8, RGB channel order (as sim/render)
+    right_rgb: np.ndarray  # (H, W, 3) uint8, same size
+    K: np.ndarray | None = None  # (3, 3) [px]; None: the robot model's camera scaled to the image size
+
+
+class LocateRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Where is ``object``? The camera pose comes from the robot's kinematics at ``q``."""
+
+    object: str  # a learned object name (perception/models), e.g. "orange_ball"
+    model: str = ""  # robot model (services.model); "": the sim's model when q is None, else hrp2_like
+    q: np.ndarray | None = None  # (nq,) robot configuration; None: the robot's current one (sim/state)
+    camera: str = "wide"  # stereo pair of the robot model: "wide" (0.144 m baseline) or "narrow"
+    width_px: int = 640  # image size asked of sim/render (ignored when images are given)
+    height_px: int = 480
+    images: StereoImages | None = None  # None: the service renders the pair through sim/render
+    method: str = ""  # stereo estimator: "" (service default), "centroid", "bm" or "sgbm"
+
+
+class PixelBox(msgspec.Struct, kw_only=True, frozen=True):
+    """CamShift's rotated rectangle in one image: centre, sides (4 std of the colour mass), angle."""
+
+    u_px: float
+    v_px: float
+    width_px: float
+    height_px: float
+    angle_deg: float
+
+
+class LocateReply(msgspec.Struct, kw_only=True, frozen=True):
+    """A localized object.
+
+    ``position`` is the object's centre for ball models (shape "sphere"), the triangulated centre of
+    the coloured silhouette otherwise (a point on the visible middle of a box or table).
+    """
+
+    object: str
+    position: list[float]  # world [m]
+    position_camera: list[float]  # left camera optical frame [m]
+    distance_m: float  # from the left camera [m]
+    size_m: list[float]  # (width, height) of the CamShift box at the object's depth [m]
+    confidence: float  # in [0, 1]: colour typicality x fill of the CamShift ellipse (min of both images)
+    method: str  # stereo estimator used: "centroid", "bm" or "sgbm"
+    disparity_px: float  # u_left - u_right [px]
+    box_left: PixelBox
+    box_right: PixelBox
+    window_left: list[int]  # [x, y, width, height] [px], the left measurement window
+    camera: str  # stereo pair used
+    T_world_camera: list[list[float]]  # 4x4 pose of the left optical frame used (from q)
+    rendered: bool  # the images came from sim/render (else from the request)
+    sim_time_s: float  # sim time of the rendered images [s] (0 when the images came with the request)
+
+
+LOCATE = EndpointSpec(
+    "perception",
+    "locate",
+    LocateRequest,
+    LocateReply,
+    "world position, size and confidence of a learned object seen by a head stereo pair; "
+    "not_found says why (not_in_view, ambiguous, ...)",
+)
+
+# ---------------------------------------------------------------------------------------------- models
+
+
+class ModelsRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """No fields."""
+
+
+class ObjectModelInfo(msgspec.Struct, kw_only=True, frozen=True):
+    name: str  # object name, e.g. "yellow_table"
+    shape: str  # "sphere" (position = centre) or "blob"
+    n_pixels: int  # coloured pixels the histogram was learned from
+    source: str  # how it was learned
+
+
+class ModelsReply(msgspec.Struct, kw_only=True, frozen=True):
+    names: list[str]  # sorted
+    objects: list[ObjectModelInfo]  # same order
+    models_dir: str  # where the service loaded them from
+
+
+MODELS = EndpointSpec(
+    "perception", "models", ModelsRequest, ModelsReply, "the objects perception knows (learned colour models)"
+)

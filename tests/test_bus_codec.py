@@ -1,0 +1,150 @@
+"""Bus building blocks without a network: codec, frames, keys, config, schemas, ids, shm cleanup."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from services.bus import keys
+from services.bus.codec import decode, encode, from_builtins, split, to_builtins
+from services.bus.config import BusConfig, load_bus_config, load_section
+from services.bus.discovery import discover
+from services.bus.frames import frame_kind, parse_frame, summarize
+from services.bus.schemas import endpoints, topics
+from services.bus.schemas.diag import EchoRequest, StereoFrame
+from services.bus.session import RequestIds, request_id_bytes, request_id_from
+from services.bus.shm import orphaned
+from services.bus.spec import json_schema
+from services.errors import InvalidRequestError
+
+
+def test_plain_messages_are_json_and_arrays_travel_as_raw_bytes():
+    assert encode(EchoRequest(text="hi")) == b'{"text":"hi","blob":null}'
+    left = np.arange(48 * 64 * 3, dtype=np.uint8).reshape(48, 64, 3)
+    frame = encode(StereoFrame(seq=1, stamp_s=2.0, left=left, right=left[:, ::-1]))
+    header, blob = split(frame)
+    assert frame.startswith(b"HRPB") and len(blob) == 2 * left.nbytes
+    assert b"base64" not in bytes(header) and len(header) < 300
+    back = decode(frame, StereoFrame)
+    assert np.array_equal(back.left, left) and np.array_equal(back.right, left[:, ::-1])
+
+
+def test_decode_names_field_and_expected_type():
+    with pytest.raises(InvalidRequestError, match=r"Expected `str`, got `int` - at `\$.text`"):
+        decode(b'{"text": 1}', EchoRequest)
+    with pytest.raises(InvalidRequestError, match="malformed payload for EchoRequest"):
+        decode(b"\x00\x01", EchoRequest)
+    bad_ref = b'{"blob": {"__nd__": [0, 800], "dtype": "<f8", "shape": [100]}}'
+    with pytest.raises(InvalidRequestError, match="array reference in a plain JSON message"):
+        decode(bad_ref, EchoRequest)
+    frame = bytearray(encode(EchoRequest(blob=np.zeros(4))))
+    with pytest.raises(InvalidRequestError, match="outside the message"):
+        decode(bytes(frame[:-8]), EchoRequest)
+
+
+def test_builtins_round_trip_for_the_command_line():
+    msg = from_builtins({"text": "a", "blob": [[1, 2], [3, 4]]}, EchoRequest)
+    assert msg.blob.shape == (2, 2)
+    assert to_builtins(msg) == {"text": "a", "blob": [[1.0, 2.0], [3.0, 4.0]]}
+
+
+def test_frame_kinds_and_summaries():
+    image = np.zeros((48, 64, 3), np.uint8)
+    binary = encode(StereoFrame(seq=1, stamp_s=0.0, left=image, right=image))
+    assert frame_kind(binary) == "hrpb"
+    assert frame_kind(b'{"a": 1}') == "json"
+    assert frame_kind(b"") == frame_kind(b"{broken") == frame_kind(os.urandom(8) + b"x") == "octets"
+    assert summarize(binary)["left"] == "<ndarray uint8 (48, 64, 3)>"
+    assert summarize(b"\x00\x01") == "<2 bytes: 0001>"
+    doc, refs = parse_frame(binary)
+    assert doc["seq"] == 1 and [r.path for r in refs] == ["left", "right"]
+
+
+def test_keys():
+    assert keys.key("hrp2", "footsteps", "plan") == "hrp/hrp2/footsteps/plan"
+    assert keys.request_mirror("hrp2", "diag", "echo") == "hrp/hrp2/diag/echo/request"
+    assert keys.parse("hrp/hrp2/diag/echo/reply") == ("hrp2", "diag", "echo/reply")
+    with pytest.raises(ValueError, match="lower_snake_case"):
+        keys.key("hrp2", "Diag", "echo")
+
+
+def test_config_defaults_stay_on_this_machine_and_yaml_overrides(tmp_path):
+    bus = BusConfig()
+    assert bus.mode == "peer" and not bus.multicast_scouting
+    assert all(e.startswith("tcp/127.0.0.1:") for e in (*bus.listen, bus.hub))
+    path = tmp_path / "stack.yaml"
+    path.write_text("bus:\n  robot: talos\n  connect: [tcp/10.0.0.2:7447]\nrecord:\n  chunk_period_s: 0.5\n")
+    loaded = load_bus_config(path, hub="tcp/127.0.0.1:9000")
+    assert (loaded.robot, loaded.connect, loaded.hub) == (
+        "talos",
+        ("tcp/10.0.0.2:7447",),
+        "tcp/127.0.0.1:9000",
+    )
+    from services.bus.recorder import RecorderConfig
+
+    assert load_section(path, "record", RecorderConfig).chunk_period_s == 0.5
+    path.write_text("bus:\n  robt: talos\n")
+    with pytest.raises(InvalidRequestError, match=r"unknown BusConfig option.*robt.*valid options: robot"):
+        load_bus_config(path)
+    with pytest.raises(InvalidRequestError, match="does not exist"):
+        load_bus_config(tmp_path / "missing.yaml")
+
+
+def test_json_schemas_are_inlined_for_foxglove():
+    schema = json_schema(StereoFrame)
+    assert "$ref" not in str(schema) and "$defs" not in schema
+    assert schema["properties"]["seq"] == {"type": "integer"}
+    for spec in [*endpoints().values(), *topics().values()]:
+        for type_ in (
+            getattr(spec, "request", None),
+            getattr(spec, "reply", None),
+            getattr(spec, "message", None),
+        ):
+            if type_ is not None:
+                assert "$ref" not in str(json_schema(type_)), type_
+
+
+def test_request_ids_fit_mcap_sequence_numbers():
+    ids = RequestIds()
+    values = [ids.next() for _ in range(1000)]
+    assert all(0 < v < 2**32 for v in values) and len(set(values)) == 1000
+    assert request_id_from(request_id_bytes(values[0])) == values[0]
+    assert request_id_from(b"abc") is None
+
+
+def test_discovery_finds_diag_without_importing_services():
+    found, _problems = discover()
+    assert found["diag"].module == "services.bus.diag"
+    assert found["record"].module == "services.bus.recorder"
+
+
+def test_shm_cleanup_spares_segments_a_living_process_holds(tmp_path):
+    held = tmp_path / "1.zenoh"
+    orphan = tmp_path / "2.zenoh"
+    mine = tmp_path / "3.zenoh"
+    for path in (held, orphan, mine):
+        path.write_bytes(b"x")
+    old = time.time() - 10
+    os.utime(orphan, (old, old))
+    holder = subprocess.Popen(
+        [sys.executable, "-c", f"import fcntl,time; f=open({str(held)!r}); fcntl.flock(f, fcntl.LOCK_SH); "
+         "print('locked', flush=True); time.sleep(60)"],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with open(mine) as f:
+            fcntl.flock(f, fcntl.LOCK_SH)
+            found = {p.name for p in orphaned(tmp_path)}
+        assert found == {"2.zenoh", "3.zenoh"}  # the orphan, and the one only this process holds
+    finally:
+        holder.kill()
+        holder.wait()
+    os.utime(held, (old, old))
+    assert "1.zenoh" in {p.name for p in orphaned(tmp_path, own_pid=0)}  # its holder is gone
