@@ -50,6 +50,26 @@ class CameraIntrinsics:
         f = (width / 2.0) / math.tan(hfov_rad / 2.0)
         return CameraIntrinsics(f, f, (width - 1) / 2.0, (height - 1) / 2.0, int(width), int(height))
 
+    @staticmethod
+    def from_matrix(
+        K: np.ndarray, width: int, height: int, pixel_centre_offset_px: float = 0.5
+    ) -> CameraIntrinsics:
+        """Intrinsics from a 3x3 camera matrix ``K`` [px] of a ``width`` x ``height`` image.
+
+        ``pixel_centre_offset_px``: where ``K`` puts the centre of pixel (row i, column j), at
+        (j + offset, i + offset). The default 0.5 is the convention of ``sim/render`` and of the robot
+        models' cameras (services.model: (0, 0) is the top-left *corner* of the image, cx = W / 2); 0 is
+        OpenCV's (and this package's); the principal point is shifted accordingly (getting it wrong turns
+        every bearing by half a pixel; depth from disparity is unaffected).
+        """
+        k = np.asarray(K, dtype=float)
+        if k.shape != (3, 3) or not np.all(np.isfinite(k)):
+            raise InvalidRequestError(f"K must be a finite 3x3 camera matrix, got shape {k.shape}")
+        if abs(k[0, 1]) > 1e-9 or np.any(np.abs(k[2] - (0.0, 0.0, 1.0)) > 1e-9):
+            raise InvalidRequestError(f"K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], got {k.tolist()}")
+        off = float(pixel_centre_offset_px)
+        return CameraIntrinsics(k[0, 0], k[1, 1], k[0, 2] - off, k[1, 2] - off, int(width), int(height))
+
     @property
     def matrix(self) -> np.ndarray:
         """3x3 camera matrix."""

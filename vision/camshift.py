@@ -80,6 +80,7 @@ class Detection:
     confidence: float
     touches_border: bool
     redetected: bool = False
+    border_sides: tuple[str, ...] = ()  # image borders the support touches: "left", "right", "top", "bottom"
 
 
 @dataclass(frozen=True)
@@ -182,9 +183,10 @@ def measure(
     strength = float(weights[support].mean()) / 255.0 if area else 0.0
     H, W = bp.shape
     ys, xs = np.nonzero(support)
-    touches = bool(
-        area and (x + xs.min() <= 0 or y + ys.min() <= 0 or x + xs.max() >= W - 1 or y + ys.max() >= H - 1)
-    )
+    sides: tuple[str, ...] = ()
+    if area:
+        at = (x + xs.min() <= 0, x + xs.max() >= W - 1, y + ys.min() <= 0, y + ys.max() >= H - 1)
+        sides = tuple(side for side, hit in zip(("left", "right", "top", "bottom"), at, strict=True) if hit)
     return Detection(
         name,
         (float(u), float(v)),
@@ -193,8 +195,9 @@ def measure(
         float(weights.sum()) / 255.0,
         area,
         strength * fill,
-        touches,
+        bool(sides),
         redetected,
+        sides,
     )
 
 

@@ -1,9 +1,14 @@
-"""Command line of the vision package: ``perception learn`` and ``perception detect``.
+"""Command line of the vision package: ``perception learn``, ``perception detect``, ``perception learn-sim``.
 
 ``add_cli(subparsers)`` registers a ``perception`` command group on an argparse sub-parser collection
 (``humanoid`` wires it, services/cli.py); each leaf command sets ``func(args) -> int`` and raises the
 typed errors of services/errors.py, which the entry point turns into messages and exit codes. Standalone:
 ``python -m vision.cli perception learn orange_ball --from img.png --mask mask.png``.
+
+This module is the only one registering the ``perception`` group (services/cli.py also lists
+``services.perception.cli``, which must not exist, or both would register it): ``learn-sim``, the tool
+that learns the demo objects from sim renders, lives in services/perception/learn_from_sim.py and is
+registered here. Its options module imports no simulator; pybullet loads only when the command runs.
 """
 
 from __future__ import annotations
@@ -122,7 +127,7 @@ def _cmd_detect(args: argparse.Namespace) -> int:
 
 
 def add_cli(subparsers) -> argparse.ArgumentParser:
-    """Register the ``perception`` command group (``learn``, ``detect``) on argparse ``subparsers``."""
+    """Register the ``perception`` command group (``learn``, ``detect``, ``learn-sim``) on ``subparsers``."""
     group = subparsers.add_parser(
         "perception", help="learn object colour models, test detection", description=__doc__.split("\n")[0]
     )
@@ -174,6 +179,17 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("--out", type=Path, help="write an overlay PNG here")
     p.set_defaults(func=_cmd_detect)
+
+    from services.perception import learn_from_sim  # options only; the sim is imported when it runs
+
+    p = sub.add_parser(
+        "learn-sim",
+        help="learn the demo objects from sim renders and their segmentation masks",
+        description=learn_from_sim.__doc__.split("\n")[0]
+        + " Writes <models-dir>/<NAME>.json for each object and checks detection on the views.",
+    )
+    learn_from_sim.add_arguments(p)
+    p.set_defaults(func=learn_from_sim.run_cli)
     return group
 
 

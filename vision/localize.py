@@ -29,6 +29,8 @@ from vision.stereo import (
     dense_disparity_median,
     dense_point,
     disparity_range,
+    edge_disparity_median,
+    point_from_pixel_disparity,
     sphere_centre_pixel,
     to_world,
     triangulate_centroids,
@@ -51,7 +53,7 @@ class ObjectLocation:
     position_world, position_camera: centre [m] in the world frame and in the left optical frame.
     size_m: (width, height) of the CamShift box at the object's depth [m] (a ball: its diameter twice).
     confidence: min of the left and right detection confidences, in [0, 1].
-    disparity_px: disparity used [px]; method: "centroid", "bm" or "sgbm" (see vision.stereo).
+    disparity_px: disparity used [px]; method: "centroid", "bm", "sgbm" or "edges" (see vision.stereo).
     left, right: the detections in each image (pixel boxes, windows, centroids).
     """
 
@@ -144,6 +146,76 @@ def _match_right(
     return best
 
 
+def _centroid_point(
+    model: ObjectModel, left: Detection, right: Detection, rig: StereoRig
+) -> tuple[np.ndarray, float]:
+    """Left-optical-frame point [m] and disparity [px] from the two silhouette centroids."""
+    uv_left, uv_right = left.centre_px, right.centre_px
+    p_camera = triangulate_centroids(rig, uv_left, uv_right)
+    if model.shape == "sphere":
+        radius = 0.25 * (left.box[1][0] + left.box[1][1]) * p_camera[2] / rig.intrinsics.fx
+        p_right = p_camera - rig.T_left_right[:3, 3]
+        uv_left = sphere_centre_pixel(rig, uv_left, radius, float(np.linalg.norm(p_camera)))
+        uv_right = sphere_centre_pixel(rig, uv_right, radius, float(np.linalg.norm(p_right)))
+        p_camera = triangulate_centroids(rig, uv_left, uv_right)
+    return p_camera, float(uv_left[0] - uv_right[0])
+
+
+def _dense_point(
+    model: ObjectModel,
+    left: Detection,
+    bp_left: np.ndarray,
+    frame: StereoFrame,
+    config: LocalizeConfig,
+    method: str,
+) -> tuple[np.ndarray, float]:
+    """Point [m] and disparity [px] from the median dense disparity (bm/sgbm) of the object's pixels."""
+    rig = frame.rig
+    x, y, w, h = left.window
+    mask = bp_left[y : y + h, x : x + w] >= config.detection.threshold
+    gray_l, gray_r = frame.gray
+    disparity, _ = dense_disparity_median(rig, gray_l, gray_r, left.window, mask, config.stereo, method)
+    z = rig.depth_of_disparity(disparity)
+    radius = (
+        0.25 * (left.box[1][0] + left.box[1][1]) * z / rig.intrinsics.fx if model.shape == "sphere" else None
+    )
+    return dense_point(rig, left.centre_px, disparity, radius), float(disparity)
+
+
+def _silhouette(bp: np.ndarray, window: Window, config: DetectionConfig) -> np.ndarray:
+    """Boolean object mask of a window: back projection >= threshold, closed morphologically."""
+    x, y, w, h = window
+    support = (bp[y : y + h, x : x + w] >= config.threshold).astype(np.uint8)
+    if config.close_kernel_px > 1:
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (config.close_kernel_px,) * 2)
+        support = cv2.morphologyEx(support, cv2.MORPH_CLOSE, kernel)
+    return support > 0
+
+
+def _edges_point(
+    left: Detection,
+    right: Detection,
+    bp_left: np.ndarray,
+    bp_right: np.ndarray,
+    rig: StereoRig,
+    config: DetectionConfig,
+) -> tuple[np.ndarray, float]:
+    """Point [m] (at the left centroid's ray) and disparity [px] from the silhouettes' edges."""
+    disparity, _ = edge_disparity_median(
+        _silhouette(bp_left, left.window, config),
+        left.window,
+        _silhouette(bp_right, right.window, config),
+        right.window,
+        rig.intrinsics.width,
+    )
+    if not disparity > 0:
+        raise NotFoundError(
+            f"stereo mismatch: the silhouette edges give a disparity of {disparity:.1f} px",
+            {"reason": "stereo_mismatch"},
+        )
+    return point_from_pixel_disparity(rig, left.centre_px[0], left.centre_px[1], disparity), disparity
+
+
 def locate_in_frame(
     model: ObjectModel, frame: StereoFrame, config: LocalizeConfig | None = None
 ) -> ObjectLocation:
@@ -161,30 +233,30 @@ def locate_in_frame(
 
     rig = frame.rig
     method = config.stereo.method
-    if method == "centroid" and (left.touches_border or right.touches_border):
-        method = "bm"  # a silhouette cut by the border moves the centroid; correlation is unaffected
+    side_cut = bool({"left", "right"} & {*left.border_sides, *right.border_sides})
+    if method == "centroid" and side_cut:
+        # A silhouette cut by a side border moves the centroid differently in each image; a cut by the
+        # top or bottom border removes the same rows from both (rectified), which the centroid tolerates.
+        method = "bm"
     if method == "centroid":
-        uv_left, uv_right = left.centre_px, right.centre_px
-        p_camera = triangulate_centroids(rig, uv_left, uv_right)
-        if model.shape == "sphere":
-            radius = 0.25 * (left.box[1][0] + left.box[1][1]) * p_camera[2] / rig.intrinsics.fx
-            p_right = p_camera - rig.T_left_right[:3, 3]
-            uv_left = sphere_centre_pixel(rig, uv_left, radius, float(np.linalg.norm(p_camera)))
-            uv_right = sphere_centre_pixel(rig, uv_right, radius, float(np.linalg.norm(p_right)))
-            p_camera = triangulate_centroids(rig, uv_left, uv_right)
-        disparity = uv_left[0] - uv_right[0]
+        p_camera, disparity = _centroid_point(model, left, right, rig)
+    elif method == "edges":
+        p_camera, disparity = _edges_point(left, right, bp_left, bp_right, rig, det_cfg)
     else:
-        x, y, w, h = left.window
-        mask = bp_left[y : y + h, x : x + w] >= det_cfg.threshold
-        gray_l, gray_r = frame.gray
-        disparity, _ = dense_disparity_median(rig, gray_l, gray_r, left.window, mask, config.stereo, method)
-        z = rig.depth_of_disparity(disparity)
-        radius = (
-            0.25 * (left.box[1][0] + left.box[1][1]) * z / rig.intrinsics.fx
-            if model.shape == "sphere"
-            else None
-        )
-        p_camera = dense_point(rig, left.centre_px, disparity, radius)
+        try:
+            p_camera, disparity = _dense_point(model, left, bp_left, frame, config, method)
+        except NotFoundError as dense_failed:
+            if config.stereo.method != "centroid":
+                raise  # the dense method was asked for: say it failed
+            try:  # no texture to correlate (uniform colour): the silhouettes' edges still match
+                method = "edges"
+                p_camera, disparity = _edges_point(left, right, bp_left, bp_right, rig, det_cfg)
+            except NotFoundError as edges_failed:
+                raise NotFoundError(
+                    f"'{model.name}' is cut by the image border and neither correlation nor its edges give "
+                    f"a disparity: {dense_failed.message}; {edges_failed.message}",
+                    {"reason": "no_disparity"},
+                ) from edges_failed
     z = float(p_camera[2])
     size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))
     p_world = to_world(p_camera, frame.T_world_left_camera)

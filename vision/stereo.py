@@ -5,7 +5,7 @@ algorithm by pixel correlation is applied on the stereo image pairs, and produce
 the current scene. [...] the objects to localize are sufficiently textured so that precise enough 3D
 points can be obtained in the vicinity of the objects."
 
-Two estimators, both restricted to the object's CamShift window:
+Three estimators, all restricted to the object's CamShift windows:
 
 - ``"centroid"``: sub-pixel triangulation of the back-projection mass centroids found independently in
   the left and right images: disparity = u_left - u_right, z = fx * baseline / disparity. The centroid of
@@ -15,12 +15,20 @@ Two estimators, both restricted to the object's CamShift window:
   a crop around the window only, and the median disparity of the object's pixels. Correlation sees the
   front surface, so for a ``"sphere"`` model the centre is placed r / sqrt(2) further along the ray (the
   median depth of a sphere's visible cap lies r / sqrt(2) in front of its centre).
+- ``"edges"``: the median, over the image rows both silhouettes cover, of the disparity of their leftmost
+  and of their rightmost pixels (edges lying on an image border are skipped). Needs no texture and no
+  complete silhouette: the last fallback for a uniformly coloured object cut by the left or right border
+  (rendered scenes: correlation then finds nothing to match).
 
 Which is the default is decided by measurement (``scripts/bench.d/perception.py``, vision/README.md):
 on 30 placements per distance, centroid triangulation has median errors of 0.04 / 0.09 / 0.29 cm at
-1.0 / 1.5 / 2.5 m against 0.44 / 0.51 / 0.44 cm for StereoBM and 0.56 / 0.57 / 0.96 cm for StereoSGBM,
-and is the cheapest, so it is the default. The dense median is the fallback when the object touches an
-image border in either image (a truncated silhouette moves the centroid, not the surface).
+1.0 / 1.5 / 2.5 m against 0.44 / 0.51 / 0.44 cm for StereoBM and 0.56 / 0.57 / 0.96 cm for StereoSGBM
+(synthetic textured images), and 0.10 / 0.12 / 0.28 cm against 1.9 / 2.3 / 2.6 cm for StereoBM on the
+simulator's untextured renders; it is also the cheapest, so it is the default. When the object touches
+the left or right image border in either image (a silhouette cut there moves the centroid differently in
+the two images) the dense median takes over, then the edges if correlation finds nothing. A cut by the
+top or bottom border removes the same rows (epipolar lines) from both rectified images, so the
+centroids still correspond: the centroid stays.
 
 Frames: positions are in the left camera optical frame (x right, y down, z forward) [m];
 :func:`to_world` maps them through ``T_world_camera``.
@@ -38,14 +46,14 @@ from services.errors import InvalidRequestError, NotFoundError
 from vision.camera import StereoRig, transform_points
 from vision.camshift import Window
 
-METHODS = ("centroid", "bm", "sgbm")
+METHODS = ("centroid", "bm", "sgbm", "edges")
 
 
 @dataclass(frozen=True)
 class StereoConfig:
     """Stereo parameters.
 
-    method: "centroid" (default, see module doc), "bm" or "sgbm".
+    method: "centroid" (default, see module doc), "bm", "sgbm" or "edges".
     min_depth_m, max_depth_m: depth range searched [m] (sets the disparity range of bm/sgbm and bounds
       the centroid disparity).
     max_row_difference_px: largest |v_left - v_right| of matched centroids [px] plus 5 % of the object's
@@ -192,6 +200,48 @@ def dense_disparity_median(
             {"reason": "no_disparity"},
         )
     return float(np.median(disp[valid])), n_valid
+
+
+def edge_disparity_median(
+    silhouette_left: np.ndarray,
+    window_left: Window,
+    silhouette_right: np.ndarray,
+    window_right: Window,
+    image_width_px: int,
+    min_rows: int = 3,
+) -> tuple[float, int]:
+    """Median disparity [px] of the silhouettes' left and right edges, row by row, and the edges used.
+
+    silhouette_*: boolean (h, w) masks of the object in each image's window (x, y, w, h) [px]. On a row
+    both cover, the leftmost object pixel of the left image and that of the right image see (nearly) the
+    same point of the object's occluding contour; so do the rightmost ones. Edges on the image's left or
+    right border (the object is cut there) are skipped. NotFoundError (reason ``no_disparity``) when fewer
+    than ``min_rows`` edges remain.
+    """
+
+    def extents(sil: np.ndarray, window: Window) -> dict[int, tuple[int, int]]:
+        x, y = window[0], window[1]
+        rows = np.flatnonzero(sil.any(axis=1))
+        first = sil[rows].argmax(axis=1)
+        last = sil.shape[1] - 1 - sil[rows][:, ::-1].argmax(axis=1)
+        return {int(y + r): (int(x + a), int(x + b)) for r, a, b in zip(rows, first, last, strict=True)}
+
+    left, right = extents(silhouette_left, window_left), extents(silhouette_right, window_right)
+    last_col = image_width_px - 1
+    disparities = []
+    for row in left.keys() & right.keys():
+        (l0, l1), (r0, r1) = left[row], right[row]
+        if l0 > 0 and r0 > 0:
+            disparities.append(l0 - r0)
+        if l1 < last_col and r1 < last_col:
+            disparities.append(l1 - r1)
+    if len(disparities) < min_rows:
+        raise NotFoundError(
+            f"edge stereo found only {len(disparities)} silhouette edges off the image border in both images "
+            "(the object is cut by both side borders, or seen in too few common rows)",
+            {"reason": "no_disparity"},
+        )
+    return float(np.median(disparities)), len(disparities)
 
 
 def dense_point(

@@ -1,15 +1,20 @@
 """Perception benchmark: 3D error of the ball's localization and time per stereo pair.
 
-For 30 seeded placements of the orange ball (radius 5 cm) at each of 1.0, 1.5 and 2.5 m from the left
-camera, localize it with vision.localize and compare with ground truth. Reports ``err_cm`` =
-{"1.0": {"median", "max"}, ...} and ``ms_per_pair`` (detection in both images + stereo; rendering
-excluded) for the default stereo method, and the same figures for every method ("centroid", "bm",
-"sgbm") on the same images, which is how the default was chosen. Writes bench/out/perception.json.
+For 30 seeded placements of the orange ball (radius 5 cm) at each of 1.0, 1.5 and 2.5 m in front of the
+robot's wide stereo pair, localize it and compare with ground truth. Reports ``err_cm`` =
+{"1.0": {"median", "max"}, ...} and ``ms_per_pair`` (detection in both images + stereo, i.e. the
+vision.localize call; rendering excluded) for the default stereo method, and the same figures for every
+method ("centroid", "bm", "sgbm") on the same images. Writes bench/out/perception.json.
 
 Goals (issue 8): median <= 1 cm at 1.5 m, <= 3 cm at 2.5 m, <= 20 ms per pair.
 
-The image source is any iterable of :class:`StereoSample`; :func:`synthetic_source` ray-casts them
-(vision.synthetic). A sim-rendered source only has to yield the same samples.
+Image sources (``--source``), both yielding :class:`StereoSample`:
+
+* ``sim`` (default): pybullet renders of the hrp2_like robot's wide pair at 640x480, random head pan/tilt,
+  the ball at a random bearing (services/perception/sim_placements.py); the camera pose comes from the
+  robot's kinematics, the ball model is the learned one (vision/models/orange_ball.json);
+* ``synthetic``: the vision.synthetic ray caster (anti-aliased, textured, sensor noise), the ball model
+  learned from one of its renders.
 """
 
 from __future__ import annotations
@@ -20,14 +25,14 @@ import sys
 import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
 from services.errors import NotFoundError
+from services.perception.sim_placements import StereoSample, sim_source
 from vision import synthetic
 from vision.camera import CameraIntrinsics, StereoRig
-from vision.histogram import ObjectModel, learn_model
+from vision.histogram import ObjectModel, learn_model, load_models
 from vision.localize import LocalizeConfig, locate
 from vision.stereo import METHODS, StereoConfig
 
@@ -37,19 +42,6 @@ DISTANCES_M = (1.0, 1.5, 2.5)
 GOALS_CM = {"1.5": 1.0, "2.5": 3.0}
 GOAL_MS = 20.0
 DEFAULT_METHOD = StereoConfig().method
-
-
-class StereoSample(NamedTuple):
-    """One rectified stereo pair with ground truth: images BGR uint8, intrinsics, baseline [m], the left
-    camera pose in the world (4x4, optical frame), the ball centre in the world [m], nominal distance [m]."""
-
-    left_bgr: np.ndarray
-    right_bgr: np.ndarray
-    intrinsics: CameraIntrinsics
-    baseline_m: float
-    T_world_left_camera: np.ndarray
-    ball_world: np.ndarray
-    distance_m: float
 
 
 def default_rig() -> StereoRig:
@@ -168,12 +160,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="scripts/bench perception",
         description="3D localization error of the ball at 1.0/1.5/2.5 m and ms per stereo pair "
-        "(synthetic ray-cast stereo pairs); writes bench/out/perception.json.",
+        "(sim renders by default); writes bench/out/perception.json.",
+    )
+    parser.add_argument(
+        "--source",
+        choices=("sim", "synthetic"),
+        default="sim",
+        help="pybullet renders of the robot's wide pair (default) or the vision.synthetic ray caster",
     )
     parser.add_argument("--n", type=int, default=30, help="placements per distance (default 30)")
     parser.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
-    parser.add_argument("--supersample", type=int, default=2, help="rays per pixel per axis (default 2)")
-    parser.add_argument("--noise", type=float, default=2.0, help="sensor noise std [grey levels] (default 2)")
+    parser.add_argument(
+        "--supersample", type=int, default=2, help="synthetic: rays per pixel per axis (default 2)"
+    )
+    parser.add_argument(
+        "--noise", type=float, default=2.0, help="synthetic: sensor noise std [grey levels] (default 2)"
+    )
     parser.add_argument("--methods", default=",".join(METHODS), help=f"comma list of {METHODS}")
     parser.add_argument(
         "--out", type=Path, default=OUT, help=f"JSON output (default {OUT.relative_to(REPO)})"
@@ -186,8 +188,28 @@ def main(argv: list[str] | None = None) -> int:
     if DEFAULT_METHOD not in methods:
         methods.insert(0, DEFAULT_METHOD)
 
-    model = learn_synthetic_ball_model(supersample=args.supersample)
-    source = synthetic_source(args.n, DISTANCES_M, args.seed, args.supersample, args.noise)
+    if args.source == "sim":
+        models = load_models()
+        if "orange_ball" not in models:
+            print(
+                "no vision/models/orange_ball.json: run `humanoid perception learn-sim` first",
+                file=sys.stderr,
+            )
+            return 1
+        model = models["orange_ball"]
+        source = sim_source(args.n, DISTANCES_M, args.seed)
+        description = (
+            f"sim (pybullet TINY renderer) hrp2_like wide pair 640x480, hfov 60 deg, baseline 0.144 m, "
+            f"ball radius 5 cm, head pan +-0.6 rad, tilt down 0-0.6 rad, seed {args.seed}; "
+            f"model vision/models/orange_ball.json; camera pose from the robot kinematics"
+        )
+    else:
+        model = learn_synthetic_ball_model(supersample=args.supersample)
+        source = synthetic_source(args.n, DISTANCES_M, args.seed, args.supersample, args.noise)
+        description = (
+            f"vision.synthetic ray caster, 640x480, hfov 60 deg, baseline 0.144 m, ball radius 5 cm, "
+            f"supersample {args.supersample}, noise {args.noise}, seed {args.seed}"
+        )
     result = run(source, model, methods)
     default = result["methods"][DEFAULT_METHOD]
     doc = {
@@ -201,12 +223,11 @@ def main(argv: list[str] | None = None) -> int:
             and default["ms_per_pair"] <= GOAL_MS
             and not default["failures"]
         ),
-        "source": (
-            f"vision.synthetic ray caster, 640x480, hfov 60 deg, baseline 0.144 m, ball radius 5 cm, "
-            f"supersample {args.supersample}, noise {args.noise}, seed {args.seed}"
-        ),
+        "image_source": args.source,
+        "source": description,
         **{k: v for k, v in result.items()},
     }
+    print(f"source: {description}")
     print(_table(result))
     print(
         f"goals: median <= 1 cm at 1.5 m, <= 3 cm at 2.5 m, <= {GOAL_MS:.0f} ms per pair -> "

@@ -34,7 +34,7 @@ class LocateRequest(msgspec.Struct, kw_only=True, frozen=True):
     width_px: int = 640  # image size asked of sim/render (ignored when images are given)
     height_px: int = 480
     images: StereoImages | None = None  # None: the service renders the pair through sim/render
-    method: str = ""  # stereo estimator: "" (service default), "centroid", "bm" or "sgbm"
+    method: str = ""  # stereo estimator: "" (service default), "centroid", "bm", "sgbm" or "edges"
 
 
 class PixelBox(msgspec.Struct, kw_only=True, frozen=True):
@@ -60,7 +60,7 @@ class LocateReply(msgspec.Struct, kw_only=True, frozen=True):
     distance_m: float  # from the left camera [m]
     size_m: list[float]  # (width, height) of the CamShift box at the object's depth [m]
     confidence: float  # in [0, 1]: colour typicality x fill of the CamShift ellipse (min of both images)
-    method: str  # stereo estimator used: "centroid", "bm" or "sgbm"
+    method: str  # stereo estimator used: "centroid", "bm", "sgbm" or "edges" (fallbacks, see vision)
     disparity_px: float  # u_left - u_right [px]
     box_left: PixelBox
     box_right: PixelBox
