@@ -38,6 +38,7 @@ import dataclasses
 import logging
 import os
 import signal
+import sys
 import threading
 import time
 import traceback
@@ -406,9 +407,18 @@ def serve(
         close_session(session)
 
 
+def _module_name(service_type: type[Service]) -> str:
+    """The importable module of a service class, also when it runs as ``python -m module``."""
+    module = service_type.__module__
+    if module == "__main__":
+        spec = getattr(sys.modules["__main__"], "__spec__", None)
+        module = spec.name if spec is not None else service_type.name
+    return module
+
+
 def service_argparser(service_type: type[Service]) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=f"python -m {service_type.__module__}",
+        prog=f"python -m {_module_name(service_type)}",
         description=(service_type.__doc__ or service_type.name).strip().splitlines()[0],
     )
     parser.add_argument("--config", help="YAML file: a 'bus:' section and a section named after the service")
