@@ -4,8 +4,12 @@ For each walk: the planned ZMP, the multibody ZMP of the whole-body motion and t
 over time in x and in y (the support polygon projected on each axis, shaded, as in Fig. 8 of the
 reaching paper), the CoM against the ZMP, and a top view of the footsteps with the CoM and ZMP paths.
 
+With ``--sim`` each walk is also planned from the state of the simulated robot (sim.world.World,
+pybullet), executed there open loop, and the soles measured every 5 ms are plotted against the plan
+(``walking_<robot>_<walk>_sim.png``, final errors in the title).
+
 Usage: python examples/walking_plots.py [--robot hrp2_like|talos] [--walk straight|turn|side|arc|all]
-       [--out out]
+       [--sim] [--out out]
 """
 
 from __future__ import annotations
@@ -40,15 +44,22 @@ from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern  
 from services.walking.support_polygon import support_hull  # noqa: E402
 from services.walking.timing import LEFT, RIGHT, WalkTiming  # noqa: E402
 from services.walking.wholebody import WholeBodyPlanner, WholeBodyResult  # noqa: E402
+from sim.world import World  # noqa: E402
 
 WALKS = ("straight", "turn", "side", "arc")
 
 
-def make_walk(robot, name: str):
-    q0 = robot.q_half_sitting
-    left = robot.sole_pose(q0, "left").translation
-    right = robot.sole_pose(q0, "right").translation
-    kw = {"left_start": SolePose(left[0], left[1], 0.0), "right_start": SolePose(right[0], right[1], 0.0)}
+def _sole(robot, q: np.ndarray, side: str) -> SolePose:
+    T = robot.sole_pose(q, side)
+    return SolePose(
+        float(T.translation[0]), float(T.translation[1]), math.atan2(T.rotation[1, 0], T.rotation[0, 0])
+    )
+
+
+def make_walk(robot, name: str, q0: np.ndarray | None = None):
+    """The issue's walks from the soles of ``q0`` (default: half-sitting)."""
+    q0 = robot.q_half_sitting if q0 is None else q0
+    kw = {"left_start": _sole(robot, q0, "left"), "right_start": _sole(robot, q0, "right")}
     if name == "straight":
         return straight_walk(10, 0.2, **kw)
     if name == "turn":
@@ -167,11 +178,96 @@ def plot_footsteps(res: WholeBodyResult, robot, path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def run_in_sim(robot, name: str) -> tuple[WholeBodyResult, np.ndarray, np.ndarray, str]:
+    """Plan ``name`` from the sim's state, execute it; (plan, measured soles (n, 2, 4), times, outcome)."""
+    from services.walking.wholebody import plan_walk
+    from sim.config import SimConfig
+
+    # TALOS needs more constraint-solver iterations than the sim's default (README of services/walking).
+    config = SimConfig(solver_iterations=50) if robot.name == "talos" else SimConfig()
+    with World(robot.name, "empty", config=config) as world:
+        q0 = world.state().q
+        res = plan_walk(world.robot, make_walk(world.robot, name, q0), q0)
+        samples: list[np.ndarray] = []
+        t0 = world.sim_time_s
+
+        def record(w: World) -> None:
+            q = w.pyrobot.read_q()
+            row = []
+            for side in ("left", "right"):
+                s = _sole(robot, q, side)
+                row.append([s.x_m, s.y_m, float(robot.sole_pose(q, side).translation[2]), s.yaw_rad])
+            samples.append(np.array([w.sim_time_s - t0, *np.ravel(row)]))
+
+        world.on_tick = record
+        outcome = world.execute(res.q, hold_s=0.5)
+        world.on_tick = None
+    data = np.array(samples)
+    return (
+        res,
+        data[:, 1:].reshape(-1, 2, 4),
+        data[:, 0],
+        outcome.message if outcome.outcome != "completed" else "completed",
+    )
+
+
+def plot_sim(
+    res: WholeBodyResult, measured: np.ndarray, times: np.ndarray, outcome: str, path: Path, title: str
+) -> None:
+    p = res.pattern
+    left, right = p.footsteps.final_stance()
+    errors = []
+    for i, pose in enumerate((left, right)):
+        x, y, _, yaw = measured[-1, i]
+        errors.append(
+            (
+                1e3 * math.hypot(x - pose.x_m, y - pose.y_m),
+                math.degrees(abs(math.remainder(yaw - pose.yaw_rad, 2 * math.pi))),
+            )
+        )
+    fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+    colours = {"left": "tab:blue", "right": "tab:orange"}
+    for row, (ax, label) in enumerate(zip(axes, ("x [m]", "y [m]", "z [m]"), strict=True)):
+        for i, side in enumerate(("left", "right")):
+            ax.plot(
+                p.times_s,
+                p.sole(side)[:, row],
+                "--",
+                color=colours[side],
+                lw=1.0,
+                label=f"{side} sole planned",
+            )
+            ax.plot(
+                times,
+                measured[:, i, row],
+                "-",
+                color=colours[side],
+                lw=0.8,
+                alpha=0.7,
+                label=f"{side} sole in the sim",
+            )
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="upper left", ncol=2)
+    axes[2].set_xlabel("time [s]")
+    axes[0].set_title(
+        f"{title} in the sim: {outcome[:80]}; final sole errors left {errors[0][0]:.1f} mm / "
+        f"{errors[0][1]:.2f} deg, right {errors[1][0]:.1f} mm / {errors[1][1]:.2f} deg",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--robot", default="hrp2_like", choices=["hrp2_like", "talos"])
     parser.add_argument("--walk", default="all", help=f"one of {', '.join(WALKS)} or all")
     parser.add_argument("--out", default=str(ROOT / "out"), help="output directory")
+    parser.add_argument(
+        "--sim", action="store_true", help="also execute each walk in the pybullet sim and plot it"
+    )
     args = parser.parse_args(argv)
     robot = load_robot(args.robot)
     out = Path(args.out)
@@ -199,6 +295,10 @@ def main(argv: list[str] | None = None) -> int:
             f"multibody ZMP min margin {f['min_zmp_margin_mm']:.1f} mm, "
             f"wrote {stem}_{{zmp,com,footsteps}}.png"
         )
+        if args.sim:
+            sim_res, measured, times, outcome = run_in_sim(robot, name)
+            plot_sim(sim_res, measured, times, outcome, Path(f"{stem}_sim.png"), title)
+            print(f"{title} in the sim: {outcome}; wrote {stem}_sim.png")
     return 0
 
 

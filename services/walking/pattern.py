@@ -51,7 +51,7 @@ class PatternOptions:
 
 @dataclass(frozen=True)
 class WalkPattern:
-    """A walk on the grid ``times_s`` (n samples, world frame, flat ground z = 0).
+    """A walk on the grid ``times_s`` (n samples, world frame, flat ground z = ``ground_z_m``).
 
     Sole arrays are (n, 4) = (x [m], y [m], z [m], yaw [rad]) with continuous (unwrapped) yaw, and their
     time derivatives. ``phase`` is DOUBLE / LEFT / RIGHT (LEFT: the left sole supports).
@@ -75,6 +75,7 @@ class WalkPattern:
     options: PatternOptions
     schedule: Schedule = field(repr=False)
     gains: PreviewGains = field(repr=False)
+    ground_z_m: float = 0.0  # height of the flat ground (and of the soles on it) [m]
 
     @property
     def dt_s(self) -> float:
@@ -119,28 +120,32 @@ class WalkPattern:
 
 
 def _resolve_com(
-    seq: FootstepSequence, options: PatternOptions, initial_com_m: np.ndarray | None
+    seq: FootstepSequence, options: PatternOptions, initial_com_m: np.ndarray | None, ground_z_m: float
 ) -> tuple[np.ndarray, float]:
-    """(initial CoM (3,) [m], z_c [m])."""
+    """(initial CoM (3,) [m], z_c [m] above the ground)."""
     if initial_com_m is not None:
         c0 = np.asarray(initial_com_m, dtype=float).reshape(-1)
         if c0.shape != (3,) or not np.all(np.isfinite(c0)):
             raise InvalidRequestError(f"initial_com_m must be 3 finite numbers [m], got {initial_com_m!r}")
     else:
         c0 = None
-    z_c = options.com_height_m if options.com_height_m is not None else (None if c0 is None else c0[2])
+    z_c = (
+        options.com_height_m
+        if options.com_height_m is not None
+        else (None if c0 is None else c0[2] - ground_z_m)
+    )
     if z_c is None:
         raise InvalidRequestError("give the CoM height: options.com_height_m or initial_com_m")
     if not (math.isfinite(z_c) and z_c > 0):
         raise InvalidRequestError(f"the CoM height must be > 0 m, got {z_c}")
     if c0 is None:
         mid = 0.5 * (seq.left_start.as_array()[:2] + seq.right_start.as_array()[:2])
-        c0 = np.array([mid[0], mid[1], z_c])
+        c0 = np.array([mid[0], mid[1], ground_z_m + z_c])
     return c0, float(z_c)
 
 
 def _sole_trajectories(
-    seq: FootstepSequence, schedule: Schedule, options: PatternOptions
+    seq: FootstepSequence, schedule: Schedule, options: PatternOptions, ground_z_m: float
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per side: (pose (n, 4), velocity (n, 4)) with continuous yaw."""
     n = schedule.n_samples
@@ -153,7 +158,7 @@ def _sole_trajectories(
     out = {}
     for side in ("left", "right"):
         pose = np.empty((n, 4))
-        pose[:] = [current[side].x_m, current[side].y_m, 0.0, current[side].yaw_rad]
+        pose[:] = [current[side].x_m, current[side].y_m, ground_z_m, current[side].yaw_rad]
         out[side] = (pose, np.zeros((n, 4)))
     for seg in schedule.segments:
         if seg.role != "swing":
@@ -170,11 +175,12 @@ def _sole_trajectories(
             np.arange(seg.n) * dt,
             step_height_m=options.step_height_m,
             horizontal_delay_ratio=options.swing_horizontal_delay_ratio,
+            ground_z_m=ground_z_m,
         )
         pose, vel = out[step.side]
         pose[seg.start : seg.stop] = traj.pose
         vel[seg.start : seg.stop] = traj.vel
-        pose[seg.stop :] = [end.x_m, end.y_m, 0.0, end.yaw_rad]
+        pose[seg.stop :] = [end.x_m, end.y_m, ground_z_m, end.yaw_rad]
         current[step.side] = end
     return out
 
@@ -186,6 +192,7 @@ def plan_pattern(
     *,
     initial_com_m: np.ndarray | None = None,
     bounds: FootstepLimits | None = None,
+    ground_z_m: float = 0.0,
 ) -> WalkPattern:
     """Plan the CoM / ZMP / sole / waist trajectories of a walk (first stage of Kajita 2003).
 
@@ -195,6 +202,10 @@ def plan_pattern(
         options: see :class:`PatternOptions`.
         initial_com_m: the CoM of the robot's starting configuration [m] (world); the CoM starts there
             at rest and the ZMP reference starts below it. Default: above the middle of the soles.
+        ground_z_m: height of the flat ground [m]: the soles stay at this height, the swing foot
+            rises from it and ``com_height_m`` (z_c) is measured from it. :func:`plan_walk` passes the
+            height of the starting soles, so that a robot measured standing a millimetre above z = 0
+            (a collision margin) is not asked to push its feet into the floor.
 
     Raises:
         InvalidRequestError: malformed input (overlapping feet, a zero duration, no CoM height...).
@@ -206,7 +217,9 @@ def plan_pattern(
     validate_footsteps(footsteps, bounds)
     if not (math.isfinite(options.step_height_m) and options.step_height_m >= 0):
         raise InvalidRequestError(f"step_height_m must be >= 0 m, got {options.step_height_m}")
-    c0, z_c = _resolve_com(footsteps, options, initial_com_m)
+    if not math.isfinite(ground_z_m):
+        raise InvalidRequestError(f"ground_z_m must be a finite height [m], got {ground_z_m}")
+    c0, z_c = _resolve_com(footsteps, options, initial_com_m, ground_z_m)
 
     schedule = build_schedule([s.side for s in footsteps.steps], timing)
     zmp_ref = zmp_reference(footsteps, schedule, offset_m=options.zmp_offset_m, initial_zmp_m=c0[:2])
@@ -223,8 +236,9 @@ def plan_pattern(
     com_vel = np.zeros((n, 3))
     com_acc = np.zeros((n, 3))
     com[:, :2], com_vel[:, :2], com_acc[:, :2] = res.com_m, res.com_vel_m_s, res.com_acc_m_s2
-    com[:, 2] = z_c
-    if abs(c0[2] - z_c) > 1e-9:
+    com_z_m = ground_z_m + z_c
+    com[:, 2] = com_z_m
+    if abs(c0[2] - com_z_m) > 1e-9:
         # Height change during the first double-support segment (quintic, zero vel/acc at both ends).
         seg = schedule.segments[0]
         T = seg.n * timing.dt_s
@@ -232,12 +246,12 @@ def plan_pattern(
         s = smoothstep5(tau)
         ds = 30 * tau**2 * (1 - tau) ** 2 / T
         dds = 60 * tau * (1 - tau) * (1 - 2 * tau) / T**2
-        dz = z_c - c0[2]
+        dz = com_z_m - c0[2]
         com[: seg.n, 2] = c0[2] + s * dz
         com_vel[: seg.n, 2] = ds * dz
         com_acc[: seg.n, 2] = dds * dz
 
-    soles = _sole_trajectories(footsteps, schedule, options)
+    soles = _sole_trajectories(footsteps, schedule, options, ground_z_m)
     left, left_vel = soles["left"]
     right, right_vel = soles["right"]
     waist_yaw = 0.5 * (left[:, 3] + right[:, 3])
@@ -280,6 +294,7 @@ def plan_pattern(
         options=options,
         schedule=schedule,
         gains=gains,
+        ground_z_m=float(ground_z_m),
     )
 
 

@@ -21,6 +21,7 @@ CoM output is added to the CoM reference, and the whole body is solved again (up
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -31,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
-from services.errors import InvalidRequestError
+from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import (
     ComPositionTask,
     FrameOrientationTask,
@@ -40,12 +41,13 @@ from services.ik import (
     Level,
     PostureTask,
 )
-from services.walking.footsteps import FootstepLimits, FootstepSequence
+from services.walking.footsteps import SIDES, FootstepLimits, FootstepSequence
 from services.walking.multibody_zmp import MultibodyZmp, multibody_zmp
 from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
 from services.walking.preview_control import second_stage_correction, settle_at_end
 from services.walking.support_polygon import distances_to_support
 from services.walking.timing import WalkTiming
+from services.walking.upper_body import GazeTarget, HandTarget, TaskError, UpperBody
 from services.walking.zmp_reference import smoothstep5
 
 KnotCallback = Callable[[int, float, np.ndarray], None]
@@ -59,7 +61,13 @@ class WholeBodyOptions:
 
     Attributes:
         knot_stride: samples between two IK knots (1: IK at every 5 ms sample).
-        iterations_per_knot: Gauss-Newton steps of the hierarchy per knot.
+        iterations_per_knot: Gauss-Newton steps of the hierarchy per knot; with caller levels at least
+            ``min_iterations_with_extra_levels``.
+        min_iterations_with_extra_levels: Gauss-Newton steps per knot when the caller adds levels.
+            An upper-body task can be near-singular (an arm stretched out) or conflict with the CoM;
+            with a single step per knot the constant-velocity prediction then rings from knot to
+            knot (measured: a free arm alternating at 20 rad/s under a left-hand path on hrp2_like),
+            two steps damp it out.
         zmp_margin_m: required distance of the multibody ZMP inside the support polygon [m].
         max_corrections: passes of the second preview stage at most.
         locked_joints: joints held at their starting value and left out of the IK (default: the
@@ -69,6 +77,7 @@ class WholeBodyOptions:
 
     knot_stride: int = 8
     iterations_per_knot: int = 1
+    min_iterations_with_extra_levels: int = 2
     zmp_margin_m: float = 0.010
     max_corrections: int = 2
     locked_joints: tuple[str, ...] | None = None
@@ -80,6 +89,14 @@ class WholeBodyOptions:
             raise InvalidRequestError(f"knot_stride must be an integer >= 1, got {self.knot_stride!r}")
         if not isinstance(self.iterations_per_knot, int) or self.iterations_per_knot < 1:
             raise InvalidRequestError(f"iterations_per_knot must be >= 1, got {self.iterations_per_knot!r}")
+        if (
+            not isinstance(self.min_iterations_with_extra_levels, int)
+            or self.min_iterations_with_extra_levels < 1
+        ):
+            raise InvalidRequestError(
+                "min_iterations_with_extra_levels must be >= 1, got "
+                f"{self.min_iterations_with_extra_levels!r}"
+            )
         if not (math.isfinite(self.zmp_margin_m) and self.zmp_margin_m >= 0):
             raise InvalidRequestError(f"zmp_margin_m must be >= 0 m, got {self.zmp_margin_m}")
         if self.max_corrections < 0:
@@ -92,7 +109,8 @@ class WholeBodyResult:
 
     ``q`` is (n, nq) of the full robot model (base and every joint). ``zmp_distance_m`` is the signed
     distance of the multibody ZMP to the support polygon (< 0 inside). ``com_ref_m`` is the CoM target
-    given to the IK (the pattern CoM plus the second-stage corrections).
+    given to the IK (the pattern CoM plus the second-stage corrections). ``task_errors`` has the largest
+    error of each upper-body task of :func:`plan_walk` (``hands``, ``gaze``), empty without them.
     """
 
     times_s: np.ndarray
@@ -108,6 +126,7 @@ class WholeBodyResult:
     max_com_error_m: float
     wall_time_s: float
     history: tuple[dict[str, float], ...] = field(default=())
+    task_errors: dict[str, TaskError] = field(default_factory=dict)
 
     @property
     def worst_zmp_outside_m(self) -> float:
@@ -136,6 +155,7 @@ class WholeBodyResult:
             "max_sole_error_mm": 1e3 * self.max_sole_error_m,
             "max_com_error_mm": 1e3 * self.max_com_error_m,
             "passes": list(self.history),
+            "task_errors": {name: e.max_error for name, e in self.task_errors.items()},
         }
 
 
@@ -209,7 +229,8 @@ class WholeBodyPlanner:
         while True:
             qs_red = self._track(pattern, com_ref, q_start, extra_levels, update_extra)
             qs = self.expand_q(qs_red, q_start)
-            mb = multibody_zmp(robot.model, qs, pattern.dt_s)
+            self._check_joint_motion(qs, pattern.dt_s, bool(extra_levels))
+            mb = multibody_zmp(robot.model, qs, pattern.dt_s, ground_z_m=pattern.ground_z_m)
             dist = distances_to_support(
                 mb.zmp_m, pattern.phase, pattern.left_sole, pattern.right_sole, *robot.sole_size_m
             )
@@ -252,6 +273,34 @@ class WholeBodyPlanner:
             wall_time_s=wall,
             history=tuple(history),
         )
+
+    def _check_joint_motion(self, qs: np.ndarray, dt_s: float, has_extra_levels: bool) -> None:
+        """Clip the splined joints to their limits (the knots are within them; the spline between two
+        knots may overshoot by a hair) and raise InfeasibleError for a joint faster than its limit."""
+        robot = self.robot
+        lo, hi = robot.q_lower[7:], robot.q_upper[7:]
+        np.clip(qs[:, 7:], lo, hi, out=qs[:, 7:])
+        speed = np.abs(np.diff(qs[:, 7:], axis=0)) / dt_s
+        ratio = speed / robot.v_max[6:]
+        k, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        if ratio[k, j] > 1.0:
+            hint = (
+                ": an upper-body target is probably out of reach (the arm stretches and flips); bring it "
+                "closer or hold it in the walk frame"
+                if has_extra_levels
+                else ""
+            )
+            name = robot.joint_names[j]
+            raise InfeasibleError(
+                f"joint {name} would move at {speed[k, j]:.1f} rad/s at t={k * dt_s:.3f} s, above its "
+                f"limit {robot.v_max[6 + j]:.1f} rad/s{hint}",
+                {
+                    "joint": name,
+                    "time_s": float(k * dt_s),
+                    "speed": float(speed[k, j]),
+                    "limit": float(robot.v_max[6 + j]),
+                },
+            )
 
     def _check_start(self, pattern: WalkPattern, q_start: np.ndarray) -> None:
         data = self.robot.new_data()
@@ -301,6 +350,9 @@ class WholeBodyPlanner:
         if knots[-1] != n - 1:
             knots.append(n - 1)
         q = self.reduce_q(q_start)
+        iterations = self.options.iterations_per_knot
+        if extra:
+            iterations = max(iterations, self.options.min_iterations_with_extra_levels)
         levels, tasks = self._levels(q.copy(), extra)
         feet, com, waist, chest = tasks["feet"], tasks["com"], tasks["waist"], tasks["chest"]
         model = self.model
@@ -328,7 +380,7 @@ class WholeBodyPlanner:
             # Constant-velocity prediction from the last two knots, then Gauss-Newton steps.
             q_pred = pin.integrate(model, q, pin.difference(model, q_prev, q) * (k - knots[i - 1]) / stride)
             q_prev, q = q, q_pred
-            for _ in range(self.options.iterations_per_knot):
+            for _ in range(iterations):
                 q = pin.integrate(model, q, self.solver.solve(levels, q))
             Q[i] = q
         return _spline_configurations(pattern.times_s[knots], Q, pattern.times_s)
@@ -416,19 +468,64 @@ def plan_walk(
     extra_levels: Sequence[Level] = (),
     update_extra: KnotCallback | None = None,
     planner: WholeBodyPlanner | None = None,
+    hands: Sequence[HandTarget] = (),
+    gaze: GazeTarget | None = None,
 ) -> WholeBodyResult:
     """Footsteps -> whole-body walk in one call: the pattern (footsteps validated against the robot's
-    bounds, CoM starting at the CoM of ``q_start``, step height from the robot's parameters unless
-    ``options`` says otherwise), then :meth:`WholeBodyPlanner.solve`. Pass ``planner`` to reuse one."""
+    bounds, CoM starting at the CoM of ``q_start``, the ground at the height of its soles, step height
+    from the robot's parameters unless ``options`` says otherwise), then :meth:`WholeBodyPlanner.solve`.
+    Pass ``planner`` to reuse one.
+
+    ``hands`` and ``gaze`` add the upper-body tasks of :mod:`services.walking.upper_body` below
+    ``extra_levels``; their largest errors over the trajectory are in ``result.task_errors``."""
     if options is None:
         options = PatternOptions(step_height_m=float(robot.params.step_height_m))
     q_start = robot.check_q(q_start)
+    data = robot.new_data()
+    ground_z_m = 0.5 * sum(float(robot.sole_pose(q_start, side, data).translation[2]) for side in SIDES)
     pattern = plan_pattern(
         footsteps,
         timing or WalkTiming(),
         options,
         initial_com_m=robot.com(q_start),
         bounds=FootstepLimits.from_robot(robot),
+        ground_z_m=ground_z_m,
     )
     planner = planner or WholeBodyPlanner(robot, wholebody_options)
-    return planner.solve(pattern, q_start, extra_levels=extra_levels, update_extra=update_extra)
+    if not hands and gaze is None:
+        return planner.solve(pattern, q_start, extra_levels=extra_levels, update_extra=update_extra)
+    upper = UpperBody(
+        planner.model,
+        robot,
+        q_start,
+        pattern.com_m[0],
+        pattern.waist_yaw_rad,
+        pattern.times_s,
+        hands=hands,
+        gaze=gaze,
+    )
+
+    def update(k: int, t_s: float, com_ref_m: np.ndarray) -> None:
+        if update_extra is not None:
+            update_extra(k, t_s, com_ref_m)
+        upper.update(k, t_s, com_ref_m)
+
+    levels = (*extra_levels, *upper.levels)
+    try:
+        result = planner.solve(pattern, q_start, extra_levels=levels, update_extra=update)
+    except InfeasibleError as exc:
+        if "joint" not in exc.details:
+            raise
+        # A joint too fast under upper-body tasks: name the task that cannot be met (one more IK pass).
+        qs = planner.expand_q(planner._track(pattern, pattern.com_m, q_start, levels, update), q_start)
+        errors = {n: e for n, e in upper.errors(qs, pattern.com_m).items() if e.unit == "m"}
+        name, worst = max(errors.items(), key=lambda item: item[1].max_error)
+        d = exc.details
+        raise InfeasibleError(
+            f"upper-body task {name} cannot be met: it stays {1e3 * worst.max_error:.0f} mm from its target "
+            f"(worst at t={worst.time_s:.3f} s) and reaching for it moves joint {d['joint']} at "
+            f"{d['speed']:.1f} rad/s (limit {d['limit']:.1f}) at t={d['time_s']:.3f} s; bring the target "
+            "closer to the body",
+            {**exc.details, "task": name, "task_error_m": worst.max_error, "task_time_s": worst.time_s},
+        ) from exc
+    return dataclasses.replace(result, task_errors=upper.errors(result.q, result.com_ref_m))

@@ -1,0 +1,149 @@
+"""Messages of the ``walking`` service: footsteps in, a 5 ms whole-body walk out (ZMP preview control,
+Kajita et al. 2003, on the prioritized IK).
+
+The planner is stateless: the request carries the robot model name, its starting configuration and the
+footsteps. World frame, z up, flat ground; poses on the ground are ``[x, y, yaw]`` ([m], [m], [rad]).
+Configurations follow the pinocchio layout of the model (``q = [x, y, z, qx, qy, qz, qw, joints...]``,
+joint order ``PlanReply.joint_names``): ``PlanReply.q`` goes to ``sim/execute`` as it is.
+
+A request typed by hand only needs the steps::
+
+    humanoid call walking/plan '{"first_side": "right", "steps": [{"pose": [0.2, -0.095, 0]},
+                                  {"pose": [0.2, 0.095, 0]}]}'
+
+(``q_start`` omitted: half-sitting with the mid-feet frame on the world origin, the soles where the
+model puts them, e.g. y = +-0.095 m for ``hrp2_like``).
+"""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+
+from services.bus.spec import EndpointSpec
+
+
+class Step(msgspec.Struct, kw_only=True, frozen=True):
+    """One footstep: foot ``side`` lands with its sole at ``pose`` = [x, y, yaw] ([m], [m], [rad])."""
+
+    pose: list[float]
+    side: str = ""  # "left" or "right"; "" alternates, starting with PlanRequest.first_side
+
+
+class HandTask(msgspec.Struct, kw_only=True, frozen=True):
+    """Keep a hand (its grasp frame) at its starting pose in ``frame``, or move it along waypoints.
+
+    ``frame``: "walk" (moves with the walk: origin on the ground below the planned CoM, x along the
+    waist yaw; a carried object) or "world". With ``times_s`` / ``positions_m`` the hand position
+    follows a C2 spline from its starting position (t = 0) through the waypoints ([s] from the start of
+    the walk, strictly increasing, > 0; [x, y, z] [m] in ``frame``) and stays at the last one.
+    """
+
+    side: str  # "left" or "right"
+    frame: str = "walk"
+    times_s: list[float] = []
+    positions_m: list[list[float]] = []
+    keep_orientation: bool = True  # also hold the starting orientation (in frame)
+
+
+class GazeTask(msgspec.Struct, kw_only=True, frozen=True):
+    """Look at ``point_m`` = [x, y, z] [m] in ``frame`` ("world" or "walk"), blended in over ``blend_s``."""
+
+    point_m: list[float]
+    frame: str = "world"
+    blend_s: float = 1.0
+
+
+class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Footsteps, timing and options of one walk.
+
+    ``left_start`` / ``right_start``: the soles before the first step ([x, y, yaw]); omitted (null):
+    measured on ``q_start``. ``q_start`` omitted: the model's half-sitting standing on the starting
+    soles' mid-feet frame (the soles must then be as far apart as in half-sitting). When both are
+    given they must agree within 5 mm.
+    """
+
+    steps: list[Step]
+    first_side: str = "right"  # foot that moves first when steps[0].side is ""
+    model: str = "hrp2_like"  # services.model.load_robot name: hrp2_like or talos
+    q_start: np.ndarray | None = None  # (nq,) starting configuration, pinocchio layout
+    left_start: list[float] | None = None  # [x, y, yaw] of the left sole before the first step
+    right_start: list[float] | None = None  # [x, y, yaw] of the right sole before the first step
+    # timing [s]
+    single_support_s: float = 0.8
+    double_support_s: float = 0.3  # between two steps (0.1 is fragile in the sim: see the README)
+    initial_double_support_s: float = 1.0  # first weight transfer onto the first stance foot
+    final_double_support_s: float = 1.0  # last weight transfer back between the feet
+    initial_hold_s: float = 0.8  # standing still before the first transfer (preview lead-in)
+    stop_at_end: bool = True  # stand still final_hold_s at the end (else end with the last transfer)
+    final_hold_s: float = 1.0
+    # pattern options
+    step_height_m: float | None = None  # swing apex [m]; None: the robot's parameter
+    com_height_m: float | None = None  # cart-table z_c above the ground [m]; None: CoM of q_start
+    preview_horizon_s: float = 1.6  # preview control horizon [s]
+    zmp_margin_m: float = 0.010  # multibody ZMP inside the support polygon by this much [m]
+    max_corrections: int = 2  # passes of the second preview stage at most
+    # upper body (below feet > CoM > waist/chest orientation, above the rest posture)
+    hands: list[HandTask] = []
+    gaze: GazeTask | None = None
+    hand_tolerance_m: float = 0.01  # a hand farther than this from its target: infeasible [m]
+    gaze_tolerance_m: float = 0.02  # target point farther than this from the gaze axis: infeasible [m]
+
+
+class StepTiming(msgspec.Struct, kw_only=True, frozen=True):
+    """When step ``index`` (foot ``side``) lifts off and lands [s], and its landing pose [x, y, yaw]."""
+
+    index: int
+    side: str
+    lift_off_s: float
+    touch_down_s: float
+    pose: list[float]
+
+
+class PlanFigures(msgspec.Struct, kw_only=True, frozen=True):
+    """How good the walk is (deterministic figures: no wall-clock times in a planner reply)."""
+
+    duration_s: float  # time of the last sample [s]
+    n_samples: int
+    min_zmp_margin_m: float  # smallest distance of the multibody ZMP inside the polygon [m] (< 0: out)
+    worst_zmp_outside_m: float  # largest distance outside the polygon [m] (0: always inside)
+    second_stage_passes: int  # passes of the second preview stage (0: the first stage sufficed)
+    second_stage_acted: bool  # second_stage_passes > 0
+    min_zmp_margin_first_pass_m: float  # min_zmp_margin_m before any correction [m]
+    max_zmp_error_m: float  # largest |ZMP reference - multibody ZMP| of the final pass [m]
+    max_sole_error_m: float  # sole position error left by the IK knots + spline, every sample [m]
+    max_com_error_m: float  # CoM error of the joint trajectory w.r.t. the CoM reference [m]
+    task_errors: dict[str, float] = {}  # upper-body task -> largest error [m] ([rad] for *_rotation)
+
+
+class PlanReply(msgspec.Struct, kw_only=True, frozen=True):
+    """The whole-body walk on a 5 ms grid (n samples). ``phase``: 0 double support, 1 left foot supports
+    (right swings), 2 right foot supports. Sole arrays are (n, 4) = x, y, z [m], yaw [rad] (continuous)."""
+
+    model: str
+    joint_names: list[str]  # actuated joints in q order (after the 7 base coordinates)
+    dt_s: float  # 0.005
+    times_s: np.ndarray  # (n,) [s]
+    q: np.ndarray  # (n, nq) base pose and every joint: send to sim/execute
+    com_m: np.ndarray  # (n, 3) CoM of q [m]
+    com_ref_m: np.ndarray  # (n, 3) CoM reference (cart-table + second-stage corrections) [m]
+    zmp_ref_m: np.ndarray  # (n, 2) ZMP reference from the footsteps [m]
+    zmp_planned_m: np.ndarray  # (n, 2) ZMP of the cart-table CoM motion (first stage) [m]
+    zmp_multibody_m: np.ndarray  # (n, 2) ZMP of the whole-body motion (pinocchio centroidal) [m]
+    zmp_margin_m: np.ndarray  # (n,) signed distance of the multibody ZMP inside its polygon [m]
+    left_sole: np.ndarray  # (n, 4)
+    right_sole: np.ndarray  # (n, 4)
+    phase: np.ndarray  # (n,) int8 support phase
+    steps: list[StepTiming]
+    final_left_sole: list[float]  # [x, y, yaw] after the last step
+    final_right_sole: list[float]
+    figures: PlanFigures
+
+
+PLAN = EndpointSpec(
+    "walking",
+    "plan",
+    PlanRequest,
+    PlanReply,
+    "footsteps -> 5 ms whole-body walk (ZMP preview control + IK); infeasible names the step out of bounds",
+)

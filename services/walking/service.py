@@ -1,0 +1,272 @@
+"""The ``walking`` service: the ZMP preview-control pattern generator (this package) on the bus.
+
+Run: ``python -m services.walking.service`` (common service options: ``--config``, ``--robot``, ``--hub``,
+``--log-level``; YAML section ``walking:``, :class:`WalkingConfig`).
+
+Endpoint ``walking/plan`` (:mod:`services.bus.schemas.walking`): footsteps, timing, options and the
+robot's starting configuration in; the 5 ms whole-body trajectory, CoM, ZMPs, soles, phases and figures
+out. Stateless: the reply is a deterministic function of the request (no wall-clock figures in it; the
+planning time is logged). :func:`plan_reply` is the whole adapter without the bus.
+
+Failure codes: ``invalid_request`` (malformed request: unknown model, q of the wrong size, overlapping
+soles, a zero duration, a bad upper-body task, q_start and the starting soles more than 5 mm apart);
+``infeasible`` (a step beyond the robot's bounds - the message and ``details.step_index`` name it -; a
+multibody ZMP still outside the support polygon after the corrections; a joint faster than its limit;
+an upper-body task missed by more than its tolerance).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from services.bus.schemas import walking as msg
+from services.bus.service import Service, handles, run_service
+from services.errors import InfeasibleError, InvalidRequestError
+from services.model import load_robot
+from services.walking.footsteps import SIDES, Footstep, FootstepSequence, SolePose, other_side
+from services.walking.pattern import PatternOptions
+from services.walking.timing import WalkTiming
+from services.walking.upper_body import GazeTarget, HandTarget
+from services.walking.wholebody import WholeBodyOptions, WholeBodyResult, plan_walk
+
+DT_S = 0.005
+
+
+@dataclass(frozen=True)
+class WalkingConfig:
+    """Options of the walking service (YAML section ``walking:``).
+
+    Attributes:
+        knot_stride: samples between two IK knots of the whole-body stage (1: IK at every 5 ms).
+        iterations_per_knot: Gauss-Newton steps of the IK hierarchy per knot.
+        preload: robot models loaded at start-up (others are loaded on their first request).
+    """
+
+    knot_stride: int = 8
+    iterations_per_knot: int = 1
+    preload: tuple[str, ...] = ("hrp2_like",)
+
+    def __post_init__(self) -> None:
+        WholeBodyOptions(
+            knot_stride=self.knot_stride, iterations_per_knot=self.iterations_per_knot
+        ).validate()
+
+
+def _pose(value: Any, name: str) -> SolePose:
+    """[x, y, yaw] -> SolePose, else InvalidRequestError naming the field."""
+    if not isinstance(value, list | tuple) or len(value) != 3:
+        raise InvalidRequestError(f"{name} must be [x, y, yaw] ([m], [m], [rad]), got {value!r}")
+    x, y, yaw = (float(v) for v in value)
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise InvalidRequestError(f"{name} must be finite numbers, got {value!r}")
+    return SolePose(x, y, yaw)
+
+
+def _sole_on(robot: Any, q: np.ndarray, side: str) -> SolePose:
+    T = robot.sole_pose(q, side)
+    return SolePose(
+        float(T.translation[0]), float(T.translation[1]), math.atan2(T.rotation[1, 0], T.rotation[0, 0])
+    )
+
+
+def start_of(request: msg.PlanRequest, robot: Any) -> tuple[np.ndarray, SolePose, SolePose]:
+    """(q_start, left sole, right sole) of a request: given, or measured, or half-sitting on the soles."""
+    if (request.left_start is None) != (request.right_start is None):
+        raise InvalidRequestError("give both left_start and right_start ([x, y, yaw]), or neither")
+    left = right = None
+    if request.left_start is not None:
+        left = _pose(request.left_start, "left_start")
+        right = _pose(request.right_start, "right_start")
+    if request.q_start is not None:
+        q = robot.check_q(request.q_start)
+    elif left is not None and right is not None:
+        yaw = right.yaw_rad + 0.5 * math.remainder(left.yaw_rad - right.yaw_rad, 2.0 * math.pi)
+        q = robot.half_sitting_at(0.5 * (left.x_m + right.x_m), 0.5 * (left.y_m + right.y_m), yaw)
+    else:
+        q = np.array(robot.q_half_sitting)
+    if left is None or right is None:
+        left, right = _sole_on(robot, q, "left"), _sole_on(robot, q, "right")
+    return q, left, right
+
+
+def footsteps_of(request: msg.PlanRequest, left: SolePose, right: SolePose) -> FootstepSequence:
+    """The footstep sequence of a request (sides alternate from ``first_side`` where not given)."""
+    if request.first_side not in SIDES:
+        raise InvalidRequestError(f"first_side must be one of {list(SIDES)}, got {request.first_side!r}")
+    steps = []
+    side = request.first_side
+    for i, step in enumerate(request.steps):
+        if step.side:
+            if step.side not in SIDES:
+                raise InvalidRequestError(
+                    f"steps[{i}].side must be one of {list(SIDES)} or '', got {step.side!r}"
+                )
+            side = step.side
+        steps.append(Footstep(side, _pose(step.pose, f"steps[{i}].pose")))
+        side = other_side(side)
+    return FootstepSequence(left, right, tuple(steps))
+
+
+def _hand(task: msg.HandTask, i: int) -> HandTarget:
+    for k, p in enumerate(task.positions_m):
+        if len(p) != 3:
+            raise InvalidRequestError(f"hands[{i}].positions_m[{k}] must be [x, y, z] [m], got {p!r}")
+    return HandTarget(
+        side=task.side,
+        frame=task.frame,
+        times_s=tuple(float(t) for t in task.times_s),
+        positions_m=tuple((float(p[0]), float(p[1]), float(p[2])) for p in task.positions_m),
+        keep_orientation=task.keep_orientation,
+    )
+
+
+def plan_reply(request: msg.PlanRequest, config: WalkingConfig | None = None) -> msg.PlanReply:
+    """Plan the walk of ``request`` (the whole endpoint, without the bus). Raises the typed errors of the
+    module docstring."""
+    config = config or WalkingConfig()
+    robot = load_robot(request.model)
+    q_start, left, right = start_of(request, robot)
+    footsteps = footsteps_of(request, left, right)
+    timing = WalkTiming(
+        single_support_s=request.single_support_s,
+        double_support_s=request.double_support_s,
+        initial_double_support_s=request.initial_double_support_s,
+        final_double_support_s=request.final_double_support_s,
+        final_hold_s=request.final_hold_s if request.stop_at_end else 0.0,
+        initial_hold_s=request.initial_hold_s,
+        dt_s=DT_S,
+    )
+    step_height = robot.params.step_height_m if request.step_height_m is None else request.step_height_m
+    options = PatternOptions(
+        com_height_m=request.com_height_m,
+        step_height_m=float(step_height),
+        preview_horizon_s=request.preview_horizon_s,
+    )
+    wb_options = WholeBodyOptions(
+        knot_stride=config.knot_stride,
+        iterations_per_knot=config.iterations_per_knot,
+        zmp_margin_m=request.zmp_margin_m,
+        max_corrections=request.max_corrections,
+    )
+    for name in ("hand_tolerance_m", "gaze_tolerance_m"):
+        value = getattr(request, name)
+        if not (math.isfinite(value) and value > 0):
+            raise InvalidRequestError(f"{name} must be > 0 m, got {value}")
+    hands = [_hand(h, i) for i, h in enumerate(request.hands)]
+    gaze = None
+    if request.gaze is not None:
+        point = tuple(float(v) for v in request.gaze.point_m)
+        gaze = GazeTarget(point, request.gaze.frame, request.gaze.blend_s)  # type: ignore[arg-type]
+    result = plan_walk(robot, footsteps, q_start, timing, options, wb_options, hands=hands, gaze=gaze)
+    _check_result(result, request)
+    return _reply(robot, result, footsteps)
+
+
+def _check_result(result: WholeBodyResult, request: msg.PlanRequest) -> None:
+    """InfeasibleError when the ZMP leaves the polygon or an upper-body task is missed."""
+    if result.worst_zmp_outside_m > 0.0:
+        k = int(np.argmax(result.zmp_distance_m))
+        t = float(result.times_s[k])
+        raise InfeasibleError(
+            f"the multibody ZMP leaves the support polygon by {1e3 * result.worst_zmp_outside_m:.1f} mm at "
+            f"t={t:.3f} s even after {result.corrections} second-stage pass(es): slow the steps down "
+            "(longer single/double support), shorten them, or lower the step height",
+            {"time_s": t, "outside_m": result.worst_zmp_outside_m, "corrections": result.corrections},
+        )
+    for name, err in result.task_errors.items():
+        if name.endswith("_rotation"):
+            continue  # an orientation is held as well as the position allows; reported, not checked
+        tol = request.gaze_tolerance_m if name == "gaze" else request.hand_tolerance_m
+        if err.max_error > tol:
+            raise InfeasibleError(
+                f"upper-body task {name} is missed by {1e3 * err.max_error:.0f} mm at t={err.time_s:.3f} s "
+                f"(tolerance {1e3 * tol:.0f} mm): its target is out of reach while the feet, the CoM and "
+                "the waist follow the walk; bring it closer to the body",
+                {"task": name, "error_m": err.max_error, "time_s": err.time_s},
+            )
+
+
+def _reply(robot: Any, result: WholeBodyResult, footsteps: FootstepSequence) -> msg.PlanReply:
+    pattern = result.pattern
+    dt = pattern.dt_s
+    steps = [
+        msg.StepTiming(
+            index=seg.step_index,
+            side=footsteps.steps[seg.step_index].side,
+            lift_off_s=seg.start * dt,
+            touch_down_s=seg.stop * dt,
+            pose=footsteps.steps[seg.step_index].pose.as_array().tolist(),
+        )
+        for seg in pattern.schedule.segments
+        if seg.role == "swing"
+    ]
+    final_left, final_right = footsteps.final_stance()
+    first = result.history[0]
+    last = result.history[-1]
+    return msg.PlanReply(
+        model=robot.name,
+        joint_names=list(robot.joint_names),
+        dt_s=dt,
+        times_s=np.array(pattern.times_s),
+        q=np.ascontiguousarray(result.q),
+        com_m=np.ascontiguousarray(result.com_m),
+        com_ref_m=np.ascontiguousarray(result.com_ref_m),
+        zmp_ref_m=np.ascontiguousarray(pattern.zmp_ref_m),
+        zmp_planned_m=np.ascontiguousarray(result.zmp_planned_m),
+        zmp_multibody_m=np.ascontiguousarray(result.zmp_multibody_m),
+        zmp_margin_m=-np.asarray(result.zmp_distance_m),
+        left_sole=np.ascontiguousarray(pattern.left_sole),
+        right_sole=np.ascontiguousarray(pattern.right_sole),
+        phase=np.asarray(pattern.phase, dtype=np.int8),
+        steps=steps,
+        final_left_sole=final_left.as_array().tolist(),
+        final_right_sole=final_right.as_array().tolist(),
+        figures=msg.PlanFigures(
+            duration_s=pattern.duration_s,
+            n_samples=pattern.n_samples,
+            min_zmp_margin_m=result.min_zmp_margin_m,
+            worst_zmp_outside_m=result.worst_zmp_outside_m,
+            second_stage_passes=result.corrections,
+            second_stage_acted=result.corrections > 0,
+            min_zmp_margin_first_pass_m=1e-3 * first["min_margin_mm"],
+            max_zmp_error_m=1e-3 * last["max_zmp_error_mm"],
+            max_sole_error_m=result.max_sole_error_m,
+            max_com_error_m=result.max_com_error_m,
+            task_errors={name: e.max_error for name, e in result.task_errors.items()},
+        ),
+    )
+
+
+class WalkingService(Service):
+    """Walking pattern generator: footsteps -> 5 ms whole-body walk (ZMP preview control, Kajita 2003)."""
+
+    name = "walking"
+    Config = WalkingConfig
+
+    def start(self) -> None:
+        for model in self.config.preload:
+            load_robot(model)  # fail early on a bad name; warms the model cache
+
+    @handles(msg.PLAN)
+    def plan(self, request: msg.PlanRequest) -> msg.PlanReply:
+        started = time.perf_counter()
+        reply = plan_reply(request, self.config)
+        self.log.info(
+            "%s: %d steps, %.2f s of walk planned in %.2f s (ZMP margin %.1f mm, %d second-stage passes)",
+            reply.model,
+            len(reply.steps),
+            reply.figures.duration_s,
+            time.perf_counter() - started,
+            1e3 * reply.figures.min_zmp_margin_m,
+            reply.figures.second_stage_passes,
+        )
+        return reply
+
+
+if __name__ == "__main__":
+    raise SystemExit(run_service(WalkingService))

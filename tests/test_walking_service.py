@@ -1,0 +1,208 @@
+"""The walking service (services/walking/service.py): its adapter without the bus (request -> reply,
+errors, upper-body tasks), then over a real zenoh bus with the sim service: plan through
+``walking/plan``, execute through ``sim/execute``, and ``humanoid call walking/plan``."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from services.bus.codec import encode, from_builtins
+from services.bus.schemas import sim as sim_msg
+from services.bus.schemas import walking as msg
+from services.errors import InfeasibleError, InvalidRequestError
+from services.model import load_robot
+from services.walking.footsteps import SolePose, straight_walk
+from services.walking.service import plan_reply
+
+REPO = Path(__file__).resolve().parent.parent
+
+TWO_STEPS = [{"pose": [0.2, -0.095, 0.0]}, {"pose": [0.2, 0.095, 0.0]}]
+
+
+def _request(**fields) -> msg.PlanRequest:
+    return from_builtins({"steps": TWO_STEPS, **fields}, msg.PlanRequest)
+
+
+# ------------------------------------------------------------------------------------- adapter, no bus
+
+
+def test_plain_json_request_gives_the_whole_walk():
+    reply = plan_reply(_request())
+    robot = load_robot("hrp2_like")
+    n = reply.times_s.shape[0]
+    assert reply.q.shape == (n, robot.nq) and reply.joint_names == list(robot.joint_names)
+    for name, cols in (("com_m", 3), ("zmp_ref_m", 2), ("zmp_multibody_m", 2), ("left_sole", 4)):
+        assert getattr(reply, name).shape == (n, cols), name
+    assert reply.phase.dtype == np.int8 and set(np.unique(reply.phase)) == {0, 1, 2}
+    np.testing.assert_allclose(reply.q[0], robot.q_half_sitting)  # q_start omitted: half-sitting
+    assert [s.side for s in reply.steps] == ["right", "left"]  # alternating from first_side
+    assert reply.steps[0].lift_off_s < reply.steps[0].touch_down_s <= reply.steps[1].lift_off_s
+    assert reply.final_left_sole == [0.2, 0.095, 0.0]
+    f = reply.figures
+    assert f.min_zmp_margin_m >= 0.010 and f.worst_zmp_outside_m == 0.0
+    assert f.second_stage_acted == (f.second_stage_passes > 0)
+    np.testing.assert_allclose(reply.zmp_margin_m.min(), f.min_zmp_margin_m)
+    # Stateless and deterministic: the same request gives the same bytes.
+    assert encode(plan_reply(_request())) == encode(reply)
+
+
+def test_stop_at_end_adds_the_final_hold():
+    held, brief = plan_reply(_request()), plan_reply(_request(stop_at_end=False))
+    assert held.figures.duration_s == pytest.approx(brief.figures.duration_s + 1.0)
+    assert np.abs(brief.q[-1] - brief.q[-2]).max() < 1e-6  # at rest at the end either way
+
+
+def test_step_beyond_the_bounds_is_infeasible_and_named():
+    steps = [*TWO_STEPS, {"pose": [0.5, -0.095, 0.0]}]
+    with pytest.raises(InfeasibleError) as err:
+        plan_reply(from_builtins({"steps": steps}, msg.PlanRequest))
+    assert err.value.message.startswith("step 2 (right foot): dx=0.3000 m relative to the left sole")
+    assert err.value.details["step_index"] == 2
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"steps": [{"pose": [0.0, 0.0, 0.0]}]}, r"feet overlap after step 0 \(right foot\)"),
+        ({"double_support_s": 0.0}, "double_support_s must be > 0 s"),
+        ({"steps": []}, "no step"),
+        ({"first_side": "middle"}, "first_side must be one of"),
+        ({"steps": [{"pose": [0.2, -0.095]}]}, r"steps\[0\]\.pose must be \[x, y, yaw\]"),
+        ({"model": "nao"}, "unknown robot 'nao'"),
+        ({"q_start": [0.0] * 5}, r"q must have shape \(37,\)"),
+        ({"left_start": [0.0, 0.3, 0.0]}, "give both left_start and right_start"),
+        ({"hands": [{"side": "middle"}]}, "side must be one of"),
+        ({"gaze": {"point_m": [-3.0, 0.0, 1.0]}}, "behind the robot's head"),
+    ],
+)
+def test_malformed_requests_are_invalid(fields, message):
+    with pytest.raises(InvalidRequestError, match=message):
+        plan_reply(_request(**fields))
+
+
+def test_starting_soles_must_match_q_start():
+    robot = load_robot("hrp2_like")
+    request = _request(
+        q_start=robot.q_half_sitting.tolist(), left_start=[0.01, 0.1, 0.0], right_start=[0.0, -0.095, 0.0]
+    )
+    with pytest.raises(InvalidRequestError, match="the left sole of q_start"):
+        plan_reply(request)
+
+
+def test_upper_body_tasks_hold_the_hands_and_the_gaze():
+    """Carry with both hands (held in the walk frame), the left hand raised along a path, looking at a
+    point 3 m ahead: every task met within a millimetre while the ZMP stays inside."""
+    robot = load_robot("hrp2_like")
+    steps = [
+        {"side": s.side, "pose": s.pose.as_array().tolist()}
+        for s in straight_walk(
+            4, 0.15, left_start=SolePose(0, 0.095, 0), right_start=SolePose(0, -0.095, 0)
+        ).steps
+    ]
+    hand_start = robot.frame_pose(robot.q_half_sitting, robot.frames.grasp("left")).translation
+    com_start = robot.com(robot.q_half_sitting)
+    raised = (hand_start - [com_start[0], com_start[1], 0.0] + [0.1, -0.05, 0.15]).tolist()
+    request = from_builtins(
+        {
+            "steps": steps,
+            "hands": [{"side": "right"}, {"side": "left", "times_s": [2.5], "positions_m": [raised]}],
+            "gaze": {"point_m": [3.0, 0.0, 0.8]},
+        },
+        msg.PlanRequest,
+    )
+    reply = plan_reply(request)
+    errors = reply.figures.task_errors
+    assert set(errors) == {"right_hand", "right_hand_rotation", "left_hand", "left_hand_rotation", "gaze"}
+    assert errors["right_hand"] < 1e-3 and errors["left_hand"] < 1e-3 and errors["gaze"] < 1e-3, errors
+    assert reply.figures.worst_zmp_outside_m == 0.0
+    # The left hand really went up by 0.15 m (in the walk frame, which stays at the ground).
+    data = robot.new_data()
+    k = int(np.searchsorted(reply.times_s, 3.0))
+    z = robot.frame_pose(reply.q[k], robot.frames.grasp("left"), data).translation[2]
+    assert z == pytest.approx(hand_start[2] + 0.15, abs=2e-3)
+
+
+def test_unreachable_hand_target_is_infeasible_and_named():
+    far = {"side": "left", "frame": "walk", "times_s": [2.0], "positions_m": [[0.9, 0.3, 1.0]]}
+    with pytest.raises(
+        InfeasibleError, match=r"upper-body task left_hand cannot be met: it stays \d+ mm from its target"
+    ):
+        plan_reply(_request(hands=[far]))
+
+
+# ------------------------------------------------------------------------------------------- over the bus
+
+
+@pytest.fixture(scope="module")
+def services(module_bus_harness):
+    module_bus_harness.spawn_service("services.walking.service", name="walking", timeout_s=60)
+    module_bus_harness.spawn_service("sim.service", "--scene", "empty", name="sim", timeout_s=60)
+    return module_bus_harness
+
+
+def _yaw(robot, q, side) -> tuple[np.ndarray, float]:
+    T = robot.sole_pose(q, side)
+    return T.translation, math.atan2(T.rotation[1, 0], T.rotation[0, 0])
+
+
+@pytest.mark.integration
+def test_plan_over_the_bus_and_walk_in_the_sim(services):
+    client = services.client
+    state = client.call(sim_msg.STATE, sim_msg.StateRequest(), timeout_s=30)
+    robot = load_robot(state.model)
+    # Six steps of 0.2 m from where the robot stands (its soles measured on the sim's q).
+    request = msg.PlanRequest(
+        steps=[msg.Step(pose=[0.2 * min(k, 5), -0.095 if k % 2 else 0.095, 0.0]) for k in range(1, 7)],
+        first_side="right",
+        q_start=state.q,
+    )
+    plan = client.call(msg.PLAN, request, timeout_s=120)
+    assert plan.q.shape[1] == robot.nq and plan.figures.worst_zmp_outside_m == 0.0
+    np.testing.assert_allclose(plan.q[0], state.q)
+    result = client.call(sim_msg.EXECUTE, sim_msg.ExecuteRequest(q=plan.q, hold_s=0.5), timeout_s=300)
+    assert result.outcome == "completed", result.message
+    for side, planned in (("left", plan.final_left_sole), ("right", plan.final_right_sole)):
+        p, yaw = _yaw(robot, result.q, side)
+        assert math.hypot(p[0] - planned[0], p[1] - planned[1]) < 0.02, (side, p, planned)
+        assert abs(math.remainder(yaw - planned[2], 2 * math.pi)) < math.radians(2.0)
+    # Errors come back typed, naming the step.
+    far = msg.PlanRequest(steps=[msg.Step(pose=[0.6, -0.095, 0.0])], q_start=result.q)
+    with pytest.raises(InfeasibleError) as err:
+        client.call(msg.PLAN, far, timeout_s=60)
+    assert err.value.details["step_index"] == 0
+
+
+@pytest.mark.integration
+def test_humanoid_call_walking_plan_with_plain_json(services):
+    request = json.dumps({"first_side": "right", "steps": TWO_STEPS})
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.cli",
+            "call",
+            "walking/plan",
+            request,
+            *services.bus_args(),
+            "--timeout",
+            "60",
+            "--max-elements",
+            "0",  # every array in full
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    reply = json.loads(out.stdout)
+    assert len(reply["q"]) == len(reply["times_s"]) and len(reply["q"][0]) == 37
+    assert reply["final_right_sole"] == [0.2, -0.095, 0.0]
+    assert reply["figures"]["worst_zmp_outside_m"] == 0.0
