@@ -1,0 +1,44 @@
+"""The three scenarios of the footstep paper (Kanoun, Laumond, Yoshida, section 4), planned by
+footstep planning as inverse kinematics, with their figures:
+
+- out/footsteps_<name>_chain.png: top views of the virtual chain at several iterations of
+  Algorithm 1 and the retained footsteps with the final posture (like Figs. 6, 7 and 11);
+- out/footsteps_<name>_values.png: the task values against the iterations, a dashed line at each
+  step addition (like Fig. 10).
+
+    .venv/bin/python examples/footsteps_scenarios.py                 # all three
+    .venv/bin/python examples/footsteps_scenarios.py reach --execute # + walk and reach motion
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from services.footsteps.demo import format_summary, run_scenario
+from services.footsteps.scenarios import SCENARIOS
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("names", nargs="*", help=f"scenarios among {sorted(SCENARIOS)} (default: all)")
+    parser.add_argument("--robot", default="hrp2_like", help="robot model (default: hrp2_like)")
+    parser.add_argument("--out", type=Path, default=Path("out"), help="figure directory (default: out)")
+    parser.add_argument("--execute", action="store_true", help="also compute the walk + reach motion")
+    args = parser.parse_args(argv)
+    unknown = sorted(set(args.names) - set(SCENARIOS))
+    if unknown:
+        parser.error(f"unknown scenarios {unknown}; choose among {sorted(SCENARIOS)}")
+    failures = 0
+    for name in args.names or ["reach", "pickup", "posture"]:
+        summary = run_scenario(name, robot_name=args.robot, out_dir=args.out, execute=args.execute)
+        print(format_summary(summary), flush=True)
+        failures += not summary["solved"]
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,118 @@
+"""Run the paper's scenarios with their figures (shared by ``humanoid scenario footsteps-*`` and
+``examples/footsteps_scenarios.py``)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from services.errors import InvalidRequestError
+from services.footsteps import scenarios
+from services.footsteps.planner import plan_footsteps_best
+from services.footsteps.plotting import chain_states_figure, task_values_figure
+from services.model import load_robot
+
+
+def run_scenario(
+    name: str,
+    robot_name: str = "hrp2_like",
+    out_dir: Path | None = Path("out"),
+    front_foot: str = "auto",
+    execute: bool = False,
+) -> dict[str, Any]:
+    """Plan scenario ``name`` ("reach", "pickup" or "posture"), draw its figures into ``out_dir``
+    (``footsteps_<name>_chain.png``, ``footsteps_<name>_values.png``; None: no figure), optionally
+    turn the plan into the whole-body motion (walk + reach, ``footsteps_<name>_motion.npz``), and
+    return a plain-data summary."""
+    if name not in scenarios.SCENARIOS:
+        raise InvalidRequestError(f"unknown scenario {name!r}; valid: {sorted(scenarios.SCENARIOS)}")
+    robot = load_robot(robot_name)
+    scenario = scenarios.SCENARIOS[name](robot_name)
+    request = scenarios.with_trace(scenario.request)
+    if front_foot != "auto":
+        from dataclasses import replace
+
+        request = replace(request, front_foot=front_foot)
+    t0 = time.process_time()
+    result, error = plan_footsteps_best(request, robot)
+    cpu_s = time.process_time() - t0
+    summary: dict[str, Any] = {
+        "scenario": name,
+        "title": scenario.title,
+        "solved": error is None,
+        "error": None if error is None else error.message,
+        "steps": result.n_steps,
+        "iterations": result.iterations,
+        "steps_added_at": list(result.steps_added_at),
+        "solve_wall_s": result.solve_time_s,
+        "solve_cpu_s": cpu_s,
+        "paper_s": scenario.paper_solve_s,
+        "paper_steps": scenario.paper_steps,
+        "front_foot": result.front_foot,
+        "alternatives": [list(a) for a in result.alternatives],
+        "residuals": {r.name: r.value for r in result.residuals},
+        "footsteps": [[s.side, s.x_m, s.y_m, s.yaw_rad] for s in result.footsteps],
+        "figures": [],
+    }
+    if out_dir is not None:
+        out_dir = Path(out_dir)
+        label = "solved" if error is None else "NOT SOLVED"
+        title = f"{scenario.title} [{robot_name}, {label}]"
+        summary["figures"].append(
+            str(
+                chain_states_figure(
+                    robot, request, result, out_dir / f"footsteps_{name}_chain.png", title=title
+                )
+            )
+        )
+        summary["figures"].append(
+            str(task_values_figure(request, result, out_dir / f"footsteps_{name}_values.png", title=title))
+        )
+    if execute and error is None:
+        from services.footsteps.execution import execute_plan
+
+        t0 = time.perf_counter()
+        motion = execute_plan(robot, request, result)
+        summary["motion"] = {
+            "duration_s": motion.duration_s,
+            "walk_end_s": motion.walk_end_s,
+            "compute_s": time.perf_counter() - t0,
+            "final_errors_m": motion.final_errors_m,
+            "reach_max_sole_drift_m": motion.reach_max_sole_drift_m,
+            "reach_min_com_margin_m": motion.reach_min_com_margin_m,
+            "walk": None if motion.walk is None else motion.walk.figures(),
+        }
+        if out_dir is not None:
+            path = Path(out_dir) / f"footsteps_{name}_motion.npz"
+            np.savez_compressed(path, times_s=motion.times_s, q=motion.q, walk_end_s=motion.walk_end_s)
+            summary["figures"].append(str(path))
+    return summary
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """A few human-readable lines for one scenario."""
+    lines = [
+        f"{summary['scenario']}: {summary['title']}",
+        f"  {'solved' if summary['solved'] else 'NOT solved: ' + str(summary['error'])}",
+        f"  steps {summary['steps']} (paper: {summary['paper_steps'] or '-'}), "
+        f"iterations {summary['iterations']}, "
+        f"steps added after iterations {summary['steps_added_at']}",
+        f"  solve {summary['solve_wall_s']:.3f} s wall, {summary['solve_cpu_s']:.3f} s CPU "
+        f"(paper: {summary['paper_s']} s on a 2.13 GHz Core 2), front foot {summary['front_foot']}",
+        "  residuals " + ", ".join(f"{k} {v:.4f}" for k, v in summary["residuals"].items()),
+    ]
+    for side, x, y, yaw in summary["footsteps"]:
+        lines.append(f"    {side:5s} x {x:+.3f} m  y {y:+.3f} m  yaw {yaw:+.3f} rad")
+    motion = summary.get("motion")
+    if motion:
+        errors = ", ".join(f"{k} {1000 * v:.1f} mm" for k, v in motion["final_errors_m"].items())
+        lines.append(
+            f"  motion: {motion['duration_s']:.2f} s (walk {motion['walk_end_s']:.2f} s) computed in "
+            f"{motion['compute_s']:.2f} s; final hand error {errors or '-'}"
+        )
+    for path in summary["figures"]:
+        lines.append(f"  wrote {path}")
+    return "\n".join(lines)

@@ -1,0 +1,239 @@
+"""From a footstep plan to a whole-body motion: the planned footsteps go through the walking pattern
+generator (``services.walking``, ZMP preview control, Kajita et al. 2003) and its whole-body stage, then
+the final reaching motion brings the robot, standing on the final footprints, to the planned final
+configuration. Section 4.2 of the footstep paper: "a dynamic walk is planned over the support polygons
+produced by the local foot placement planner, then the whole body is driven by a reaching task".
+
+The reaching motion tracks a smooth (quintic in time) joint-space interpolation from the end of the
+walk to the planned configuration with the prioritized IK, under both soles held on their footprints
+and the CoM over the support polygon (eq. 11); the 5 ms samples between IK knots are interpolated.
+Execution in the simulator is the caller's (the sim service plays ``q``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from services.errors import InvalidRequestError
+from services.footsteps.request import FootstepPlanRequest, FootstepPlanResult
+from services.ik.level import Level
+from services.ik.solver import HierarchicalSolver
+from services.ik.tasks.com_support_polygon import ComSupportPolygonTask
+from services.ik.tasks.frame_pose import FramePoseTask
+from services.ik.tasks.frame_position import FramePositionTask
+from services.ik.tasks.posture import PostureTask
+from services.model import RobotModel
+from services.model.geometry import polygon_signed_margin
+from services.walking.timing import WalkTiming
+from services.walking.wholebody import WholeBodyResult, plan_walk
+
+
+@dataclass(frozen=True)
+class FootstepExecution:
+    """The whole motion on a regular grid.
+
+    Attributes:
+        times_s: (n,) sample times [s] from 0, step ``dt_s``.
+        q: (n, nq) robot configurations (world free-flyer).
+        walk_end_s: time at which the walk ends and the reaching motion starts [s] (0 without steps).
+        walk: the walking planner's result (None without steps).
+        reach_max_sole_drift_m: largest sole displacement from its footprint during the reach [m].
+        reach_min_com_margin_m: smallest distance of the CoM projection inside the support polygon
+            during the reach [m].
+        final_errors_m: distance of each reaching hand to its target at the last sample [m].
+    """
+
+    times_s: np.ndarray
+    q: np.ndarray
+    dt_s: float
+    walk_end_s: float
+    walk: WholeBodyResult | None
+    reach_max_sole_drift_m: float
+    reach_min_com_margin_m: float
+    final_errors_m: dict[str, float]
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.times_s[-1])
+
+
+def _quintic(s: float) -> float:
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def _support_level(robot: RobotModel, q_stance: np.ndarray, com_margin_m: float) -> Level:
+    """Both soles held where they are at ``q_stance``, the CoM over the support polygon (eq. 11)."""
+    model = robot.model
+    data = robot.new_data()
+    tasks = [
+        FramePoseTask(model, f, robot.frame_pose(q_stance, f, data), name=f"hold:{f}")
+        for f in (robot.frames.left_sole, robot.frames.right_sole)
+    ]
+    tasks.append(
+        ComSupportPolygonTask(
+            model,
+            com_margin_m,
+            sole_frames=(robot.frames.left_sole, robot.frames.right_sole),
+            sole_size_m=robot.sole_size_m,
+        )
+    )
+    return Level(tuple(tasks), name="support")
+
+
+def approach_path(p_start: np.ndarray, p_target: np.ndarray, clearance_m: float = 0.08) -> np.ndarray:
+    """Hand waypoints (3, 3) [m]: straight from ``p_start`` to ``clearance_m`` above the target, then
+    down on it (the hand does not sweep into what holds the object)."""
+    p_start = np.asarray(p_start, dtype=float)
+    p_target = np.asarray(p_target, dtype=float)
+    return np.array([p_start, p_target + np.array([0.0, 0.0, clearance_m]), p_target])
+
+
+def _along(path: np.ndarray, s: float) -> np.ndarray:
+    """The point at arc-length fraction ``s`` of a polyline."""
+    lengths = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    total = float(lengths.sum())
+    if total < 1e-12:
+        return path[-1].copy()
+    d = min(max(s, 0.0), 1.0) * total
+    for i, seg in enumerate(lengths):
+        if d <= seg or i == len(lengths) - 1:
+            return path[i] + (path[i + 1] - path[i]) * (d / seg if seg > 0 else 1.0)
+        d -= seg
+    return path[-1].copy()
+
+
+def reaching_motion(
+    robot: RobotModel,
+    q_from: np.ndarray,
+    q_to: np.ndarray,
+    *,
+    dt_s: float = 0.005,
+    speed_rad_s: float = 0.5,
+    min_duration_s: float = 1.0,
+    knot_stride: int = 4,
+    com_margin_m: float = 0.03,
+    hand_paths: dict[str, np.ndarray] | None = None,
+    hand_speed_m_s: float = 0.15,
+) -> tuple[np.ndarray, float, float]:
+    """Motion from ``q_from`` to ``q_to`` (both standing on the same footprints): (q (n, nq), largest
+    sole drift [m], smallest CoM margin [m]). The joints follow a quintic-in-time interpolation (the
+    largest moving at about ``speed_rad_s``) and, in a level above, each frame of ``hand_paths``
+    follows its polyline (at about ``hand_speed_m_s``), under the soles held and the CoM over the
+    support polygon."""
+    q_from = robot.check_q(q_from)
+    q_to = robot.check_q(q_to)
+    model = robot.model
+    data = robot.new_data()
+    sole_frames = (robot.frames.left_sole, robot.frames.right_sole)
+    T_soles = [robot.frame_pose(q_to, f, data) for f in sole_frames]
+    posture = PostureTask(model, q_to, joint_names=list(robot.joint_names))
+    paths = {f: np.asarray(path, dtype=float) for f, path in (hand_paths or {}).items()}
+    hands = [FramePositionTask(model, f, path[0]) for f, path in paths.items()]
+    levels = [_support_level(robot, q_to, com_margin_m)]
+    if hands:
+        levels.append(Level(tuple(hands), name="hands"))
+    levels.append(Level((posture,), name="posture"))
+    solver = HierarchicalSolver(model)
+    move = float(np.max(np.abs(pin.difference(model, q_from, q_to)[6:])))
+    path_length = max(
+        (float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in paths.values()), default=0.0
+    )
+    duration = max(min_duration_s, move / speed_rad_s, path_length / hand_speed_m_s)
+    n = math.ceil(duration / dt_s) + 1
+    knots = list(range(0, n, knot_stride))
+    if knots[-1] != n - 1:
+        knots.append(n - 1)
+    q = q_from.copy()
+    q_knots = [q.copy()]
+    for k in knots[1:]:
+        s = _quintic(k * dt_s / duration)
+        posture.set_rest(pin.interpolate(model, q_from, q_to, s))
+        for task, path in zip(hands, paths.values(), strict=True):
+            task.set_target(_along(path, s))
+        for _ in range(2):
+            q = pin.integrate(model, q, solver.solve(levels, q))
+        q_knots.append(q.copy())
+    for _ in range(20):  # settle on the planned configuration
+        q = pin.integrate(model, q, solver.solve(levels, q))
+    q_knots[-1] = q
+    out = np.empty((n, robot.nq))
+    for (k0, qa), (k1, qb) in zip(
+        zip(knots[:-1], q_knots[:-1], strict=True), zip(knots[1:], q_knots[1:], strict=True), strict=True
+    ):
+        for k in range(k0, k1 + 1):
+            out[k] = pin.interpolate(model, qa, qb, (k - k0) / (k1 - k0))
+    drift, margin = 0.0, math.inf
+    for qk in out[:: max(1, knot_stride // 2)]:
+        pin.framesForwardKinematics(model, data, qk)
+        for f, T in zip(sole_frames, T_soles, strict=True):
+            drift = max(
+                drift, float(np.linalg.norm(data.oMf[model.getFrameId(f)].translation - T.translation))
+            )
+        margin = min(margin, polygon_signed_margin(robot.support_polygon(qk, data=data), robot.com(qk, data)))
+    return out, drift, margin
+
+
+def execute_plan(
+    robot: RobotModel,
+    request: FootstepPlanRequest,
+    result: FootstepPlanResult,
+    *,
+    dt_s: float = 0.005,
+    reach_speed_rad_s: float = 0.3,
+    timing: WalkTiming | None = None,
+) -> FootstepExecution:
+    """Footsteps -> walking pattern generator (whole body) -> final reaching motion.
+
+    Raises:
+        InvalidRequestError / InfeasibleError from the walking planner (footsteps it rejects).
+    """
+    if robot.name != request.robot:
+        raise InvalidRequestError(f"robot {robot.name!r} does not match request.robot {request.robot!r}")
+    q_start = np.asarray(
+        request.q_start if request.q_start is not None else robot.q_half_sitting, dtype=float
+    )
+    q_final = np.asarray(result.q_final, dtype=float)
+    walk = None
+    if result.footsteps:
+        walk = plan_walk(robot, result.footstep_sequence(), q_start, timing=timing)
+        if abs(walk.pattern.dt_s - dt_s) > 1e-12:
+            raise InvalidRequestError(f"dt_s must be the walking grid {walk.pattern.dt_s} s, got {dt_s}")
+        q_walk = walk.q
+    else:
+        q_walk = q_start[None, :]
+    # The reaching hands lift, move over their target and come down on it (approach_path).
+    data = robot.new_data()
+    hand_paths = {
+        robot.frames.grasp(t.hand): approach_path(
+            robot.frame_pose(q_walk[-1], robot.frames.grasp(t.hand), data).translation, np.asarray(t.target_m)
+        )
+        for t in request.tasks
+        if t.kind == "reach"
+    }
+    q_reach, drift, margin = reaching_motion(
+        robot, q_walk[-1], q_final, dt_s=dt_s, speed_rad_s=reach_speed_rad_s, hand_paths=hand_paths
+    )
+    segments = [q_walk, q_reach[1:]]
+    q = np.vstack(segments)
+    times = dt_s * np.arange(q.shape[0])
+    data = robot.new_data()
+    errors = {}
+    for task in request.tasks:
+        if task.kind == "reach":
+            p = robot.frame_pose(q[-1], robot.frames.grasp(task.hand), data).translation
+            errors[task.name] = float(np.linalg.norm(p - np.asarray(task.target_m)))
+    return FootstepExecution(
+        times_s=times,
+        q=q,
+        dt_s=dt_s,
+        walk_end_s=float(dt_s * (q_walk.shape[0] - 1)),
+        walk=walk,
+        reach_max_sole_drift_m=drift,
+        reach_min_com_margin_m=margin,
+        final_errors_m=errors,
+    )

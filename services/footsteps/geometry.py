@@ -1,0 +1,127 @@
+"""Planar geometry of footprints: poses on the ground, relative poses of two footprints, and the
+non-overlap rows of Fig. 5 of the footstep paper (Kanoun, Laumond, Yoshida) with their derivatives.
+
+A footprint is a sole rectangle of length ``L`` (along the sole x axis) and width ``W`` (along y) centred
+on its sole frame, flat on the ground z = 0, posed by (x [m], y [m], yaw [rad]) in the world frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from services.walking.footsteps import SolePose, wrap_angle
+
+
+def sole_pose_of(T_world_sole: pin.SE3) -> SolePose:
+    """Ground footprint (x, y, yaw) of a sole frame: its origin projected on the ground and the heading
+    of its x axis."""
+    R = T_world_sole.rotation
+    return SolePose(
+        float(T_world_sole.translation[0]),
+        float(T_world_sole.translation[1]),
+        math.atan2(float(R[1, 0]), float(R[0, 0])),
+    )
+
+
+def se3_of(pose: SolePose) -> pin.SE3:
+    """The flat sole frame (z = 0, z axis up) of a footprint pose."""
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return pin.SE3(R, np.array([pose.x_m, pose.y_m, 0.0]))
+
+
+def relative_pose(child: SolePose, parent: SolePose) -> np.ndarray:
+    """(dx [m], dy [m], dtheta [rad]) of ``child`` in the frame of ``parent``: the Q_i of eq. (8) when
+    ``parent`` is footprint i-1 and ``child`` footprint i."""
+    return np.array(child.relative_to(parent))
+
+
+def compose(parent: SolePose, Q: np.ndarray) -> SolePose:
+    """The footprint at relative pose Q = (dx, dy, dtheta) from ``parent`` (inverse of
+    :func:`relative_pose`)."""
+    return parent.compose(float(Q[0]), float(Q[1]), float(Q[2]))
+
+
+def rectangle_corners(pose: SolePose, length_m: float, width_m: float) -> np.ndarray:
+    """The 4 corners (4, 2) [m] of the footprint rectangle in the world, counter-clockwise from the
+    front-left one."""
+    hl, hw = 0.5 * length_m, 0.5 * width_m
+    local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    return local @ np.array([[c, s], [-s, c]]) + np.array([pose.x_m, pose.y_m])
+
+
+def non_overlap_rows(
+    r: np.ndarray, child_is_left: bool, length_m: float, width_m: float, margin_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The half-plane constraints of Fig. 5 for one support polygon, G <= 0, and dG/dr (4 x 3).
+
+    ``r`` = (dx, dy, dtheta) is the pose of the child footprint B in the parent footprint A's frame;
+    ``child_is_left`` says B is the left foot (so A is the right one and B lies on A's +y side).
+
+    Each footprint lies in a half-plane bounded by the line through its inner edge; the other foot
+    must keep both of its inner corners at least ``margin_m`` beyond that line:
+
+    - rows 0-1: B's inner corners (x = +-L/2, y = -sigma W/2 in B) expressed in A, sigma * y >= W/2 + margin;
+    - rows 2-3: A's inner corners (x = +-L/2, y = +sigma W/2 in A) expressed in B, -sigma * y >= W/2 + margin;
+
+    with sigma = +1 when B is the left foot. With |dtheta| < pi/2 the inner corners are the points of
+    each rectangle closest to the other's line, so these rows keep the two rectangles disjoint.
+    """
+    sigma = 1.0 if child_is_left else -1.0
+    dx, dy, th = float(r[0]), float(r[1]), float(r[2])
+    c, s = math.cos(th), math.sin(th)
+    hl, hw = 0.5 * length_m, 0.5 * width_m
+    G = np.empty(4)
+    dG = np.zeros((4, 3))
+    for k, ax in enumerate((hl, -hl)):
+        # B's inner corner b = (ax, -sigma hw) in A: y = dy + s ax + c (-sigma hw).
+        ay = -sigma * hw
+        y = dy + s * ax + c * ay
+        G[k] = hw + margin_m - sigma * y
+        dG[k] = -sigma * np.array([0.0, 1.0, c * ax - s * ay])
+        # A's inner corner a = (ax, sigma hw) in B: y' = -s (ax - dx) + c (sigma hw - dy).
+        by = sigma * hw
+        yp = -s * (ax - dx) + c * (by - dy)
+        G[2 + k] = hw + margin_m + sigma * yp
+        dG[2 + k] = sigma * np.array([s, -c, -c * (ax - dx) - s * (by - dy)])
+    return G, dG
+
+
+def rectangles_disjoint_margin(a: SolePose, b: SolePose, length_m: float, width_m: float) -> float:
+    """Separation [m] of two footprint rectangles along their best separating axis (> 0: disjoint,
+    < 0: penetration depth) — the validation counterpart of :func:`non_overlap_rows`."""
+    pa = rectangle_corners(a, length_m, width_m)
+    pb = rectangle_corners(b, length_m, width_m)
+    best = -math.inf
+    for poly in (pa, pb):
+        edges = np.roll(poly, -1, axis=0) - poly
+        normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        proj_a, proj_b = pa @ normals.T, pb @ normals.T
+        gap = np.maximum(proj_b.min(0) - proj_a.max(0), proj_a.min(0) - proj_b.max(0))
+        best = max(best, float(gap.max()))
+    return best
+
+
+def disk_signed_distance(pose: SolePose, length_m: float, width_m: float, center_xy: np.ndarray) -> float:
+    """Signed distance [m] from a disk centre to the footprint rectangle (negative when under the sole)."""
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    d = np.asarray(center_xy, dtype=float)[:2] - np.array([pose.x_m, pose.y_m])
+    local = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+    h = np.array([0.5 * length_m, 0.5 * width_m])
+    outside = np.maximum(np.abs(local) - h, 0.0)
+    if np.any(outside > 0.0):
+        return float(np.linalg.norm(outside))
+    return -float(np.min(h - np.abs(local)))
+
+
+def same_pose(a: SolePose, b: SolePose, tol_m: float = 1e-3, tol_rad: float = 1e-3) -> bool:
+    """True when two footprints coincide within ``tol_m`` and ``tol_rad``."""
+    return (
+        math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) <= tol_m
+        and abs(wrap_angle(a.yaw_rad - b.yaw_rad)) <= tol_rad
+    )

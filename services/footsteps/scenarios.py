@@ -1,0 +1,128 @@
+"""The three scenarios of section 4 of the footstep paper, and seeded random layouts for the benchmark.
+
+1. ``reach`` (section 4.1): a ball 2 m away at table height, a disk obstacle on the floor in between.
+2. ``pickup`` (section 4.2): a small object on the floor between the feet, a disk around it that the
+   feet may not enter.
+3. ``posture`` (section 4.3): the robot has turned to look at a ball without stepping; recover the rest
+   posture (eq. 14) while the gaze stays on the ball (OG x OB = 0).
+
+The paper's figures (HRP-2, 2.13 GHz Core 2): 9 steps in 3.2 s, 0.9 s, 4 steps in 0.3 s.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from services.footsteps.request import DiskObstacle, FootstepPlanRequest, FootstepTask
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named request with the paper's figures for it."""
+
+    name: str
+    title: str
+    request: FootstepPlanRequest
+    paper_solve_s: float
+    paper_steps: int | None
+
+
+# The layouts match the simulator's scenes sim/scenes/footsteps_reach.yaml and footsteps_pickup.yaml.
+REACH_BALL_M = (2.05, 0.0, 0.80)  # a 5 cm ball on a 0.2 x 0.2 x 0.75 m stand centred at (2.1, 0)
+REACH_STAND_XY_M = (2.1, 0.0)
+PICKUP_BALL_M = (0.03, 0.0, 0.015)  # a 1.5 cm ball on the floor between the feet
+
+
+def reach(robot: str = "hrp2_like") -> Scenario:
+    """Section 4.1: the ball 2 m ahead at table height, a disk obstacle on the floor in between (and
+    the stand's 0.2 m square footprint kept free of feet as a disk of radius 0.15 m); the rest posture
+    is the lowest-priority objective (as in Fig. 10's example)."""
+    request = FootstepPlanRequest(
+        robot=robot,
+        tasks=(FootstepTask("reach", REACH_BALL_M, hand="right"), FootstepTask("posture")),
+        disks=(DiskObstacle(1.0, 0.05, 0.3), DiskObstacle(*REACH_STAND_XY_M, 0.15)),
+    )
+    return Scenario("reach", "reach a ball 2 m away, disk obstacle in between (section 4.1)", request, 3.2, 9)
+
+
+def pickup(robot: str = "hrp2_like") -> Scenario:
+    """Section 4.2: a small ball on the floor between the feet, with a virtual disk around it that no
+    footprint may enter (it covers the inner edges of both initial soles); rest posture objective."""
+    request = FootstepPlanRequest(
+        robot=robot,
+        tasks=(FootstepTask("reach", PICKUP_BALL_M, hand="right"), FootstepTask("posture")),
+        disks=(DiskObstacle(PICKUP_BALL_M[0], PICKUP_BALL_M[1], 0.12),),
+    )
+    return Scenario(
+        "pickup", "pick up an object on the floor between the feet (section 4.2)", request, 0.9, None
+    )
+
+
+POSTURE_BALL_M = (0.5, 1.2, 0.9)
+
+
+@functools.cache
+def awkward_look(robot: str = "hrp2_like") -> tuple[float, ...]:
+    """The starting posture of section 4.3: the robot turned to look at the ball without stepping
+    (the gaze task solved by the IK with both feet fixed)."""
+    from services.footsteps.planner import plan_footsteps  # local: scenarios are data otherwise
+
+    look = FootstepPlanRequest(
+        robot=robot, tasks=(FootstepTask("gaze", POSTURE_BALL_M, tolerance=1e-3),), max_steps=0
+    )
+    return plan_footsteps(look).q_final
+
+
+def posture(robot: str = "hrp2_like") -> Scenario:
+    """Section 4.3: gaze on the ball first, the rest posture (eq. 14) second, from the awkward look."""
+    request = FootstepPlanRequest(
+        robot=robot,
+        q_start=awkward_look(robot),
+        tasks=(FootstepTask("gaze", POSTURE_BALL_M), FootstepTask("posture")),
+    )
+    return Scenario(
+        "posture", "recover the rest posture, gaze kept on the ball (section 4.3)", request, 0.3, 4
+    )
+
+
+SCENARIOS = {"reach": reach, "pickup": pickup, "posture": posture}
+
+
+def random_layout(seed: int, robot: str = "hrp2_like") -> FootstepPlanRequest:
+    """A seeded random reach (the benchmark's layouts): the target 1-3 m away (horizontal distance
+    from the mid-feet point) in a uniformly drawn direction, 0.1-1.2 m high, reached with the hand
+    on its side; 0-2 disk obstacles of radius 0.1-0.3 m centred in the band around the straight line
+    to the target (20-90 % of the way, up to 0.8 m off the line, so that they block it or not),
+    clear of the initial feet (0.35 m) and of the target (0.3 m)."""
+    rng = np.random.default_rng(seed)
+    distance = rng.uniform(1.0, 3.0)
+    heading = rng.uniform(-math.pi, math.pi)
+    height = rng.uniform(0.1, 1.2)
+    target = (distance * math.cos(heading), distance * math.sin(heading), height)
+    disks = []
+    for _ in range(int(rng.integers(0, 3))):
+        for _attempt in range(50):
+            along = rng.uniform(0.2, 0.9) * distance
+            across = rng.uniform(-0.8, 0.8)
+            radius = rng.uniform(0.1, 0.3)
+            x = along * math.cos(heading) - across * math.sin(heading)
+            y = along * math.sin(heading) + across * math.cos(heading)
+            clear_of_feet = math.hypot(x, y) > radius + 0.35
+            clear_of_target = math.hypot(x - target[0], y - target[1]) > radius + 0.3
+            if clear_of_feet and clear_of_target:
+                disks.append(DiskObstacle(x, y, radius))
+                break
+    return FootstepPlanRequest(
+        robot=robot,
+        tasks=(FootstepTask("reach", target, hand="right" if target[1] <= 0 else "left"),),
+        disks=tuple(disks),
+    )
+
+
+def with_trace(request: FootstepPlanRequest) -> FootstepPlanRequest:
+    """The same request recording the per-iteration trace (for the figures)."""
+    return replace(request, record_trace=True)

@@ -1,0 +1,381 @@
+"""Footstep planning as inverse kinematics (services/footsteps): the virtual chain, the footstep
+constraints' Jacobians, Algorithm 1 on the paper's three scenarios, infeasibility, execution."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from services.errors import InfeasibleError, InvalidRequestError
+from services.footsteps import scenarios
+from services.footsteps.chain import Stance, VirtualChain
+from services.footsteps.constraints import (
+    FrontStepBoundsTask,
+    NonOverlapTask,
+    RootSoleOnFootprintTask,
+    relative_planar_pose,
+)
+from services.footsteps.geometry import (
+    disk_signed_distance,
+    non_overlap_rows,
+    rectangles_disjoint_margin,
+    sole_pose_of,
+)
+from services.footsteps.planner import initial_stance, plan_footsteps
+from services.footsteps.request import DiskObstacle, FootstepPlanRequest, FootstepTask, PlannerOptions
+from services.ik.kinematics import compute_kinematics
+from services.model import load_robot
+from services.model.geometry import polygon_signed_margin
+from services.walking.footsteps import FootstepLimits, SolePose, validate_footsteps
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("hrp2_like")
+
+
+@pytest.fixture(scope="module")
+def stance(robot):
+    return initial_stance(robot, robot.q_half_sitting)
+
+
+def grown_chain(robot, stance, front: str, n_steps: int):
+    chain = VirtualChain(robot, front, 0, stance)
+    q = chain.folded_q(robot.q_half_sitting)
+    for _ in range(n_steps):
+        chain, q = chain.with_root_footprint(q)
+    return chain, q
+
+
+# ------------------------------------------------------------------------------------------ the chain
+
+
+@pytest.mark.parametrize("front", ["left", "right"])
+def test_folded_chain_carries_the_robot_and_alternates_sides(robot, stance, front):
+    chain, q = grown_chain(robot, stance, front, 4)
+    assert chain.n_steps == 4 and chain.model.nq == 3 * 3 + robot.nq
+    # F_{p-1} is the root foot, sides alternate backwards, every footprint on its initial sole
+    assert chain.sides[-1] != front and all(
+        a != b for a, b in zip(chain.sides, chain.sides[1:], strict=False)
+    )
+    for side, pose in zip(chain.sides, chain.footprint_poses(q), strict=True):
+        assert np.allclose(pose.as_array(), stance.of(side).as_array(), atol=1e-12)
+    np.testing.assert_allclose(chain.robot_q_world(q), robot.q_half_sitting, atol=1e-12)
+    # the robot's joints follow the chain's in q~ (eq. 9) with the same names
+    for jid in range(2, robot.model.njoints):
+        assert chain.model.names[3 * 3 + jid] == robot.model.names[jid]
+
+
+def test_root_insertion_keeps_the_world_state(robot, stance):
+    rng = np.random.default_rng(3)
+    chain, q = grown_chain(robot, stance, "left", 3)
+    q = pin.integrate(chain.model, q, 0.05 * rng.standard_normal(chain.model.nv))
+    data = chain.model.createData()
+    pin.framesForwardKinematics(chain.model, data, q)
+    before = {
+        f: pin.SE3(data.oMf[chain.model.getFrameId(f)]) for f in ("left_sole", "right_sole", "right_grasp")
+    }
+    poses_before = chain.footprint_poses(q)
+    grown, q2 = chain.with_root_footprint(q)
+    assert grown.n_steps == 4 and grown.sides[1:] == chain.sides
+    data2 = grown.model.createData()
+    pin.framesForwardKinematics(grown.model, data2, q2)
+    for f, T in before.items():
+        assert (data2.oMf[grown.model.getFrameId(f)].inverse() * T).isIdentity(1e-10)
+    for a, b in zip(poses_before, grown.footprint_poses(q2)[1:], strict=True):
+        assert np.allclose(a.as_array(), b.as_array(), atol=1e-12)
+    # the new root footprint is the other initial sole
+    assert np.allclose(grown.footprint_poses(q2)[0].as_array(), stance.of(grown.sides[0]).as_array())
+
+
+def test_chain_limits_are_the_step_bounds(robot, stance):
+    chain, _ = grown_chain(robot, stance, "right", 3)
+    bounds = robot.params.footstep_bounds
+    for i in (1, 2):
+        idx = [chain.model.getJointId(n) for n in chain.chain_joint_names(i)]
+        lo = [chain.model.lowerPositionLimit[chain.model.joints[j].idx_q] for j in idx]
+        hi = [chain.model.upperPositionLimit[chain.model.joints[j].idx_q] for j in idx]
+        expected = bounds.for_swing(chain.sides[i])
+        assert np.allclose(lo, [e[0] for e in expected]) and np.allclose(hi, [e[1] for e in expected])
+
+
+# --------------------------------------------------------------------------------- constraint Jacobians
+
+
+def _numeric_jacobian(task, model, data, q, h=1e-6):
+    J = np.zeros((task.compute_error(q, data).shape[0], model.nv))
+    for k in range(model.nv):
+        e = np.zeros(model.nv)
+        e[k] = h
+        qp, qm = pin.integrate(model, q, e), pin.integrate(model, q, -e)
+        compute_kinematics(model, data, qp, False)
+        fp = task.compute_error(qp, data)
+        compute_kinematics(model, data, qm, False)
+        fm = task.compute_error(qm, data)
+        J[:, k] = (fp - fm) / (2 * h)
+    compute_kinematics(model, data, q, False)
+    return J
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_footstep_constraint_jacobians_match_finite_differences(robot, stance, seed):
+    rng = np.random.default_rng(seed)
+    chain, q0 = grown_chain(robot, stance, "left" if seed else "right", 3)
+    q = pin.integrate(chain.model, q0, 0.2 * rng.standard_normal(chain.model.nv))
+    data = chain.model.createData()
+    for task in (
+        RootSoleOnFootprintTask(chain),
+        FrontStepBoundsTask(chain),
+        NonOverlapTask(chain, robot.sole_size_m),
+    ):
+        compute_kinematics(chain.model, data, q, False)
+        F, J = task.compute(q, data)
+        J_num = _numeric_jacobian(task, chain.model, data, q)
+        # central differences: error O(h^2 |F'''|) + rounding O(eps / h)
+        np.testing.assert_allclose(J, J_num, atol=1e-6, err_msg=task.name)
+        assert F.shape[0] == J.shape[0]
+
+
+def test_relative_planar_pose_is_the_chain_joint_value(robot, stance):
+    chain, q = grown_chain(robot, stance, "left", 3)
+    q[3:6] = [0.1, -0.2, -0.3]
+    data = chain.model.createData()
+    compute_kinematics(chain.model, data, q, False)
+    r, J = relative_planar_pose(chain.model, data, *chain.footprint_frame_ids[1:3])
+    np.testing.assert_allclose(r, [0.1, -0.2, -0.3], atol=1e-12)
+    np.testing.assert_allclose(J[:, 3:6], np.eye(3), atol=1e-12)
+
+
+def test_non_overlap_rows_keep_the_footprints_apart():
+    """Fig. 5: when every row holds, the two rectangles are disjoint (by at least the margin)."""
+    rng = np.random.default_rng(7)
+    length, width, margin = 0.24, 0.14, 0.01
+    parent = SolePose(0.0, 0.0, 0.0)
+    held = 0
+    for _ in range(3000):
+        r = np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.8, 0.8)])
+        child_is_left = bool(rng.integers(2))
+        G, dG = non_overlap_rows(r, child_is_left, length, width, margin)
+        child = parent.compose(*r)
+        if np.all(G <= 0.0):
+            held += 1
+            assert rectangles_disjoint_margin(parent, child, length, width) >= margin - 1e-9
+        h = 1e-7
+        num = np.stack(
+            [
+                (non_overlap_rows(r + h * e, child_is_left, length, width, margin)[0] - G) / h
+                for e in np.eye(3)
+            ],
+            axis=1,
+        )
+        np.testing.assert_allclose(dG, num, atol=1e-5)
+    assert held > 100
+
+
+def test_disk_signed_distance():
+    pose = SolePose(1.0, 2.0, math.pi / 2)  # 0.24 along y, 0.14 along x
+    assert disk_signed_distance(pose, 0.24, 0.14, np.array([1.0, 2.0])) == pytest.approx(-0.07)
+    assert disk_signed_distance(pose, 0.24, 0.14, np.array([1.5, 2.0])) == pytest.approx(0.5 - 0.07)
+    assert disk_signed_distance(pose, 0.24, 0.14, np.array([1.0, 2.5])) == pytest.approx(0.5 - 0.12)
+
+
+# --------------------------------------------------------------------------------- plans and scenarios
+
+
+def check_plan(robot, request, result):
+    """The properties every plan must have: footprints inside the bounds of every support polygon,
+    not overlapping, outside the disks; CoM over the final support polygon; tasks within tolerance;
+    the robot standing on the last footprints."""
+    seq = result.footstep_sequence()
+    limits = FootstepLimits.from_robot(robot)
+    if seq.steps:
+        validate_footsteps(seq, limits)  # bounds (relative to the stance foot) and no overlap
+    length, width = robot.sole_size_m
+    for left, right in seq.stances():
+        assert rectangles_disjoint_margin(left, right, length, width) > 0.0
+    start = {"left": seq.left_start, "right": seq.right_start}
+    for step in seq.steps:
+        for disk in request.disks:
+            distance = disk_signed_distance(step.pose, length, width, np.array([disk.x_m, disk.y_m]))
+            assert distance >= disk.radius_m - 1e-3, f"footprint {step} enters disk {disk}"
+        start[step.side] = step.pose
+    q = np.asarray(result.q_final)
+    data = robot.new_data()
+    for side in ("left", "right"):
+        T = robot.sole_pose(q, side, data)
+        final = sole_pose_of(T)
+        assert abs(T.translation[2]) < 2e-3 and T.rotation[2, 2] > math.cos(0.01)
+        assert np.allclose(final.as_array()[:2], start[side].as_array()[:2], atol=2e-3)
+    margin = polygon_signed_margin(robot.support_polygon(q, data=data), robot.com(q, data))
+    assert margin > 0.0
+    for task, residual in zip(request.tasks, result.residuals, strict=True):
+        assert residual.name == task.name and residual.solved and residual.value <= task.tol()
+        if task.kind == "reach":
+            hand = robot.frame_pose(q, robot.frames.grasp(task.hand), data).translation
+            assert np.linalg.norm(hand - np.asarray(task.target_m)) <= task.tol() + 1e-9
+
+
+@pytest.mark.parametrize("name", ["reach", "pickup", "posture"])
+def test_paper_scenarios_are_solved(robot, name):
+    scenario = scenarios.SCENARIOS[name]()
+    result = plan_footsteps(scenarios.with_trace(scenario.request), robot)
+    check_plan(robot, scenario.request, result)
+    trace = result.trace
+    assert trace is not None and len(trace.values) >= result.iterations
+    assert len(result.steps_added_at) == result.chain_steps - 1  # the structure starts with one step
+    if name == "reach":
+        assert result.n_steps >= 4  # 2 m away: the hand alone cannot reach it
+    if name == "pickup":
+        assert result.n_steps >= 1  # the object between the feet needs stepping (section 4.2)
+    if name == "posture":
+        assert result.n_steps >= 1
+        # the rest posture is closer than at the awkward start
+        start = np.asarray(scenario.request.q_start)[7:]
+        rest = np.asarray(robot.q_half_sitting)[7:]
+        assert result.residual("posture").value < np.linalg.norm(start - rest)
+
+
+def test_target_within_reach_takes_no_step(robot):
+    request = FootstepPlanRequest(tasks=(FootstepTask("reach", (0.3, -0.25, 0.8)),))
+    result = plan_footsteps(request, robot)
+    # one step in the structure (Fig. 11), never moved, hence discarded; no step added
+    assert result.n_steps == 0 and result.chain_steps == 1 and result.steps_added_at == ()
+    check_plan(robot, request, result)
+
+
+def test_unreachable_target_is_infeasible_with_residuals(robot):
+    request = FootstepPlanRequest(tasks=(FootstepTask("reach", (0.5, 0.0, 5.0)),), time_budget_s=20.0)
+    with pytest.raises(InfeasibleError) as info:
+        plan_footsteps(request, robot)
+    details = info.value.details
+    assert details["residuals"]["reach:right"] > 3.0
+    assert details["reason"] in ("stalled", "max_steps")  # stopped by Algorithm 1, not by the budget
+    assert "reach:right" in info.value.message
+
+
+def test_tiny_time_budget_reports_infeasible(robot):
+    request = FootstepPlanRequest(tasks=(FootstepTask("reach", (2.0, 0.0, 0.8)),), time_budget_s=1e-3)
+    with pytest.raises(InfeasibleError) as info:
+        plan_footsteps(request, robot)
+    assert info.value.details["reason"] == "time_budget"
+
+
+def test_both_front_feet_are_tried_and_the_fewest_steps_kept(robot):
+    scenario = scenarios.posture()
+    result = plan_footsteps(scenario.request, robot)
+    assert {a[0] for a in result.alternatives} == {"left", "right"}
+    solved = [a for a in result.alternatives if a[1]]
+    best = min(solved, key=lambda a: (a[2], a[3]))
+    assert result.front_foot == best[0] and result.n_steps == best[2]
+
+
+def test_initial_guess_of_steps(robot):
+    request = FootstepPlanRequest(
+        tasks=(FootstepTask("reach", (1.0, -0.2, 0.8)),), initial_steps=3, front_foot="left"
+    )
+    result = plan_footsteps(request, robot)
+    check_plan(robot, request, result)
+    # the held footprints that did not move are discarded
+    assert result.n_steps <= result.chain_steps
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"tasks": ()}, "tasks"),
+        ({"tasks": (FootstepTask("wave", (0, 0, 1)),)}, "kind"),
+        ({"tasks": (FootstepTask("reach", None),)}, "target_m"),
+        ({"tasks": (FootstepTask("reach", (1, 0, 1), hand="middle"),)}, "hand"),
+        ({"front_foot": "both"}, "front_foot"),
+        ({"disks": (DiskObstacle(0, 0, -1),)}, "disks[0]"),
+        ({"initial_steps": 30}, "initial_steps"),
+        ({"options": PlannerOptions(alpha=2.0)}, "alpha"),
+    ],
+)
+def test_invalid_requests_name_the_field(robot, change, field):
+    request = replace(FootstepPlanRequest(tasks=(FootstepTask("reach", (1, 0, 1)),)), **change)
+    with pytest.raises(InvalidRequestError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        plan_footsteps(request, robot)
+
+
+def test_q_start_must_stand_on_the_ground(robot):
+    q = np.array(robot.q_half_sitting)
+    q[2] += 0.1
+    request = FootstepPlanRequest(tasks=(FootstepTask("reach", (1, 0, 1)),), q_start=tuple(q))
+    with pytest.raises(InvalidRequestError, match="flat on the ground"):
+        plan_footsteps(request, robot)
+
+
+def test_chain_from_a_turned_stance(robot):
+    """The planner works from any standing pose (the chain's root is the initial support sole)."""
+    q = robot.half_sitting_at(1.0, -0.5, 2.0)
+    stance = initial_stance(robot, q)
+    assert isinstance(stance, Stance)
+    target = robot.frame_pose(q, "torso").act(np.array([1.2, 0.0, -0.2]))
+    request = FootstepPlanRequest(tasks=(FootstepTask("reach", tuple(target)),), q_start=tuple(q))
+    result = plan_footsteps(request, robot)
+    check_plan(robot, request, result)
+    assert result.n_steps >= 1
+
+
+# ------------------------------------------------------------------------------------------ execution
+
+
+@pytest.fixture(scope="module")
+def near_reach(robot):
+    """A ball 1 m ahead at table height: a few steps, then the reach (rest posture as objective)."""
+    request = FootstepPlanRequest(tasks=(FootstepTask("reach", (1.0, -0.3, 0.8)), FootstepTask("posture")))
+    return request, plan_footsteps(request, robot)
+
+
+def test_plan_becomes_a_walk_and_a_reach(robot, near_reach):
+    from services.footsteps.execution import execute_plan
+
+    request, result = near_reach
+    assert result.n_steps >= 1
+    motion = execute_plan(robot, request, result)
+    assert motion.walk is not None and motion.walk.worst_zmp_outside_m == 0.0
+    assert motion.q.shape == (motion.times_s.shape[0], robot.nq)
+    np.testing.assert_allclose(motion.q[0], robot.q_half_sitting, atol=1e-9)
+    # continuous at 5 ms: no joint jumps more than 0.05 rad between samples
+    assert np.max(np.abs(np.diff(motion.q[:, 7:], axis=0))) < 0.05
+    assert motion.final_errors_m["reach:right"] < 2e-3
+    assert motion.reach_max_sole_drift_m < 1e-3 and motion.reach_min_com_margin_m > 0.0
+    # the walk ends on the planned footprints
+    final = {s.side: s for s in result.footsteps}
+    data = robot.new_data()
+    k_end = round(motion.walk_end_s / motion.dt_s)
+    for side, step in final.items():
+        sole = sole_pose_of(robot.sole_pose(motion.q[k_end], side, data))
+        assert np.allclose(sole.as_array()[:2], [step.x_m, step.y_m], atol=2e-3)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_plan_executed_in_the_simulator(robot, near_reach):
+    """The robot walks the planned steps and reaches the target in pybullet without falling."""
+    pytest.importorskip("pybullet")
+    from services.footsteps.execution import execute_plan
+    from sim.world import World
+
+    request, result = near_reach
+    motion = execute_plan(robot, request, result)
+    with World(robot, "empty") as world:
+        outcome = world.execute(motion.q, hold_s=1.0)
+        assert outcome.outcome == "completed", outcome.message
+        hand = robot.frame_pose(outcome.state.q, robot.frames.grasp("right")).translation
+    assert np.linalg.norm(hand - np.asarray(request.tasks[0].target_m)) < 0.02
+
+
+def test_the_same_planner_runs_on_talos():
+    talos = load_robot("talos")
+    request = FootstepPlanRequest(
+        robot="talos", tasks=(FootstepTask("reach", (1.5, -0.3, 1.0)), FootstepTask("posture"))
+    )
+    result = plan_footsteps(request, talos)
+    assert result.n_steps >= 2
+    check_plan(talos, request, result)
