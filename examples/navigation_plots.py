@@ -1,12 +1,17 @@
-"""Top view of stage 1 of the navigation planner: obstacles, the planned path, the footprint along it,
-the footsteps, and the carried bar's sweep in the bar scenario.
+"""Figures of the two-stage navigation planner ("Manipulating While Walking", `001_771c0ce3779b0683.txt`).
 
-Left: the demo room (6 x 6 m), a path from the south-west corner to "in front of the yellow table, facing
-it, at 0.4 m", its footprint rectangles and footsteps. Right: the bar-carrying scene of "Manipulating
-While Walking" (`001_771c0ce3779b0683.txt`, Figure 2 (a)): the bar held at 0.9 m meets the box on the
+``out/navigation_topview.png`` (stage 1): left, the demo room (6 x 6 m), a path from the south-west
+corner to "in front of the yellow table, facing it, at 0.4 m", its footprint rectangles and footsteps;
+right, the bar-carrying scene (Figure 2 (a)): the bar held at 0.9 m along the path meets the box on the
 table; colliding bar positions in red, the anticipating and regaining limits marked.
 
-    .venv/bin/python examples/navigation_plots.py            # writes out/navigation_topview.png
+``out/navigation_bar_reshaping.png`` (stage 2, Figures 2 and 3): the whole two-stage plan of the bar
+scenario from the robot holding the bar on its stands: top view of the path, the footsteps and the bar
+as the whole-body motion carries it (coloured by height); the bar's height over time before reshaping
+(first whole-body solution) and after (key frames at the anticipating, colliding and regaining times,
+quintic interpolation, the reshaped whole-body motion); the bar's distance to the box before and after.
+
+    .venv/bin/python examples/navigation_plots.py            # writes both PNGs under out/
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import sys
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -25,11 +31,21 @@ from matplotlib.axes import Axes
 from matplotlib.colors import Normalize
 from matplotlib.patches import Circle, Polygon
 
-from services.navigation.demo_scenes import bar_scenario, demo_room
+from services.model import load_robot
+from services.navigation.body_extents import with_arms_of
+from services.navigation.demo_scenes import (
+    BAR_BOX_TOP_M,
+    BAR_TABLE_TOP_M,
+    bar_scenario,
+    bar_scenario_start,
+    demo_room,
+)
 from services.navigation.footsteps_along_path import FootstepOptions, footsteps_along_path
 from services.navigation.geometry import BodyModel, BoxObstacle, Scene, body_model
 from services.navigation.goals import ObjectGoal
+from services.navigation.goto import GotoOptions, GotoResult, plan_goto
 from services.navigation.path import PlannerConfig, SampledPath, plan_path
+from services.navigation.stage2 import Stage2Options
 from services.navigation.upper_body import CarriedBar, sweep_carried_object
 
 REPO = Path(__file__).resolve().parents[1]
@@ -114,6 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--out", type=Path, default=REPO / "out" / "navigation_topview.png", help="PNG path")
+    parser.add_argument(
+        "--bar-out", type=Path, default=REPO / "out" / "navigation_bar_reshaping.png", help="PNG of stage 2"
+    )
     parser.add_argument("--robot", default="hrp2_like", help="body model (hrp2_like, talos)")
     parser.add_argument("--turning-radius", type=float, default=0.5, help="minimum turning radius [m]")
     args = parser.parse_args(argv)
@@ -133,12 +152,14 @@ def main(argv: list[str] | None = None) -> int:
     ax_room.legend(loc="lower right", fontsize=8)
 
     scene, start, goal = bar_scenario()
-    path = plan_path(scene, body, start, goal, config)
+    robot = load_robot(args.robot)
+    holding = with_arms_of(body, robot, bar_scenario_start(robot))  # the arms ahead, holding the bar
+    path = plan_path(scene, holding, start, goal, config)
     bar = CarriedBar(height_m=0.9)
-    sweep = sweep_carried_object(scene, path, bar, body)
+    sweep = sweep_carried_object(scene, path, bar, holding)
     draw_scene(ax_bar, scene)
-    draw_path(ax_bar, path, body, every_m=1.0)
-    draw_footsteps(ax_bar, path, body)
+    draw_path(ax_bar, path, holding, every_m=1.0)
+    draw_footsteps(ax_bar, path, holding)
     for k in range(0, len(path.s_m), 5):
         theta = path.theta_rad[k]
         cx = path.xy_m[k, 0] + bar.forward_m * math.cos(theta)
@@ -168,7 +189,116 @@ def main(argv: list[str] | None = None) -> int:
     fig.tight_layout()
     fig.savefig(args.out, dpi=110)
     print(f"wrote {args.out}")
+    plot_bar_reshaping(args.robot, args.bar_out)
+    print(f"wrote {args.bar_out}")
     return 0
+
+
+def plan_bar_scenario(robot_name: str) -> GotoResult:
+    """The two-stage plan of the bar scenario: from the robot holding the bar on its stands to the goal,
+    the bar carried at 0.8 m."""
+    robot = load_robot(robot_name)
+    scene, _, goal = bar_scenario()
+    options = GotoOptions(stage2=Stage2Options(carry_height_m=0.8))
+    return plan_goto(robot, scene, bar_scenario_start(robot), goal, CarriedBar(), options)
+
+
+def plot_bar_reshaping(robot_name: str, out: Path) -> None:
+    """Top view, bar height and bar-box distance over time of the reshaped bar scenario."""
+    scene, _, _ = bar_scenario()
+    result = plan_bar_scenario(robot_name)
+    motion = result.motion
+    t = motion.times_s
+    fig = plt.figure(figsize=(15, 9))
+    grid = fig.add_gridspec(2, 2, height_ratios=(1.15, 1.0))
+    ax_top = fig.add_subplot(grid[0, :])
+    ax_h = fig.add_subplot(grid[1, 0])
+    ax_d = fig.add_subplot(grid[1, 1], sharex=ax_h)
+
+    body = body_model(robot_name)
+    draw_scene(ax_top, scene)
+    draw_path(ax_top, result.path, body, every_m=1.0)
+    for step in result.footsteps.sequence.steps:
+        colour = "tab:blue" if step.side == "left" else "tab:red"
+        p = step.pose
+        ax_top.add_patch(Polygon(_rect(p.x_m, p.y_m, 0.12, 0.07, p.yaw_rad), fill=False, ec=colour, lw=0.8))
+    centre = motion.bar_centre_m
+    half = 0.5 * CarriedBar().length_m
+    norm = Normalize(vmin=float(centre[:, 2].min()), vmax=float(centre[:, 2].max()))
+    q = motion.q
+    for k in range(0, len(t), 60):
+        yaw = float(
+            np.arctan2(2 * (q[k, 6] * q[k, 5] + q[k, 3] * q[k, 4]), 1 - 2 * (q[k, 4] ** 2 + q[k, 5] ** 2))
+        )
+        dx, dy = -half * math.sin(yaw), half * math.cos(yaw)
+        cx, cy = centre[k, 0], centre[k, 1]
+        ax_top.plot([cx - dx, cx + dx], [cy - dy, cy + dy], color=cm.plasma(norm(centre[k, 2])), lw=0.9)
+    fig.colorbar(cm.ScalarMappable(norm=norm, cmap="plasma"), ax=ax_top, shrink=0.6, label="bar height [m]")
+    ax_top.set_xlim(-0.6, 3.8)
+    ax_top.set_ylim(-1.4, 1.4)
+    report = motion.report()
+    ax_top.set_title(
+        f"stage 2: {len(result.footsteps.sequence.steps)} footsteps, {report['iterations']} whole-body "
+        f"solutions, bar lifted over {[list(w.obstacles) for w in motion.windows]}; min clearance "
+        f"{1e3 * report['min_clearance_m']:.0f} mm,\nmultibody ZMP margin "
+        f"{1e3 * report['zmp_margin_m']:.0f} mm (bar included), "
+        f"planned in {result.timings_s['total_s']:.1f} s"
+    )
+
+    ax_h.plot(t, motion.bar_height_nominal_m, ":", color="gray", label="nominal (task space)")
+    ax_h.plot(
+        t, motion.bar_height_first_m, "-", color="tab:red", lw=1.2, label="before reshaping (whole body)"
+    )
+    ax_h.plot(
+        t, motion.bar_height_planned_m, "--", color="tab:blue", lw=1.2, label="key frames + quintics, 5 ms"
+    )
+    ax_h.plot(t, centre[:, 2], "-", color="tab:green", lw=1.0, label="after reshaping (whole body)")
+    ax_h.axhline(BAR_BOX_TOP_M, color="tab:olive", lw=0.8)
+    ax_h.annotate("box top", (t[-1], BAR_BOX_TOP_M), ha="right", va="bottom", fontsize=8)
+    ax_h.axhline(BAR_TABLE_TOP_M, color="goldenrod", lw=0.8)
+    ax_h.annotate("table top", (t[-1], BAR_TABLE_TOP_M), ha="right", va="bottom", fontsize=8)
+    for w in motion.windows:
+        for time_s, label in (
+            (w.t_anticipate_s, "anticipating"),
+            (w.t_collide_s, "colliding"),
+            (w.t_collide_end_s, "collision ends"),
+            (w.t_regain_s, "regaining"),
+        ):
+            ax_h.axvline(time_s, color="black", lw=0.5, ls="--")
+            ax_h.annotate(label, (time_s, 0.74), rotation=90, fontsize=7, ha="right", va="bottom")
+    ax_h.set_xlabel("time [s]")
+    ax_h.set_ylabel("bar centre height [m]")
+    ax_h.set_title("the bar's height before and after reshaping (Figure 2 (b)-(d))")
+    ax_h.legend(fontsize=7, loc="upper left")
+
+    before = motion.iterations[0]
+    first = [e for e in before.events if e.group == "bar"]
+    box = motion.check.obstacles.index("box")
+    bar_g = motion.check.groups.index("bar")
+    exact_within = 0.25  # MotionChecker: distances are exact below this, lower bounds above
+    for check, colour, label in (
+        (motion.first_check, "tab:red", "before reshaping"),
+        (motion.check, "tab:green", "after reshaping"),
+    ):
+        if check is not None:
+            d = check.distance_m[:, bar_g, box]
+            ax_d.plot(t, np.where(d < exact_within, d, np.nan), color=colour, label=label)
+    if first:
+        ax_d.axvspan(
+            first[0].t_start_s, first[-1].t_end_s, color="tab:red", alpha=0.2, label="colliding before"
+        )
+    ax_d.axhline(0.0, color="black", lw=0.6)
+    ax_d.axhline(0.02, color="gray", lw=0.6, ls=":")
+    ax_d.annotate("required clearance", (t[0], 0.02), fontsize=7, va="bottom")
+    ax_d.set_ylim(-0.15, exact_within)
+    ax_d.set_xlabel("time [s]")
+    ax_d.set_ylabel("signed distance bar - box [m]")
+    ax_d.set_title(f"bar to box; before reshaping: {1e3 * before.min_clearance_m:.0f} mm (penetration)")
+    ax_d.legend(fontsize=7)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":

@@ -9,9 +9,13 @@ import numpy as np
 import pytest
 
 from services.errors import InfeasibleError, InvalidRequestError, NotFoundError
+from services.model import load_robot
+from services.navigation.body_extents import with_arms_of
 from services.navigation.demo_scenes import (
     BAR_BOX_TOP_M,
+    BAR_GOAL_X_M,
     bar_scenario,
+    bar_scenario_start,
     demo_room,
     enclosed_goal_room,
     random_clutter,
@@ -60,7 +64,11 @@ def test_footprint_checker_agrees_with_point_sampling() -> None:
     rng = np.random.default_rng(0)
     hx, hy = BODY.half_extents_m
     u, v = np.meshgrid(np.linspace(-hx, hx, 25), np.linspace(-hy, hy, 25))
-    local = np.column_stack([u.ravel(), v.ravel()])
+    legs = np.column_stack([u.ravel(), v.ravel()])
+    ax, ay = BODY.arms_half_extents_m
+    u, v = np.meshgrid(np.linspace(-ax, ax, 15), np.linspace(-ay, ay, 35))
+    arms = np.column_stack([u.ravel() + BODY.arms_offset_m, v.ravel()])
+    arm_z0, arm_z1 = BODY.arms_z_range_m
     n_hit = 0
     for _ in range(400):
         x, y = rng.uniform(-3.7, 3.7, size=2)
@@ -68,10 +76,13 @@ def test_footprint_checker_agrees_with_point_sampling() -> None:
         hits = checker.colliding_obstacles(x, y, theta)
         assert checker.is_free(x, y, theta) == (not hits)
         c, s = math.cos(theta), math.sin(theta)
-        pts = local @ np.array([[c, s], [-s, c]]) + np.array([x, y])
         inside_any = set()
         for o in scene.obstacles:
-            d = pts - np.asarray(o.center_xyz_m[:2])
+            z0, z1 = o.z_range_m
+            # the legs' rectangle sees every obstacle here (all start on the floor), the arms' one those
+            # reaching into the arms' height range
+            local = legs if z1 < arm_z0 or z0 > arm_z1 else np.vstack([legs, arms])
+            d = local @ np.array([[c, s], [-s, c]]) + np.array([x, y]) - np.asarray(o.center_xyz_m[:2])
             if isinstance(o, BoxObstacle):
                 co, so = math.cos(o.yaw_rad), math.sin(o.yaw_rad)
                 lx, ly = d[:, 0] * co + d[:, 1] * so, -d[:, 0] * so + d[:, 1] * co
@@ -84,6 +95,17 @@ def test_footprint_checker_agrees_with_point_sampling() -> None:
         assert inside_any <= set(hits)
         n_hit += bool(hits)
     assert 40 < n_hit < 360  # the poses exercise both answers
+
+
+def test_the_arms_box_sees_obstacles_at_arm_height_only() -> None:
+    """A crate beside the robot: 0.42 m from the base (outside the legs' 0.27 m half width, inside the
+    hanging arms' 0.49 m) blocks it when it reaches the hands (0.8 m high), not when it is low (0.3 m)."""
+    for height, blocked in ((0.8, True), (0.3, False)):
+        crate = BoxObstacle("crate", (0.0, 0.42 + 0.1, 0.5 * height), (0.4, 0.2, height))
+        checker = FootprintChecker(Scene((crate,), (-2.0, 2.0, -2.0, 2.0)), BODY)
+        assert checker.colliding_obstacles(0.0, 0.0, 0.0) == (["crate"] if blocked else [])
+        assert checker.is_free(0.0, 0.0, 0.0) is not blocked
+        assert checker.arm_obstacles == (["crate"] if blocked else [])
 
 
 def test_footprint_ignores_obstacles_above_the_lower_body() -> None:
@@ -139,11 +161,12 @@ def test_walking_forward_is_preferred_over_reeds_shepp() -> None:
 
 
 def test_forward_preferred_falls_back_to_reeds_shepp() -> None:
-    """A dead-end corridor 0.8 m wide with the goal facing out: no forward path, backing in works."""
+    """A dead-end corridor 0.8 m wide between walls below the hands (0.45 m) with the goal facing out: no
+    forward path, backing in works."""
     corridor = [
-        BoxObstacle("left_wall", (1.5, 0.45, 0.5), (3.0, 0.1, 1.0)),
-        BoxObstacle("right_wall", (1.5, -0.45, 0.5), (3.0, 0.1, 1.0)),
-        BoxObstacle("end_wall", (3.05, 0.0, 0.5), (0.1, 1.0, 1.0)),
+        BoxObstacle("left_wall", (1.5, 0.45, 0.225), (3.0, 0.1, 0.45)),
+        BoxObstacle("right_wall", (1.5, -0.45, 0.225), (3.0, 0.1, 0.45)),
+        BoxObstacle("end_wall", (3.05, 0.0, 0.225), (0.1, 1.0, 0.45)),
     ]
     scene = Scene(tuple(corridor), (-3.0, 3.0, -3.0, 3.0))
     config = PlannerConfig(time_budget_s=1.5)
@@ -262,15 +285,18 @@ def test_object_goal_cylinder_and_errors() -> None:
 
 def test_bar_sweep_detects_the_box_on_the_table_and_clears_when_lifted() -> None:
     scene, start, goal = bar_scenario()
-    path = plan_path(scene, BODY, start, goal)
-    assert path.length_m == pytest.approx(4.0, abs=1e-6)  # free floor: straight through
+    robot = load_robot("hrp2_like")
+    holding = with_arms_of(BODY, robot, bar_scenario_start(robot))  # the arms ahead, holding the bar
+    assert holding.arms_x_range_m[1] > 0.4 and holding.arms_width_m < BODY.arms_width_m
+    path = plan_path(scene, holding, start, goal)
+    assert path.length_m == pytest.approx(BAR_GOAL_X_M, abs=1e-6)  # free floor: straight through
     bar = CarriedBar(height_m=0.9)
     sweep = sweep_carried_object(scene, path, bar, BODY)
     assert len(sweep.segments) == 1
     seg = sweep.segments[0]
-    assert seg.part == "bar" and seg.obstacles == ("box_on_table",)
+    assert seg.part == "bar" and seg.obstacles == ("box",)
     # the bar (centre 0.35 m ahead of the base) meets the box's x range [1.85, 2.15] m, widened by its radius
-    box = scene.find("box_on_table")
+    box = scene.find("box")
     first_x = box.center_xyz_m[0] - 0.5 * box.size_xyz_m[0] - bar.radius_m - bar.forward_m
     last_x = box.center_xyz_m[0] + 0.5 * box.size_xyz_m[0] + bar.radius_m - bar.forward_m
     step = float(np.diff(path.s_m).max())
@@ -279,7 +305,8 @@ def test_bar_sweep_detects_the_box_on_the_table_and_clears_when_lifted() -> None
     assert seg.s_anticipate_m < seg.s_collide_m and seg.s_regain_m > seg.s_collide_end_m
     assert seg.min_distance_m == pytest.approx(-(BAR_BOX_TOP_M - 0.9 + bar.radius_m), abs=1e-3)
     assert seg.clear_height_m == pytest.approx(BAR_BOX_TOP_M + bar.radius_m + 0.05)
-    # the bar overhangs the table top (0.7 m) without touching it; the torso passes the table
+    # the bar overhangs the table top (0.72 m) and passes above the stands (0.75 m) without touching them;
+    # the torso passes the table
     assert not any(s.part == "upper_body" for s in sweep.segments)
 
     higher = sweep_carried_object(scene, path, CarriedBar(height_m=1.1), BODY)

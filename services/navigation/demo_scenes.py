@@ -3,8 +3,9 @@
 - :func:`demo_room`: a 6 x 6 m room with walls, two tables, boxes and a pillar (the benchmark's
   ``room_plan_ms`` problem and the example's top view);
 - :func:`bar_scenario`: the bar-carrying experiment of "Manipulating While Walking" in
-  `001_771c0ce3779b0683.txt` (Figure 2 and 3): the robot walks past a table with a box on it; the 1.8 m
-  bar held across the walking direction overhangs the table and meets the box;
+  `001_771c0ce3779b0683.txt` (Figure 2 and 3), laid out as the sim's ``bar_carry`` scene: the robot walks
+  past a table with a box on it; the 1.8 m bar held across the walking direction overhangs the table and
+  meets the box;
 - :func:`enclosed_goal_room`: the demo room with a closed pen around the goal;
 - :func:`random_clutter`: ``n`` seeded random boxes and cylinders in an 8 x 8 m area.
 """
@@ -37,8 +38,8 @@ def walls(xmin: float, xmax: float, ymin: float, ymax: float, prefix: str = "wal
 def demo_room_obstacles() -> list[Obstacle]:
     """Furniture of the demo room (without walls)."""
     return [
-        BoxObstacle("yellow_table", (1.6, 1.5, 0.35), (1.2, 0.7, 0.7), 0.0),
-        BoxObstacle("blue_table", (-1.2, 0.6, 0.35), (0.8, 0.8, 0.7), math.radians(30.0)),
+        BoxObstacle("yellow_table", (1.6, 1.3, 0.35), (1.2, 0.7, 0.7), 0.0),
+        BoxObstacle("blue_table", (-0.9, 0.5, 0.35), (0.8, 0.8, 0.7), math.radians(30.0)),
         BoxObstacle("box_a", (0.6, -1.0, 0.25), (0.5, 0.5, 0.5), 0.3),
         BoxObstacle("box_b", (-0.5, -1.9, 0.2), (0.4, 0.6, 0.4), 0.0),
         BoxObstacle("shelf", (2.7, -1.0, 0.9), (0.5, 1.6, 1.8), 0.0),
@@ -59,21 +60,42 @@ def enclosed_goal_room() -> tuple[Scene, Pose2D, Pose2D]:
     return Scene(scene.obstacles + tuple(pen), scene.bounds_xy_m), start, Pose2D(-1.8, 2.0, 0.0)
 
 
-# Bar scenario: walk 4 m along +x; a 0.7 m table beside the path (its near edge 0.45 m from the walking
-# line), a box on it reaching 1.0 m; the bar held at 0.9 m spans +-0.9 m across the walking direction.
-BAR_TABLE_TOP_M = 0.7
-BAR_BOX_TOP_M = 1.0
+# Bar scenario, as in the sim's `bar_carry` scene (sim/scenes/bar_carry.yaml): the 1.8 m bar lies across the
+# walking direction on two stands 0.42 m ahead of the robot; a table (top 0.72 m) stands 0.5 m to the right
+# of the walking line, 2 m ahead, with a box on it reaching 0.97 m. Held at 0.76-0.9 m, the bar's right
+# half passes above the table top but meets the box. Obstacles are bounding boxes (the table's legs and
+# top as one block), as perception would report them.
+BAR_TABLE_TOP_M = 0.72
+BAR_BOX_TOP_M = 0.97
+BAR_GOAL_X_M = 3.2
 
 
 def bar_scenario() -> tuple[Scene, Pose2D, Pose2D]:
-    """The bar-carrying scene: start, goal and a table with a box on it across the bar's sweep."""
-    table = BoxObstacle("table", (2.0, 0.8, 0.5 * BAR_TABLE_TOP_M), (0.8, 0.7, BAR_TABLE_TOP_M))
+    """The bar-carrying scene: two stands holding the bar, a table with a box on it across the bar's
+    sweep; start at the origin facing +x, goal ``BAR_GOAL_X_M`` ahead."""
+    stands = [
+        BoxObstacle(f"{side}_stand", (0.42, y, 0.375), (0.12, 0.12, 0.75))
+        for side, y in (("left", 0.62), ("right", -0.62))
+    ]
+    table = BoxObstacle("table", (2.0, -0.75, 0.5 * BAR_TABLE_TOP_M), (0.8, 0.5, BAR_TABLE_TOP_M))
     box_height = BAR_BOX_TOP_M - BAR_TABLE_TOP_M
-    box = BoxObstacle(
-        "box_on_table", (2.0, 0.62, BAR_TABLE_TOP_M + 0.5 * box_height), (0.3, 0.25, box_height)
-    )
-    scene = Scene((table, box), (-0.5, 4.5, -1.5, 1.5))
-    return scene, Pose2D(0.0, 0.0, 0.0), Pose2D(4.0, 0.0, 0.0)
+    box = BoxObstacle("box", (2.0, -0.65, BAR_TABLE_TOP_M + 0.5 * box_height), (0.3, 0.3, box_height))
+    scene = Scene((*stands, table, box), (-0.5, 4.5, -1.5, 1.5))
+    return scene, Pose2D(0.0, 0.0, 0.0), Pose2D(BAR_GOAL_X_M, 0.0, 0.0)
+
+
+BAR_ON_STANDS_CENTRE_M = (0.42, 0.0, 0.762)
+"""Centre [m] of the bar lying on its stands (axis along world y), as in the sim's ``bar_carry`` scene."""
+
+
+def bar_scenario_start(robot: object) -> np.ndarray:
+    """A starting configuration (nq) of ``robot`` (a ``RobotModel``) standing at the origin and holding the
+    bar on its stands in both hands (the grasp of the pick-up, :func:`bar_grasp_configuration`), for plans
+    made without the sim (tests, benchmark, examples)."""
+    from services.navigation.bar_pickup import bar_grasp_configuration
+
+    q0 = robot.half_sitting_at(0.0, 0.0, 0.0)  # type: ignore[attr-defined]
+    return bar_grasp_configuration(robot, q0, np.array(BAR_ON_STANDS_CENTRE_M), np.array([0.0, 1.0, 0.0]))
 
 
 def random_clutter(n: int, seed: int, clear_radius_m: float = 0.6) -> tuple[Scene, Pose2D, Pose2D]:

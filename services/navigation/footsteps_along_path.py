@@ -107,7 +107,13 @@ def _segments(path: SampledPath) -> list[tuple[int, int, float]]:
 class _Walker:
     """Greedy footstep placement along a path (state: both soles, the moving side, the steps so far)."""
 
-    def __init__(self, path: SampledPath, bounds: FootstepLimits, options: FootstepOptions) -> None:
+    def __init__(
+        self,
+        path: SampledPath,
+        bounds: FootstepLimits,
+        options: FootstepOptions,
+        start_soles: tuple[SolePose, SolePose] | None = None,
+    ) -> None:
         self.path = path
         self.options = options
         self.bounds = bounds
@@ -121,10 +127,12 @@ class _Walker:
         self.curvature = np.concatenate([path.curvature(), [0.0]])
         half = 0.5 * options.feet_spacing_m
         p0 = path.start
-        self.feet: dict[str, SolePose] = {
-            "left": self._offset(p0.x_m, p0.y_m, p0.theta_rad, +half, p0.theta_rad),
-            "right": self._offset(p0.x_m, p0.y_m, p0.theta_rad, -half, p0.theta_rad),
-        }
+        if start_soles is None:
+            start_soles = (
+                self._offset(p0.x_m, p0.y_m, p0.theta_rad, +half, p0.theta_rad),
+                self._offset(p0.x_m, p0.y_m, p0.theta_rad, -half, p0.theta_rad),
+            )
+        self.feet: dict[str, SolePose] = {"left": start_soles[0], "right": start_soles[1]}
         self.left_start, self.right_start = self.feet["left"], self.feet["right"]
         self.steps: list[Footstep] = []
         self.step_s: list[float] = []
@@ -226,17 +234,20 @@ def footsteps_along_path(
     path: SampledPath,
     bounds: FootstepLimits | None = None,
     options: FootstepOptions | None = None,
+    start_soles: tuple[SolePose, SolePose] | None = None,
 ) -> PathFootsteps:
     """Footsteps walking ``path`` from its start (feet side by side on the start pose) to its goal.
 
     Returns the sequence (``services.walking.footsteps.FootstepSequence``: the two starting soles and the
     landings, alternating feet) and the arc length of each landing. The first moving foot is the one on
-    the side the path first turns to (the right one on a straight start). Raises InfeasibleError when a
-    turn is too sharp for the bounds.
+    the side the path first turns to (the right one on a straight start). ``start_soles`` (left, right)
+    are where the soles really are (the robot's starting configuration; a few millimetres off the path's
+    start pose), default: on the start pose ``feet_spacing_m`` apart. Raises InfeasibleError when a turn is
+    too sharp for the bounds.
     """
     bounds = bounds or FootstepLimits()
     options = options or FootstepOptions()
-    walker = _Walker(path, bounds, options)
+    walker = _Walker(path, bounds, options, start_soles)
     # first moving foot: the inner one of the first turn (it may turn pi/4 relative to the other)
     look = path.s_m <= min(path.length_m, 0.5)
     turn = float(path.theta_rad[look][-1] - path.theta_rad[0]) if look.any() else 0.0

@@ -13,11 +13,12 @@ shortens it for ``optimize_time_s``; RRT-Connect is not offered: with the asymme
 fails on the demo room), followed by OMPL's path simplifier (vertex reduction, shortcuts).
 
 Walking-forward preference, ``curve="forward_preferred"`` (the default): plan with Dubins curves first
-and fall back to Reeds-Shepp only when no forward path is found within ``dubins_budget_fraction`` of the
-budget. A Reeds-Shepp objective with a per-metre penalty on reverse driving was the alternative; the
-OMPL 2.0.1 Python bindings do not expose the Reeds-Shepp segment lengths (``ReedsSheppPathType`` only has
-``length()``), so such a cost would have to re-sample every motion in a Python callback, and it would
-still let an optimizing planner trade a little reverse against length. The lexicographic rule is cheaper
+(to every goal candidate of an object goal) and fall back to Reeds-Shepp only when no forward path is
+found within ``dubins_budget_fraction`` of the budget. A Reeds-Shepp objective with a per-metre penalty
+on reverse driving was the alternative; the OMPL 2.0.1 Python bindings do not expose the Reeds-Shepp
+segment lengths (``ReedsSheppPathType`` only has ``length()``), so such a cost would have to re-sample
+every motion in a Python callback, and it would still let an optimizing planner trade a little reverse
+against length. The lexicographic rule is cheaper
 and never walks backward when a forward path is found within its share of the budget.
 ``scripts/bench.d/navigation.py`` measures both families on the demo room and in clutter.
 
@@ -211,10 +212,10 @@ def sweep_inflation_m(body: BodyModel, check_step_m: float, turning_radius_m: fl
 
     A sample of the continuous path is within ``check_step_m / 2`` of arc length of a checked state; over
     that arc the base moves at most that far and turns at most ``check_step_m / (2 R)``, so a footprint
-    corner (at the circumradius) moves at most ``check_step_m / 2 * (1 + r_circ / R)``.
+    corner (at most ``body.max_reach_m`` from the base, the arms' rectangle included) moves at most
+    ``check_step_m / 2 * (1 + reach / R)``.
     """
-    hx, hy = body.half_extents_m
-    return 0.5 * check_step_m * (1.0 + math.hypot(hx, hy) / turning_radius_m)
+    return 0.5 * check_step_m * (1.0 + body.max_reach_m / turning_radius_m)
 
 
 def _search(
@@ -371,8 +372,14 @@ def plan_path(
         if hits:
             raise InfeasibleError(
                 f"the {label} pose ({pose.x_m:.2f}, {pose.y_m:.2f}, {pose.theta_rad:.2f} rad) puts the "
-                f"robot's footprint ({2 * checker.hx:.2f} x {2 * checker.hy:.2f} m incl. margin) into "
-                f"{hits}; choose a pose farther from them",
+                f"robot's footprint ({2 * checker.hx:.2f} x {2 * checker.hy:.2f} m incl. margin"
+                + (
+                    f"; {2 * body.arms_half_extents_m[1]:.2f} m wide with the arms at "
+                    f"{body.arms_z_range_m[0]:.2f}-{body.arms_z_range_m[1]:.2f} m"
+                    if body.arms_width_m > 0.0
+                    else ""
+                )
+                + f") into {hits}; choose a pose farther from them",
                 {"reason": f"{label}_in_collision", "obstacles": hits},
             )
     if isinstance(goal, ObjectGoal):
@@ -388,11 +395,14 @@ def plan_path(
         attempts = [(config.curve, 1.0)]
     result = None
     used = attempts[-1][0]
-    for index, candidate in enumerate(goals):
-        for curve, fraction in attempts:
-            remaining = config.time_budget_s - (time.perf_counter() - t_start)
-            share = remaining / (len(goals) - index)  # leave budget for the other goal candidates
-            budget = max(share * fraction, 1e-3)
+    # Every goal candidate with forward curves before any with Reeds-Shepp: a forward path to the second
+    # face of an object beats walking backward to the first one.
+    for curve, fraction in attempts:
+        t_phase = time.perf_counter()
+        phase_budget = fraction * (config.time_budget_s - (t_phase - t_start))
+        for index, candidate in enumerate(goals):
+            remaining = phase_budget - (time.perf_counter() - t_phase)
+            budget = max(remaining / (len(goals) - index), 1e-3)  # leave budget for the other candidates
             result = _search(curve, checker, start, candidate, config, budget)
             if result is not None:
                 used = curve

@@ -1,7 +1,8 @@
 """A cheap proof that a goal is enclosed, before spending a sampling planner's budget on it.
 
 Any collision-free footprint contains its inscribed disc, so along every feasible path the base stays at
-distance >= r_in (the footprint's inradius) from all floor projections. The checker's distance grid,
+distance >= r_in (the footprint's inradius) from all floor projections (and at the arms' inradius from
+the obstacles at arm height). The checker's distance grid,
 thresholded conservatively (grid error subtracted), over-approximates that region; if start and goal lie
 in different 8-connected components of it, no path exists, whatever the turning radius. The converse does
 not hold (a gap may be too narrow for the rectangle or too tight for the turning radius); the planner's
@@ -24,7 +25,7 @@ def check_reachable(checker: FootprintChecker, start: Pose2D, goal: Pose2D) -> N
 
     Both poses must already be collision-free (their grid cells are then in the free region).
     """
-    free = checker.free_mask(checker.r_in)
+    free = checker.reachable_mask()
     labels, _ = ndimage.label(free, structure=_EIGHT_CONNECTED)
     i_s, j_s = checker.cell_of(start.x_m, start.y_m)
     i_g, j_g = checker.cell_of(goal.x_m, goal.y_m)

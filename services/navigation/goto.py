@@ -1,0 +1,169 @@
+"""The whole two-stage planner behind ``navigation/goto`` (Figure 1 of `001_771c0ce3779b0683.txt`).
+
+Stage 1 (:mod:`path`): a car-like collision-free path of the lower body's bounding box (and of the arms'
+box, measured in the starting configuration) from the robot's current pose to the goal (a pose, or "in
+front of the yellow table, facing it, at 0.4 m"), and the carried bar's 3D sweep along it at the carry
+height (:mod:`upper_body`); the path becomes footsteps (:mod:`footsteps_along_path`). Stage 2
+(:mod:`stage2`): the walking pattern and the whole-body motion holding the bar, checked in 3D and
+smoothly reshaped until collision-free.
+
+Planners are stateless: the scene's obstacles (from perception or the supervisor's map, never the sim's
+ground truth) and the robot's starting configuration come with every request.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from services.errors import InfeasibleError, InvalidRequestError
+from services.navigation.body_extents import with_arms_of
+from services.navigation.carry import grip_from_configuration
+from services.navigation.footsteps_along_path import FootstepOptions, PathFootsteps, footsteps_along_path
+from services.navigation.geometry import Pose2D, Scene, body_model
+from services.navigation.goals import ObjectGoal
+from services.navigation.path import PlannerConfig, SampledPath, plan_path
+from services.navigation.stage2 import Stage2Options, WholeBodyMotion, plan_motion
+from services.navigation.upper_body import CarriedBar, SweepResult, sweep_carried_object
+from services.walking.footsteps import FootstepLimits, SolePose
+
+REPLAN_EXTRA_MARGIN_M = 0.02
+"""Margin [m] added, beyond the clearance missing, when stage 2 sends stage 1 back for a new path."""
+MAX_START_SOLE_HEIGHT_M = 0.005
+"""The starting configuration must have both soles on the floor (flat ground z = 0) within this [m]."""
+
+
+@dataclass(frozen=True)
+class GotoOptions:
+    """Options of :func:`plan_goto`: stage 1 (``planner``), footstep placement (``footsteps``; None:
+    :meth:`FootstepOptions.for_body` of the robot), stage 2 (``stage2``) and ``max_replans``: how many
+    times a ``body_collision`` of stage 2 sends stage 1 back for a path with a larger margin."""
+
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    footsteps: FootstepOptions | None = None
+    stage2: Stage2Options = field(default_factory=Stage2Options)
+    max_replans: int = 2
+
+
+@dataclass(frozen=True, eq=False)
+class GotoResult:
+    """The plan: the stage-1 path and the bar's stage-1 sweep along it (None without a bar), the
+    footsteps, the stage-2 whole-body motion, wall times [s] per stage (summed over the replans), and
+    ``replans``: how many times stage 2 sent stage 1 back for a path with a larger margin."""
+
+    path: SampledPath
+    sweep: SweepResult | None
+    footsteps: PathFootsteps
+    motion: WholeBodyMotion
+    timings_s: dict[str, float]
+    replans: int = 0
+
+    @property
+    def goal(self) -> Pose2D:
+        """The base pose reached (for an object goal: the approach pose chosen)."""
+        return self.path.goal
+
+
+def _yaw(R: np.ndarray) -> float:
+    return math.atan2(float(R[1, 0]), float(R[0, 0]))
+
+
+def start_soles(robot: Any, q: np.ndarray) -> tuple[SolePose, SolePose]:
+    """The (left, right) sole poses of configuration ``q``; InvalidRequestError unless both soles are flat
+    on the floor."""
+    data = robot.new_data()
+    soles = []
+    for side in ("left", "right"):
+        T = robot.sole_pose(q, side, data)
+        tilt = math.acos(max(-1.0, min(1.0, float(T.rotation[2, 2]))))
+        if abs(T.translation[2]) > MAX_START_SOLE_HEIGHT_M or tilt > 0.02:
+            raise InvalidRequestError(
+                f"the {side} sole of the starting configuration is at z={T.translation[2]:.3f} m, tilted "
+                f"{math.degrees(tilt):.1f} deg: navigation starts standing on flat ground (soles within "
+                f"{1e3 * MAX_START_SOLE_HEIGHT_M:.0f} mm of z = 0); send the robot's current configuration",
+                {"field": "q_start", "side": side},
+            )
+        soles.append(SolePose(float(T.translation[0]), float(T.translation[1]), _yaw(T.rotation)))
+    return soles[0], soles[1]
+
+
+def start_pose(robot: Any, q: np.ndarray) -> Pose2D:
+    """The base pose on the floor (mid-feet point, mean sole yaw) of configuration ``q``."""
+    x, y, yaw = robot.mid_feet_pose(q)
+    return Pose2D(float(x), float(y), float(yaw))
+
+
+def plan_goto(
+    robot: Any,
+    scene: Scene,
+    q_start: np.ndarray,
+    goal: Pose2D | ObjectGoal,
+    bar: CarriedBar | None = None,
+    options: GotoOptions | None = None,
+) -> GotoResult:
+    """Plan the walk of ``robot`` (a ``services.model.RobotModel``) from ``q_start`` to ``goal`` among
+    ``scene``'s obstacles, holding ``bar`` in both hands as at ``q_start`` (None: nothing carried).
+
+    A ``body_collision`` of stage 2 (the body or an arm too close to an obstacle: the floor boxes were
+    too small for the dynamic motion) sends stage 1 back for a path with the footprint margin grown by
+    the clearance missing (+ 2 cm), at most ``max_replans`` times ("the planner goes back to the first
+    stage", "Two-stage Planning Method").
+
+    Raises the errors of the stages: InfeasibleError (``details["reason"]`` from :func:`plan_path`,
+    :func:`footsteps_along_path` and :func:`plan_motion`), NotFoundError (unknown object or robot),
+    InvalidRequestError (bad configuration, pose outside the scene, bad options).
+    """
+    options = options or GotoOptions()
+    t0 = time.perf_counter()
+    q_start = robot.check_q(q_start)
+    soles = start_soles(robot, q_start)
+    body = with_arms_of(body_model(robot.name), robot, q_start)  # the arms as they are (and stay)
+    grip = grip_from_configuration(robot, q_start, bar) if bar is not None else None
+    timings = {"path_s": 0.0, "footsteps_s": 0.0, "stage2_s": 0.0}
+    replans = 0
+    while True:
+        t1 = time.perf_counter()
+        path = plan_path(scene, body, start_pose(robot, q_start), goal, options.planner)
+        t2 = time.perf_counter()
+        sweep = None
+        if bar is not None and grip is not None:
+            # stage 1's view of the bar: where the hands hold it at the start, carried at the carry height
+            start = path.start
+            ahead = grip.centre_world_m[:2] - (start.x_m, start.y_m)
+            forward = float(ahead @ (math.cos(start.theta_rad), math.sin(start.theta_rad)))
+            height = options.stage2.carry_height_m or float(grip.centre_world_m[2])
+            sweep = sweep_carried_object(scene, path, replace(bar, forward_m=forward, height_m=height), body)
+        footstep_options = options.footsteps or FootstepOptions.for_body(body)
+        steps = footsteps_along_path(
+            path, FootstepLimits.from_robot(robot), footstep_options, start_soles=soles
+        )
+        t3 = time.perf_counter()
+        timings["path_s"] += t2 - t1
+        timings["footsteps_s"] += t3 - t2
+        try:
+            motion = plan_motion(robot, scene, steps.sequence, q_start, bar, options.stage2)
+        except InfeasibleError as error:
+            timings["stage2_s"] += time.perf_counter() - t3
+            # "the planner goes back to the first stage": the body's boxes were too small for the
+            # dynamic motion (sway, swing); plan the path again with the margin grown by what was missing
+            if error.details.get("reason") != "body_collision" or replans >= options.max_replans:
+                raise
+            missing = options.stage2.reshape.required_clearance_m - float(error.details["distance_m"])
+            body = body.with_margin(body.margin_m + missing + REPLAN_EXTRA_MARGIN_M)
+            replans += 1
+            continue
+        timings["stage2_s"] += time.perf_counter() - t3
+        break
+    timings["total_s"] = time.perf_counter() - t0
+    return GotoResult(
+        path=path,
+        sweep=sweep,
+        footsteps=steps,
+        motion=motion,
+        timings_s=timings,
+        replans=replans,
+    )

@@ -1,0 +1,227 @@
+"""The ``navigation`` service: the two-stage planner (services/navigation) on the bus.
+
+Run: ``python -m services.navigation.service [--model hrp2_like]`` (plus the common service options:
+``--config``, ``--robot``, ``--hub``, ``--log-level``; the ``navigation:`` section of the config file
+holds :class:`NavigationConfig`).
+
+Endpoint ``navigation/goto`` (:mod:`services.bus.schemas.navigation`): obstacles, the robot's starting
+configuration, a goal pose or object and an optional carried bar in; the path, footsteps, 5 ms whole-body
+trajectory and reshaping report out. Stateless: the reply is a function of the request.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from services.bus.schemas import navigation as msg
+from services.bus.service import Service, config_with, handles, run_service
+from services.errors import InvalidRequestError
+from services.model import load_robot
+from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle, Pose2D, Scene
+from services.navigation.goals import ObjectGoal
+from services.navigation.goto import GotoOptions, GotoResult, plan_goto, start_pose
+from services.navigation.path import PlannerConfig
+from services.navigation.reshaping import ReshapeOptions
+from services.navigation.stage2 import Stage2Options
+from services.navigation.upper_body import CarriedBar
+
+DEFAULT_BOUNDS_MARGIN_M = 1.5
+
+
+@dataclass(frozen=True)
+class NavigationConfig:
+    """Options of the navigation service.
+
+    Attributes:
+        model: robot model the plans are for (``services.model.load_robot``): ``hrp2_like`` or ``talos``.
+        max_time_budget_s: largest stage-1 search budget a request may ask for [s].
+        max_iterations: largest reshaping iteration budget a request may ask for.
+    """
+
+    model: str = "hrp2_like"
+    max_time_budget_s: float = 10.0
+    max_iterations: int = 10
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.max_time_budget_s) and self.max_time_budget_s > 0):
+            raise InvalidRequestError(
+                f"navigation max_time_budget_s must be > 0 s, got {self.max_time_budget_s}"
+            )
+        if self.max_iterations < 1:
+            raise InvalidRequestError(f"navigation max_iterations must be >= 1, got {self.max_iterations}")
+
+
+def obstacle_from_msg(o: msg.ObstacleMsg) -> Obstacle:
+    """A navigation obstacle from its message; InvalidRequestError names the bad field."""
+    if len(o.center) != 3:
+        raise InvalidRequestError(
+            f"obstacle {o.name!r}: center must be [x, y, z], got {o.center}", {"field": "center"}
+        )
+    center = (float(o.center[0]), float(o.center[1]), float(o.center[2]))
+    if o.kind == "box":
+        if len(o.size) != 3:
+            raise InvalidRequestError(
+                f"obstacle {o.name!r}: a box needs size [sx, sy, sz], got {o.size}", {"field": "size"}
+            )
+        return BoxObstacle(
+            o.name, center, (float(o.size[0]), float(o.size[1]), float(o.size[2])), float(o.yaw)
+        )
+    if o.kind == "cylinder":
+        return CylinderObstacle(o.name, center, float(o.radius), float(o.height))
+    raise InvalidRequestError(
+        f"obstacle {o.name!r}: kind must be 'box' or 'cylinder', got {o.kind!r}", {"field": "kind"}
+    )
+
+
+def scene_from_request(request: msg.GotoRequest, start: Pose2D) -> Scene:
+    """The planner's scene: the obstacles and the floor bounds (given, or around start, goal and
+    obstacles with a 1.5 m margin)."""
+    obstacles = tuple(obstacle_from_msg(o) for o in request.obstacles)
+    if request.bounds:
+        if len(request.bounds) != 4:
+            raise InvalidRequestError(
+                f"bounds must be [xmin, xmax, ymin, ymax], got {request.bounds}", {"field": "bounds"}
+            )
+        bounds = tuple(float(v) for v in request.bounds)
+    else:
+        xs, ys = [start.x_m], [start.y_m]
+        if request.goal_pose:
+            xs.append(float(request.goal_pose[0]))
+            ys.append(float(request.goal_pose[1]))
+        for o in obstacles:
+            r = o.bounding_radius_xy_m
+            xs += [o.center_xyz_m[0] - r, o.center_xyz_m[0] + r]
+            ys += [o.center_xyz_m[1] - r, o.center_xyz_m[1] + r]
+        m = DEFAULT_BOUNDS_MARGIN_M
+        bounds = (min(xs) - m, max(xs) + m, min(ys) - m, max(ys) + m)
+    return Scene(obstacles, bounds)  # type: ignore[arg-type]
+
+
+def goal_from_request(request: msg.GotoRequest) -> Pose2D | ObjectGoal:
+    """The goal: a pose or an object; InvalidRequestError unless exactly one is given."""
+    if bool(request.goal_pose) == bool(request.goal_object):
+        raise InvalidRequestError(
+            "give exactly one goal: goal_pose [x, y, theta] or goal_object (an obstacle's name)",
+            {"field": "goal_pose"},
+        )
+    if request.goal_object:
+        return ObjectGoal(request.goal_object, request.goal_distance_m, request.goal_side or None)
+    if len(request.goal_pose) != 3:
+        raise InvalidRequestError(
+            f"goal_pose must be [x, y, theta], got {request.goal_pose}", {"field": "goal_pose"}
+        )
+    return Pose2D(*(float(v) for v in request.goal_pose))
+
+
+def _empty() -> np.ndarray:
+    return np.zeros(0)
+
+
+def reply_from_result(model: str, result: GotoResult) -> msg.GotoReply:
+    """The ``goto`` reply of a plan."""
+    path, motion, seq = result.path, result.motion, result.footsteps.sequence
+    wb = motion.wholebody
+    carried = motion.bar_centre_m is not None
+    report = motion.report()
+    goal = result.goal
+    return msg.GotoReply(
+        model=model,
+        goal=[goal.x_m, goal.y_m, goal.theta_rad],
+        path_xy_m=path.xy_m,
+        path_theta_rad=path.theta_rad,
+        path_s_m=path.s_m,
+        path_forward=path.forward.astype(np.uint8),
+        path_curve=path.curve,
+        left_start=[seq.left_start.x_m, seq.left_start.y_m, seq.left_start.yaw_rad],
+        right_start=[seq.right_start.x_m, seq.right_start.y_m, seq.right_start.yaw_rad],
+        step_sides=[s.side for s in seq.steps],
+        step_poses=np.array([[s.pose.x_m, s.pose.y_m, s.pose.yaw_rad] for s in seq.steps]).reshape(-1, 3),
+        dt_s=float(motion.pattern.dt_s),
+        q=motion.q,
+        com_m=wb.com_m,
+        zmp_m=wb.zmp_multibody_m,
+        duration_s=float(motion.times_s[-1]),
+        reshaping=msg.ReshapingReport(
+            iterations=report["iterations"],
+            segments=[msg.LiftSegment(**s) for s in report["segments_lifted"]],
+            min_clearance_m=float(report["min_clearance_m"]),
+            zmp_margin_m=float(report["zmp_margin_m"]),
+            hand_error_m=float(report["hand_error_m"]),
+            collisions_per_iteration=[len(it.events) for it in motion.iterations],
+            bar_height_nominal_m=motion.bar_height_nominal_m if carried else _empty(),
+            bar_height_before_m=motion.bar_height_first_m if carried else _empty(),
+            bar_height_planned_m=motion.bar_height_planned_m if carried else _empty(),
+            bar_height_m=motion.bar_centre_m[:, 2].copy() if carried else _empty(),
+        ),
+        timings_s=dict(result.timings_s),
+        replans=result.replans,
+    )
+
+
+class NavigationService(Service):
+    """Walking plans: car-like paths, footsteps, whole-body motion with smooth reshaping of a carried bar."""
+
+    name = "navigation"
+    Config = NavigationConfig
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--model", help="robot model: hrp2_like (default) or talos")
+
+    @classmethod
+    def configure(cls, config: NavigationConfig, args: argparse.Namespace) -> NavigationConfig:
+        if args.model is not None:
+            config = config_with(config, model=args.model)
+        load_robot(config.model)  # fail at start-up with a message rather than at the first request
+        return config
+
+    def start(self) -> None:
+        self.robot = load_robot(self.config.model)
+
+    @handles(msg.GOTO)
+    def goto(self, request: msg.GotoRequest) -> msg.GotoReply:
+        cfg: NavigationConfig = self.config
+        if not 0.0 < request.time_budget_s <= cfg.max_time_budget_s:
+            raise InvalidRequestError(
+                f"time_budget_s must be within 0 and {cfg.max_time_budget_s} s, got {request.time_budget_s}",
+                {"field": "time_budget_s"},
+            )
+        if not 1 <= request.max_iterations <= cfg.max_iterations:
+            raise InvalidRequestError(
+                f"max_iterations must be within 1 and {cfg.max_iterations}, got {request.max_iterations}",
+                {"field": "max_iterations"},
+            )
+        robot = self.robot
+        q_start = robot.check_q(np.asarray(request.q_start, dtype=float))
+        goal = goal_from_request(request)
+        scene = scene_from_request(request, start_pose(robot, q_start))
+        bar = None
+        if request.carried is not None:
+            c = request.carried
+            bar = CarriedBar(length_m=c.length_m, radius_m=c.radius_m, mass_kg=c.mass_kg)
+        options = GotoOptions(
+            planner=PlannerConfig(
+                turning_radius_m=request.turning_radius_m,
+                time_budget_s=request.time_budget_s,
+                seed=request.seed,
+            ),
+            stage2=Stage2Options(
+                carry_height_m=request.carry_height_m,
+                reshape=ReshapeOptions(max_iterations=request.max_iterations),
+            ),
+        )
+        result = plan_goto(robot, scene, q_start, goal, bar, options)
+        return reply_from_result(robot.name, result)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m services.navigation.service``."""
+    return run_service(NavigationService, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

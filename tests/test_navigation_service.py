@@ -1,0 +1,93 @@
+"""The navigation service over a real zenoh bus: ``python -m services.navigation.service`` spawned on a
+private hub, ``navigation/goto`` called with the bar scenario (reshaped plan in the reply) and with an
+enclosed goal (an ``infeasible`` error reply)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from services.bus.schemas import navigation as msg
+from services.errors import InfeasibleError, InvalidRequestError
+from services.model import load_robot
+from services.navigation.demo_scenes import (
+    BAR_BOX_TOP_M,
+    bar_scenario,
+    bar_scenario_start,
+    enclosed_goal_room,
+)
+from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle
+
+pytestmark = pytest.mark.integration
+
+ROBOT = load_robot("hrp2_like")
+
+
+def _obstacle_msg(o: Obstacle) -> msg.ObstacleMsg:
+    if isinstance(o, BoxObstacle):
+        return msg.ObstacleMsg(
+            name=o.name, kind="box", center=list(o.center_xyz_m), size=list(o.size_xyz_m), yaw=o.yaw_rad
+        )
+    assert isinstance(o, CylinderObstacle)
+    return msg.ObstacleMsg(
+        name=o.name, kind="cylinder", center=list(o.center_xyz_m), radius=o.radius_m, height=o.height_m
+    )
+
+
+def test_goto_over_the_bus(module_bus_harness) -> None:
+    harness = module_bus_harness
+    harness.spawn_service("services.navigation.service", name="navigation", timeout_s=60.0)
+    client = harness.client
+
+    scene, _, goal = bar_scenario()
+    q_start = bar_scenario_start(ROBOT)
+    request = msg.GotoRequest(
+        q_start=q_start,
+        obstacles=[_obstacle_msg(o) for o in scene.obstacles],
+        goal_pose=[goal.x_m, goal.y_m, goal.theta_rad],
+        carried=msg.CarriedBarMsg(),
+        carry_height_m=0.8,
+    )
+    reply = client.call(msg.GOTO, request, timeout_s=120.0)
+    assert isinstance(reply, msg.GotoReply) and reply.model == "hrp2_like"
+    assert reply.goal == pytest.approx([goal.x_m, goal.y_m, goal.theta_rad], abs=1e-6)
+    n = reply.q.shape[0]
+    assert reply.q.shape == (n, ROBOT.nq) and reply.dt_s == 0.005
+    assert reply.duration_s == pytest.approx((n - 1) * reply.dt_s)
+    assert np.allclose(reply.q[0], q_start, atol=1e-9)
+    assert reply.com_m.shape == (n, 3) and reply.zmp_m.shape == (n, 2)
+    assert reply.path_xy_m.shape[1] == 2 and reply.path_xy_m.shape[0] == reply.path_s_m.shape[0]
+    assert reply.path_forward.all() and reply.path_curve == "dubins"
+    assert reply.step_poses.shape == (len(reply.step_sides), 3) and len(reply.step_sides) > 10
+    # the reshaping report: the box lifted over, before/after heights on the trajectory's grid
+    report = reply.reshaping
+    assert report.iterations >= 2 and report.collisions_per_iteration[0] >= 1
+    assert report.collisions_per_iteration[-1] == 0
+    assert [s.obstacles for s in report.segments] == [["box"]]
+    assert report.min_clearance_m >= 0.02 and report.zmp_margin_m > 0.0
+    for heights in (report.bar_height_nominal_m, report.bar_height_before_m, report.bar_height_planned_m):
+        assert heights.shape == (n,)
+    assert report.bar_height_before_m.max() < BAR_BOX_TOP_M
+    assert report.bar_height_m.max() > BAR_BOX_TOP_M + 0.012
+    assert set(reply.timings_s) == {"path_s", "footsteps_s", "stage2_s", "total_s"}
+
+    # an enclosed goal: an error reply with the code and the enclosing obstacles, within the budget
+    room, _, enclosed = enclosed_goal_room()
+    q = ROBOT.half_sitting_at(-2.3, -2.3, 0.0)
+    with pytest.raises(InfeasibleError, match="enclosed") as info:
+        client.call(
+            msg.GOTO,
+            msg.GotoRequest(
+                q_start=q,
+                obstacles=[_obstacle_msg(o) for o in room.obstacles],
+                goal_pose=[enclosed.x_m, enclosed.y_m, enclosed.theta_rad],
+                bounds=list(room.bounds_xy_m),
+            ),
+            timeout_s=30.0,
+        )
+    assert info.value.details["reason"] == "goal_enclosed"
+    assert "pen_north" in info.value.details["enclosing_obstacles"]
+
+    # a malformed request names the field
+    with pytest.raises(InvalidRequestError, match="exactly one goal"):
+        client.call(msg.GOTO, msg.GotoRequest(q_start=q, goal_pose=[1.0, 0.0, 0.0], goal_object="crate"))

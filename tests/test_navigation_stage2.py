@@ -1,0 +1,382 @@
+"""Stage 2 of the navigation planner (services/navigation): the bar held in both hands (IK task, grip),
+the 3D collision check of the whole-body motion, the smooth reshaping (key frames, quintics, 5 ms) and
+the bar-carrying scenario of "Manipulating While Walking" (001_771c0ce3779b0683.txt), planned and executed
+in the pybullet sim. Pure algorithm tests, no bus (the service is tested in test_navigation_service.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pybullet as p
+import pytest
+
+from services.errors import InfeasibleError, InvalidRequestError
+from services.ik.kinematics import compute_kinematics
+from services.model import load_robot
+from services.navigation.bar_pickup import plan_bar_pickup
+from services.navigation.carry import HandOnBarTask, grip_from_configuration
+from services.navigation.collision3d import MotionChecker
+from services.navigation.demo_scenes import (
+    BAR_BOX_TOP_M,
+    bar_scenario,
+    bar_scenario_start,
+    enclosed_goal_room,
+)
+from services.navigation.geometry import BoxObstacle, Pose2D, Scene
+from services.navigation.goals import ObjectGoal
+from services.navigation.goto import GotoOptions, GotoResult, plan_goto
+from services.navigation.reshaping import ReshapeOptions, make_window, merge_windows, reshaped_height
+from services.navigation.stage2 import Stage2Options, zmp_support_distance
+from services.navigation.upper_body import CarriedBar
+
+ROBOT = load_robot("hrp2_like")
+BAR = CarriedBar()
+CARRY_HEIGHT_M = 0.8
+
+
+@pytest.fixture(scope="module")
+def q_bar() -> np.ndarray:
+    """hrp2_like at the origin holding the bar on its stands (the planned end of the pick-up)."""
+    return bar_scenario_start(ROBOT)
+
+
+@pytest.fixture(scope="module")
+def bar_plan(q_bar: np.ndarray) -> GotoResult:
+    scene, _, goal = bar_scenario()
+    options = GotoOptions(stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M))
+    return plan_goto(ROBOT, scene, q_bar, goal, BAR, options)
+
+
+# ----------------------------------------------------------------------------------------------- the task
+
+
+def test_hand_on_bar_task_jacobian_matches_finite_differences() -> None:
+    model = ROBOT.model
+    data = model.createData()
+    rng = np.random.default_rng(4)
+    offset = ROBOT.held_object_offset("left", BAR.radius_m)
+    for _ in range(5):
+        q = pin.randomConfiguration(model, np.maximum(ROBOT.q_lower, -3.0), np.minimum(ROBOT.q_upper, 3.0))
+        axis = rng.normal(size=3)
+        task = HandOnBarTask(model, "left_grasp", offset, rng.uniform(-1, 1, 3), axis)
+        compute_kinematics(model, data, q, False)
+        error, J = task.compute(q, data)
+        assert error.shape == (5,) and J.shape == (5, model.nv)
+        eps = 1e-6
+        J_fd = np.empty_like(J)
+        for i in range(model.nv):
+            dq = np.zeros(model.nv)
+            dq[i] = eps
+            q_plus = pin.integrate(model, q, dq)
+            compute_kinematics(model, data, q_plus, False)
+            J_fd[:, i] = (task.compute_error(q_plus, data) - error) / eps
+        # forward differences: error O(eps * second derivative), second derivatives are O(1) here
+        assert np.abs(J - J_fd).max() < 50 * eps
+
+
+def test_hand_on_bar_task_is_zero_on_the_bar_for_either_direction_and_any_roll(q_bar: np.ndarray) -> None:
+    grip = grip_from_configuration(ROBOT, q_bar, BAR)
+    data = ROBOT.model.createData()
+    compute_kinematics(ROBOT.model, data, q_bar, False)
+    for side in ("left", "right"):
+        target = grip.centre_world_m + grip.along_m[side] * grip.axis_world
+        for axis in (grip.axis_world, -grip.axis_world):
+            task = HandOnBarTask(
+                ROBOT.model, grip.grasp_frames[side], grip.held_point_in_grasp_m[side], target, axis
+            )
+            assert np.abs(task.compute_error(q_bar, data)).max() < 1e-6  # the pick-up IK tolerance
+    assert abs(grip.along_m["left"] + grip.along_m["right"]) < 1e-9  # centred between the hands
+    assert grip.along_m["left"] > 0.0  # the bar's x axis points from the right hand to the left one
+
+
+def test_grip_requires_a_bar_in_both_hands() -> None:
+    with pytest.raises(InvalidRequestError, match="hold"):
+        grip_from_configuration(ROBOT, ROBOT.q_half_sitting, BAR)
+
+
+# ------------------------------------------------------------------------------------------ the reshaping
+
+
+def test_reshaped_height_meets_the_key_frames_smoothly_within_the_bounds() -> None:
+    """Figure 2 (b)-(c): key frames joined by quintics and resampled at 5 ms; the height stays nominal
+    outside [anticipating, regaining], holds the lift between the colliding times, and its speed and
+    acceleration respect the bounds that sized the ramps."""
+    options = ReshapeOptions()
+    dt = 0.005
+    t = np.arange(0.0, 20.0 + dt / 2, dt)
+    nominal = np.full(t.shape, 0.8)
+    w = make_window(8.0, 10.0, 1.03, 0.8, ("box",), options, 0.0, 20.0)
+    assert w.t_anticipate_s < w.t_collide_s == 8.0 < w.t_collide_end_s == 10.0 < w.t_regain_s
+    assert w.t_collide_s - w.t_anticipate_s == pytest.approx(options.ramp_s(0.23))
+    h = reshaped_height(t, nominal, [w])
+    for time_s, height in w.key_frames(lambda _: 0.8):
+        assert h[round(time_s / dt)] == pytest.approx(height, abs=1e-9)
+    outside = (t <= w.t_anticipate_s) | (t >= w.t_regain_s)
+    assert np.all(h[outside] == 0.8)
+    assert np.all(h[(t >= 8.0) & (t <= 10.0)] == pytest.approx(1.03))
+    v = np.diff(h) / dt
+    a = np.diff(v) / dt
+    assert np.abs(v).max() <= options.max_lift_speed_m_s * 1.01
+    assert np.abs(a).max() <= options.max_lift_acc_m_s2 * 1.05
+    assert np.abs(np.diff(a)).max() / dt < 10.0  # no jump in acceleration (C2 at the key frames)
+
+
+def test_overlapping_windows_merge_into_one_rise_and_fall() -> None:
+    options = ReshapeOptions()
+    a = make_window(5.0, 6.0, 1.0, 0.8, ("a",), options, 0.0, 30.0)
+    b = make_window(6.5, 7.0, 1.1, 0.8, ("b",), options, 0.0, 30.0)
+    far = make_window(20.0, 21.0, 0.9, 0.8, ("c",), options, 0.0, 30.0)
+    merged = merge_windows([far, b, a], 0.8, options, 0.0, 30.0)
+    assert len(merged) == 2
+    one, two = merged
+    assert (one.t_collide_s, one.t_collide_end_s, one.height_m, one.obstacles) == (5.0, 7.0, 1.1, ("a", "b"))
+    assert one.t_collide_s - one.t_anticipate_s == pytest.approx(options.ramp_s(0.3))
+    assert two == far
+
+
+# -------------------------------------------------------------------------------------------- 3D check
+
+
+def test_initial_contact_is_released_once_then_collides_again(q_bar: np.ndarray) -> None:
+    """The bar lies on its stands at the start: no collision while it rises off them; coming back onto a
+    stand after it left is one."""
+    scene, _, _ = bar_scenario()
+    grip = grip_from_configuration(ROBOT, q_bar, BAR)
+    checker = MotionChecker(ROBOT, scene, grip)
+    lift = np.concatenate([np.linspace(0.0, 0.05, 20), np.linspace(0.05, -0.01, 20)])
+    qs = np.repeat(q_bar[None], lift.size, axis=0)
+    qs[:, 2] += lift  # the whole robot (and the bar) up by 5 cm and down 1 cm below the start
+    check = checker.check(qs, 0.005, release_m=0.02)
+    events = check.events(0.02)
+    assert events and {e.obstacle for e in events} <= {"left_stand", "right_stand"}
+    assert all(e.group == "bar" for e in events)
+    rise_end = int(np.argmax(lift))
+    assert min(e.k_start for e in events) > rise_end  # nothing while rising off the stands
+    g, o = check.groups.index("bar"), check.obstacles.index("right_stand")
+    d = check.distance_m[:, g, o]
+    assert d[rise_end] == pytest.approx(grip.centre_world_m[2] + 0.05 - BAR.radius_m - 0.75, abs=2e-3)
+    assert d[-1] < 0.0  # back below where it started: in the stand
+
+
+def test_body_collision_is_infeasible_and_names_the_obstacle() -> None:
+    """A beam at 1.2-1.4 m across the way: the footprint walks under it (stage 1), the whole-body check
+    finds the head and chest in it; lifting a bar cannot fix that."""
+    beam = BoxObstacle("beam", (1.0, 0.0, 1.3), (0.2, 3.0, 0.2))
+    scene = Scene((beam,), (-1.0, 3.0, -2.0, 2.0))
+    with pytest.raises(InfeasibleError, match="beam") as info:
+        plan_goto(
+            ROBOT, scene, ROBOT.q_half_sitting, Pose2D(2.0, 0.0, 0.0), options=GotoOptions(max_replans=0)
+        )
+    details = info.value.details
+    assert details["reason"] == "body_collision" and details["obstacle"] == "beam"
+    assert details["part"] == "body" and details["distance_m"] < 0.02
+
+
+def test_stage2_sends_stage1_back_when_an_arm_passes_too_close() -> None:
+    """Empty-handed past the bar scenario's table: the hanging right hand sways to ~1 cm of the table
+    (stage 1's boxes cover the arms but not the walk's sway); stage 2 finds it, stage 1 plans again with
+    a larger margin, and the new motion keeps the 2 cm clearance."""
+    scene, _, goal = bar_scenario()
+    plan = plan_goto(ROBOT, scene, ROBOT.q_half_sitting, goal)
+    assert plan.replans == 1
+    assert plan.motion.check.min_clearance_m >= ReshapeOptions().required_clearance_m
+    assert not plan.motion.windows  # nothing carried, nothing reshaped
+    with pytest.raises(InfeasibleError, match="table") as info:
+        plan_goto(ROBOT, scene, ROBOT.q_half_sitting, goal, options=GotoOptions(max_replans=0))
+    assert info.value.details["reason"] == "body_collision" and info.value.details["part"] == "arms"
+
+
+def test_enclosed_goal_is_infeasible_within_the_budget() -> None:
+    scene, _, goal = enclosed_goal_room()
+    start = Pose2D(-2.3, -2.3, 0.0)
+    q = ROBOT.half_sitting_at(start.x_m, start.y_m, start.theta_rad)
+    options = GotoOptions()
+    with pytest.raises(InfeasibleError, match="enclosed") as info:
+        plan_goto(ROBOT, scene, q, goal, options=options)
+    details = info.value.details
+    assert details["reason"] == "goal_enclosed"
+    assert {"pen_north", "pen_south", "pen_east", "pen_west"} <= set(details["enclosing_obstacles"])
+
+
+def test_a_box_too_tall_to_lift_over_is_infeasible(q_bar: np.ndarray) -> None:
+    scene, _, goal = bar_scenario()
+    tall = BoxObstacle("box", (2.0, -0.65, 1.02), (0.3, 0.3, 0.6))  # top at 1.32 m
+    scene = Scene(tuple(tall if o.name == "box" else o for o in scene.obstacles), scene.bounds_xy_m)
+    options = GotoOptions(stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M))
+    with pytest.raises(InfeasibleError, match="box") as info:
+        plan_goto(ROBOT, scene, q_bar, goal, BAR, options)
+    assert info.value.details["reason"] == "lift_too_high"
+    assert info.value.details["height_m"] > 1.32
+
+
+def test_spent_reshaping_budget_is_infeasible_and_names_the_obstacle(q_bar: np.ndarray) -> None:
+    scene, _, goal = bar_scenario()
+    options = GotoOptions(
+        stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M, reshape=ReshapeOptions(max_iterations=1))
+    )
+    with pytest.raises(InfeasibleError, match="'box'") as info:
+        plan_goto(ROBOT, scene, q_bar, goal, BAR, options)
+    details = info.value.details
+    assert details["reason"] == "no_collision_free_reshaping" and details["obstacle"] == "box"
+    assert details["link"] == "carried_bar" and details["distance_m"] < 0.0
+
+
+# ------------------------------------------------------------------------------------ the bar scenario
+
+
+def test_bar_scenario_is_reshaped_over_the_box(bar_plan: GotoResult, q_bar: np.ndarray) -> None:
+    """Figures 2-3: the first whole-body motion drives the bar into the box; the reshaped one lifts it over
+    the box between the anticipating and regaining times and lowers it again, collision-free, the ZMP
+    inside the support polygon."""
+    motion = bar_plan.motion
+    rs = ReshapeOptions()
+    first = motion.iterations[0]
+    hits = [e for e in first.events if e.group == "bar"]
+    assert [e.obstacle for e in hits] == ["box"] and hits[0].min_distance_m < -0.05
+    assert len(motion.iterations) >= 2 and not motion.iterations[-1].events
+    assert motion.check.min_clearance_m >= rs.required_clearance_m
+    # stage 1 saw it coming: the bar's sweep along the path meets the box too
+    assert bar_plan.sweep is not None and [s.obstacles for s in bar_plan.sweep.segments] == [("box",)]
+
+    (window,) = motion.windows
+    assert window.obstacles == ("box",)
+    assert window.height_m >= BAR_BOX_TOP_M + BAR.radius_m + rs.target_clearance_m - 1e-9
+    assert window.t_anticipate_s < window.t_collide_s <= hits[0].t_start_s
+    assert hits[-1].t_end_s <= window.t_collide_end_s < window.t_regain_s
+    t = motion.times_s
+    realised = motion.bar_centre_m[:, 2]
+    held = (t >= window.t_collide_s) & (t <= window.t_collide_end_s)
+    assert realised[held].min() >= BAR_BOX_TOP_M + BAR.radius_m + rs.required_clearance_m
+    before = (t <= window.t_anticipate_s) & (t > 1.0)
+    after = t >= window.t_regain_s
+    for mask in (before, after):  # nominal carry height elsewhere, as before reshaping
+        assert np.abs(realised[mask] - CARRY_HEIGHT_M).max() < 0.005
+        assert np.abs(motion.bar_height_first_m[mask] - realised[mask]).max() < 0.005
+    assert motion.hand_error_m < rs.max_hand_error_m
+
+    # the whole-body motion starts at the robot's configuration and keeps the ZMP in the support polygon
+    assert np.allclose(motion.q[0], q_bar, atol=1e-9)
+    pattern = motion.pattern
+    wb_dist = zmp_support_distance(motion.wholebody.zmp_multibody_m, pattern, *ROBOT.sole_size_m)
+    assert wb_dist.max() < 0.0 and motion.zmp_margin_m > 0.0  # without and with the bar's mass
+    goal = bar_plan.goal
+    assert ROBOT.mid_feet_pose(motion.q[-1]) == pytest.approx((goal.x_m, goal.y_m, goal.theta_rad), abs=2e-3)
+
+
+def _sim_scene_matches(world, scene: Scene) -> None:
+    """The planner's obstacles are the bounding boxes of the sim's objects (tests may read ground truth)."""
+    truth = world.ground_truth()
+    for o in scene.obstacles:
+        obj = truth[o.name]
+        sx, sy, sz = o.size_xyz_m
+        if obj.kind == "table":  # reference point: the floor centre; size [sx, sy, height]
+            assert obj.size_m == pytest.approx([sx, sy, sz], abs=1e-6)
+            assert obj.position[:2] == pytest.approx(o.center_xyz_m[:2], abs=1e-6)
+        else:
+            assert obj.size_m == pytest.approx([sx, sy, sz], abs=1e-6)
+            assert obj.position == pytest.approx(o.center_xyz_m, abs=2e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+def test_bar_scenario_executes_in_the_sim_without_collision_or_fall() -> None:
+    """The paper's experiment in the sim: pick the bar up from its stands (both grippers close on it), plan
+    from the measured configuration, walk past the table lifting the bar over the box and lowering it,
+    without collision or fall, the bar still held, the robot at the goal."""
+    from sim.world import World
+
+    scene, _, goal = bar_scenario()
+    with World("hrp2_like", "bar_carry") as world:
+        # Workaround (sim/objects.py gives rolling friction to balls only): without it the cylinder rolls
+        # off its flat stands by itself (4 cm in 3 s) before the hands reach it.
+        p.changeDynamics(
+            world.bodies["bar"], -1, rollingFriction=2e-4, spinningFriction=1e-3, physicsClientId=world.client
+        )
+        _sim_scene_matches(world, scene)
+        truth = world.ground_truth()["bar"]
+        R_bar = pin.Quaternion(truth.quaternion[3], *truth.quaternion[:3]).matrix()
+        pickup = plan_bar_pickup(ROBOT, world.state().q, truth.position, R_bar[:, 0], BAR)
+        assert world.execute(pickup.q).outcome == "completed"
+        assert world.gripper("left", "close").outcome == "grasped"
+        world.gripper("right", "close")  # closes on the bar the left hand holds (one holder per object)
+        assert world.held == {"left": "bar"}
+
+        q_start = world.state().q  # the robot's own state, not ground truth
+        options = GotoOptions(stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M))
+        plan = plan_goto(ROBOT, scene, q_start, goal, BAR, options)
+        assert plan.motion.windows and plan.motion.windows[0].obstacles == ("box",)
+
+        over_box: list[float] = []
+        box = scene.find("box")
+        x0, x1 = box.center_xyz_m[0] - 0.5 * box.size_xyz_m[0], box.center_xyz_m[0] + 0.5 * box.size_xyz_m[0]
+
+        def record(w) -> None:
+            x, _, z = p.getBasePositionAndOrientation(w.bodies["bar"], physicsClientId=w.client)[0]
+            if x0 - BAR.radius_m <= x <= x1 + BAR.radius_m:
+                over_box.append(z)
+
+        world.on_tick = record
+        # The standing start lifts the bar off its stands (planned contact); the sim's rule "what the held
+        # object touched at the start" misses a stand whose contact force flickers around zero, so name
+        # them for that part only. The walk itself allows no contact.
+        lift_off = plan.motion.pattern.schedule.segments[0].stop
+        assert plan.motion.bar_centre_m[lift_off, 2] > 0.75 + BAR.radius_m + 0.03  # off the stands by then
+        first = world.execute(plan.motion.q[: lift_off + 1], allowed_contacts=("left_stand", "right_stand"))
+        assert first.outcome == "completed", first.message
+        result = world.execute(plan.motion.q[lift_off:], hold_s=0.5)
+        world.on_tick = None
+        assert result.outcome == "completed", result.message
+        assert not result.collisions
+        assert world.held == {"left": "bar"}
+        assert min(over_box) - BAR.radius_m > BAR_BOX_TOP_M  # the bar passed above the box
+        x, y, yaw = ROBOT.mid_feet_pose(world.state().q)
+        assert math.hypot(x - goal.x_m, y - goal.y_m) < 0.05
+        assert abs(yaw - goal.theta_rad) < 0.05
+        bar_z = world.ground_truth()["bar"].position[2]
+        assert bar_z == pytest.approx(CARRY_HEIGHT_M, abs=0.02)  # lowered again after the box
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+def test_walking_a_planned_path_in_the_sim_ends_within_5_cm_of_the_goal() -> None:
+    """To "0.5 m in front of the crate, facing it" with a pillar beside the way: the sim's robot ends within
+    5 cm of the planned goal, facing the crate at the distance asked.
+
+    The crate is straight ahead: walks whose heading changes (the walking package's own ``arc_walk``, a
+    path curving around an obstacle) currently fall in the sim after a few steps (see the report), so
+    this checks the straight case; the curved paths are checked in planning (curvature, collisions)."""
+    from sim.scene import parse_scene
+    from sim.world import World
+
+    crate = BoxObstacle("crate", (3.0, 0.0, 0.4), (0.6, 0.6, 0.8))
+    pillar = BoxObstacle("pillar", (1.5, 0.9, 0.6), (0.2, 0.2, 1.2))
+    scene = Scene((crate, pillar), (-1.0, 4.0, -1.5, 2.0))
+    spec = parse_scene(
+        {
+            "name": "navigation_crate",
+            "robot": {"x": 0.0, "y": 0.0, "yaw": 0.0},
+            "objects": [
+                {
+                    "name": o.name,
+                    "kind": "box",
+                    "size": list(o.size_xyz_m),
+                    "colour": c,
+                    "xy": list(o.center_xyz_m[:2]),
+                }
+                for o, c in ((crate, "orange"), (pillar, "blue"))
+            ],
+        }
+    )
+    with World("hrp2_like", spec) as world:
+        _sim_scene_matches(world, scene)
+        plan = plan_goto(ROBOT, scene, world.state().q, ObjectGoal("crate", 0.5))
+        goal = plan.goal
+        assert (goal.x_m, goal.y_m, goal.theta_rad) == pytest.approx((3.0 - 0.3 - 0.5, 0.0, 0.0), abs=1e-6)
+        result = world.execute(plan.motion.q, hold_s=0.5)
+        assert result.outcome == "completed", result.message
+        assert not result.collisions
+        x, y, yaw = ROBOT.mid_feet_pose(world.state().q)
+    assert math.hypot(x - goal.x_m, y - goal.y_m) < 0.05
+    assert abs(math.atan2(math.sin(yaw - goal.theta_rad), math.cos(yaw - goal.theta_rad))) < 0.05
