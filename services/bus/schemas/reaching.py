@@ -1,0 +1,101 @@
+"""Messages of the ``reaching`` service: whole-body reaching with task-driven support polygon reshaping
+("Task-driven Support Polygon Reshaping for Reaching", ``001_771c0ce3779b0683.txt``).
+
+Configurations follow the pinocchio layout of the service's robot model (``ReachReply.model``):
+``q = [x, y, z, qx, qy, qz, qw, joints...]`` (base position [m] and orientation in the world, then joint
+positions [rad], or [m] for prismatic grippers). World frame: z up, ground at z = 0. Arrays travel as raw
+bytes (binary frames of ``services.bus.codec``).
+"""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+
+from services.bus.spec import EndpointSpec
+
+
+class ReachRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Reach ``target`` with the grasp frame of ``hand``, starting from ``q_start`` (planners are
+    stateless: plan from the robot's measured configuration, e.g. ``sim/state``)."""
+
+    hand: str  # "left" or "right"
+    target: list[float]  # [x, y, z] of the grasp frame origin, world frame [m]
+    q_start: np.ndarray  # (nq,) float64 starting configuration, both soles flat on the ground
+    orientation: list[float] | None = (
+        None  # [qx, qy, qz, qw] of the grasp frame at the target; None: position only
+    )
+    gaze: bool = True  # keep the gaze on the target (task iv)
+    allow_stepping: bool = True  # the support polygon may be reshaped by stepping
+    weighted: bool | None = (
+        None  # weighted pseudo-inverse of eq. (4) (link mass ratios); None: service default
+    )
+    joint_limit_selection_rad: float | None = None  # selection matrix S_l margin [rad]; None: service default
+
+
+class Footstep(msgspec.Struct, kw_only=True, frozen=True):
+    """A step: the ``side`` sole lands at (x, y) [m] with ``yaw`` [rad], world frame."""
+
+    side: str
+    x: float
+    y: float
+    yaw: float
+
+
+class Monitors(msgspec.Struct, kw_only=True, frozen=True):
+    """Criteria monitored at the IK knots (k of them) while the motion was generated (Fig. 4)."""
+
+    times_s: np.ndarray  # (k,) knot times [s]
+    manipulability: np.ndarray  # (k,) w = sqrt(det(J J^T)) of the arm (eq. 5)
+    ee_error_m: np.ndarray  # (k,) hand reference - hand computed by the IK [m]
+    joint_limit_margin_rad: np.ndarray  # (k,) smallest distance of an arm joint to a limit [rad]
+    joint_speed_ratio: np.ndarray  # (k,) fastest arm joint over its velocity limit
+    torque_ratio: np.ndarray  # (k,) largest static torque of a joint without contact over its effort limit
+
+
+class Attempt(msgspec.Struct, kw_only=True, frozen=True):
+    """A motion computed by the planner: ``kind`` no_step | single | walk; ``violation`` is the criterion
+    that made it be discarded ("" if it was kept), at ``time_s`` [s], ``value`` against ``threshold``."""
+
+    kind: str
+    steps: int
+    violation: str = ""
+    time_s: float = 0.0
+    value: float = 0.0
+    threshold: float = 0.0
+    wall_time_s: float = 0.0  # computation time of this motion [s]
+
+
+class ReachReply(msgspec.Struct, kw_only=True, frozen=True):
+    """The whole-body reaching motion (send ``q`` to ``sim/execute``) and what was monitored."""
+
+    model: str  # robot model the configurations belong to
+    joint_names: list[str]  # actuated joints in q order (after the 7 base coordinates)
+    dt_s: float  # sample period of q [s] (0.005)
+    q: np.ndarray  # (N, nq) float64 whole-body trajectory, q[0] = q_start
+    duration_s: float  # (N - 1) * dt_s [s]
+    stepped: bool  # whether the support polygon was reshaped
+    footsteps: list[Footstep]  # the steps taken, in order
+    monitors: Monitors  # of the returned motion
+    no_step_monitors: Monitors  # of the motion on the initial support polygon (discarded when stepped)
+    attempts: list[Attempt]  # every motion computed, in order
+    manipulability_threshold: float  # criteria thresholds used
+    ee_error_threshold_m: float
+    zmp_multibody: np.ndarray  # (N, 2) ZMP of the whole-body motion [m]
+    zmp_planned: np.ndarray  # (N, 2) ZMP of the planned CoM (pattern generator) [m]
+    zmp_distance_m: np.ndarray  # (N,) signed distance of zmp_multibody to the support polygon, < 0 inside [m]
+    phase: np.ndarray  # (N,) int8 support phase: 0 double, 1 left foot supports, 2 right foot supports
+    left_sole: np.ndarray  # (N, 4) planned left sole x, y, z [m], yaw [rad]
+    right_sole: np.ndarray  # (N, 4) planned right sole
+    hand_error_m: float  # hand to target at the end of the plan [m]
+    max_sole_slide_m: float  # largest drift of a supporting sole in the plan [m]
+    planning_time_s: float  # wall time of the planning [s]
+
+
+REACH = EndpointSpec(
+    "reaching",
+    "reach",
+    ReachRequest,
+    ReachReply,
+    "whole-body reach of a point (support polygon reshaping by stepping when a criterion fails)",
+)

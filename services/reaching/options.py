@@ -1,0 +1,168 @@
+"""Options of the reaching planner (one frozen dataclass, defaults in code, validated).
+
+The monitored thresholds default to the robot's parameters (``services/model/data/<robot>.yaml``),
+which carry the values of the reaching paper ("Experimental Results" of "Task-driven Support Polygon
+Reshaping for Reaching", ``001_771c0ce3779b0683.txt``): manipulability 1.5e-4 and end-effector error
+4.0e-5 m.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+from services.errors import InvalidRequestError
+from services.reaching.monitors import Thresholds
+
+CRITERIA = ("manipulability", "ee_error", "joint_speed", "joint_torque", "joint_limits")
+"""Monitored criteria (Fig. 4): the arm's manipulability (eq. 5) below its threshold, the end-effector
+error above its threshold, an arm joint faster than ``velocity_ratio`` of its limit, the static torque
+of a joint without contact above ``torque_ratio`` of its effort limit, an arm joint at its limit."""
+
+
+@dataclass(frozen=True)
+class ReachingOptions:
+    """Settings of :func:`services.reaching.planner.plan_reach`.
+
+    Monitoring (Fig. 4 of the reaching paper):
+        manipulability_threshold: w = sqrt(det(J J^T)) (eq. 5) of the arm's translation Jacobian below
+            which the task counts as failing; ``None``: the robot's ``params.manipulability_threshold``.
+        ee_error_threshold_m: distance [m] between the hand reference and the hand computed by the IK
+            above which the task counts as failing; ``None``: ``params.ee_error_threshold_m``.
+        joint_limit_margin_rad: an arm joint closer than this to a limit [rad] fails ``joint_limits``.
+        criteria: the criteria that trigger support polygon reshaping (a subset of :data:`CRITERIA`);
+            by default the two of the paper's experiment, the joint speed (near a singularity the
+            joints would have to move faster than the robot can; the paper's HRP-2 threshold of 1.5e-4
+            is reached much later on these models) and the static torque (a stretched arm may weigh
+            more than its shoulder can hold: TALOS). Joint limits are always monitored and reported;
+            as a trigger they are too eager (an arm joint may rest on a limit while the hand follows
+            its reference perfectly), so they are opt-in.
+        torque_ratio: admissible static torque of the joints without contact (chest, head, arms) as
+            a fraction of their effort limits.
+
+    Generalized IK (eqs. 1-4):
+        weighted: weighted pseudo-inverse of eq. (4), W_i = m_i / M, on the four prioritized tasks (the
+            paper's experiment uses it for all tasks).
+        other_arm_still: the selection matrix S leaves out the arm that does not reach (no task uses
+            it; with the weighted pseudo-inverse the light arm would otherwise swing to help the CoM).
+        joint_limit_selection_rad: the selection matrix S_l: joints closer than this to a limit [rad] are
+            left out of the CoM, hand and gaze levels; ``None``: S = I_n (the paper's experiment).
+        knot_stride: 5 ms samples between two IK knots (the trajectory is a C2 spline of the knots).
+        max_iterations_per_knot: Gauss-Newton steps of the hierarchy per knot at most.
+        knot_tolerance_m: a knot stops iterating once the hand is this close to its reference [m].
+        velocity_ratio: admissible joint speed as a fraction of the velocity limits (each Gauss-Newton
+            step is bounded by it over one knot period; an arm joint faster than it fails ``joint_speed``).
+
+    Motion:
+        hand_speed_m_s: mean hand speed [m/s] that sets the reaching duration (the hand follows a
+            minimum-jerk profile), clipped to [min_reach_s, max_reach_s] [s].
+        final_hold_s: standing still at the end of a reach without step [s].
+
+    Stepping (pattern generator):
+        single_support_s, double_support_s: step timing [s]; ``None``: from the robot's parameters,
+            the single support ``step_slowdown`` times ``step_duration_s - double_support_s`` and the
+            double support ``double_support_ratio`` times ``double_support_s``. Slower than the
+            robots' walking parameters: the sim plays trajectories open loop, and long walks at HRP-2's
+            0.7 s / 0.1 s (TALOS: 0.9 s / 0.1 s) tip over in it now and then (see README).
+        base_height_margin_m: the waist stays this much above the robot's fall height
+            (``params.fall_base_height_m``) when it crouches to reach low (an inequality in level i).
+
+    Support polygon reshaping (Fig. 5):
+        max_steps: most footsteps the support polygon planner may use (more: ``infeasible``).
+        step_bound_ratio: fraction of the robot's footstep bounds the planner uses (margin for the
+            pattern generator and the sim).
+        comfort_reach_ratio: the target is brought this fraction of the arm length in front of the
+            reaching shoulder (the "large margin of accessible area" of Fig. 5).
+        zmp_margin_m: required margin of the multibody ZMP inside the support polygon [m]; beyond it the
+            second preview stage corrects the CoM (up to ``max_corrections`` passes).
+    """
+
+    manipulability_threshold: float | None = None
+    ee_error_threshold_m: float | None = None
+    joint_limit_margin_rad: float = 1e-3
+    criteria: tuple[str, ...] = ("manipulability", "ee_error", "joint_speed", "joint_torque")
+    weighted: bool = True
+    other_arm_still: bool = True
+    joint_limit_selection_rad: float | None = None
+    knot_stride: int = 10
+    max_iterations_per_knot: int = 3
+    knot_tolerance_m: float = 1e-6
+    velocity_ratio: float = 0.5
+    torque_ratio: float = 0.6
+    hand_speed_m_s: float = 0.2
+    min_reach_s: float = 2.0
+    max_reach_s: float = 5.0
+    final_hold_s: float = 0.6
+    single_support_s: float | None = None
+    double_support_s: float | None = None
+    step_slowdown: float = 1.3
+    double_support_ratio: float = 3.0
+    base_height_margin_m: float = 0.02
+    max_steps: int = 20
+    step_bound_ratio: float = 0.9
+    comfort_reach_ratio: float = 0.55
+    zmp_margin_m: float = 0.01
+    max_corrections: int = 2
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "criteria", tuple(self.criteria))
+        unknown = sorted(set(self.criteria) - set(CRITERIA))
+        if unknown:
+            raise InvalidRequestError(f"unknown criteria {unknown}; valid criteria are {list(CRITERIA)}")
+        positive = {
+            "knot_tolerance_m": self.knot_tolerance_m,
+            "velocity_ratio": self.velocity_ratio,
+            "torque_ratio": self.torque_ratio,
+            "step_slowdown": self.step_slowdown,
+            "double_support_ratio": self.double_support_ratio,
+            "hand_speed_m_s": self.hand_speed_m_s,
+            "min_reach_s": self.min_reach_s,
+            "max_reach_s": self.max_reach_s,
+            "step_bound_ratio": self.step_bound_ratio,
+            "comfort_reach_ratio": self.comfort_reach_ratio,
+        }
+        for name in (
+            "manipulability_threshold",
+            "ee_error_threshold_m",
+            "joint_limit_selection_rad",
+            "single_support_s",
+            "double_support_s",
+        ):
+            value = getattr(self, name)
+            if value is not None:
+                positive[name] = value
+        for name, value in positive.items():
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise InvalidRequestError(f"option {name} must be a positive number, got {value!r}")
+        for name in ("joint_limit_margin_rad", "final_hold_s", "zmp_margin_m", "base_height_margin_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise InvalidRequestError(f"option {name} must be >= 0, got {value!r}")
+        for name, low in (("knot_stride", 1), ("max_iterations_per_knot", 1), ("max_steps", 0)):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < low:
+                raise InvalidRequestError(f"option {name} must be an integer >= {low}, got {value!r}")
+        if self.max_corrections < 0:
+            raise InvalidRequestError(f"option max_corrections must be >= 0, got {self.max_corrections}")
+        if self.min_reach_s > self.max_reach_s:
+            raise InvalidRequestError("option min_reach_s must not exceed max_reach_s")
+        if self.step_bound_ratio > 1.0:
+            raise InvalidRequestError(f"option step_bound_ratio must be <= 1, got {self.step_bound_ratio}")
+
+    def thresholds(self, robot: Any) -> Thresholds:
+        """The admissible ranges of the criteria for ``robot``."""
+        w_min = self.manipulability_threshold
+        e_max = self.ee_error_threshold_m
+        return Thresholds(
+            manipulability=float(robot.params.manipulability_threshold if w_min is None else w_min),
+            ee_error_m=float(robot.params.ee_error_threshold_m if e_max is None else e_max),
+            joint_limit_margin_rad=self.joint_limit_margin_rad,
+            joint_speed_ratio=self.velocity_ratio,
+            torque_ratio=self.torque_ratio,
+        )
+
+    @staticmethod
+    def field_names() -> list[str]:
+        """Names of the options (for messages listing them)."""
+        return [f.name for f in fields(ReachingOptions)]

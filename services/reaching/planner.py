@@ -1,0 +1,386 @@
+"""Task-driven support polygon reshaping for reaching: the loop of Fig. 4 of the reaching paper.
+
+"Task-driven Support Polygon Reshaping for Reaching" (Yoshida et al., ``001_771c0ce3779b0683.txt``):
+
+1. The robot first tries to reach the target on its current support polygon, the CoM at its initial
+   position, with the four prioritized tasks (i) foot placement, (ii) CoM, (iii) hand, (iv) gaze
+   (:mod:`services.reaching.tracker`, eqs. 1-4), while the manipulability of the arm (eq. 5) and the
+   end-effector error are monitored (:mod:`services.reaching.monitors`).
+2. If a criterion leaves its admissible range, that motion is discarded ("The computation keeping the
+   same support polygon is then discarded") and the support polygon planner chooses a step towards the
+   target, turning the body towards it (Fig. 5, :mod:`services.reaching.support_polygon`).
+3. The walking pattern generator (ZMP preview control, reference 7 of the paper:
+   :mod:`services.walking.pattern`) gives the CoM motion of that step.
+4. The whole-body motion is recomputed with the same IK, the CoM task now tracking the pattern's CoM and
+   the foot task its sole trajectories; it is monitored again, and reshaped further (a walk) if needed.
+
+The multibody ZMP of the final trajectory is checked against the support polygon and corrected by the
+second preview-control stage when it comes closer than ``zmp_margin_m`` to the edge.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from services.errors import InfeasibleError, InternalError
+from services.model import load_robot
+from services.reaching.envelope import ReachEnvelope, measure_envelope
+from services.reaching.monitors import MonitorSeries, Violation
+from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
+from services.reaching.options import ReachingOptions
+from services.reaching.references import body_frame_path, body_frame_rotations, minimum_jerk
+from services.reaching.request import ReachRequest
+from services.reaching.result import Attempt, ReachResult
+from services.reaching.support_polygon import StepPlan, SupportPolygonPlanner, mid_pose
+from services.reaching.tracker import DT_S, ReachTracker, TrackResult
+from services.walking.footsteps import FootstepLimits, SolePose
+from services.walking.multibody_zmp import multibody_zmp
+from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
+from services.walking.preview_control import preview_gains, second_stage_correction, settle_at_end
+from services.walking.support_polygon import distances_to_support
+from services.walking.timing import DOUBLE, LEFT, RIGHT, WalkTiming
+from services.walking.zmp_reference import smoothstep5
+
+# One reshaping step is tried when it brings the target this much [m] inside the reach envelope, at most
+# SINGLE_STEP_MAX_BEARING_RAD away from straight ahead of the shoulder; a walk aims WALK_MARGIN_M inside.
+REACH_MARGIN_M = 0.05
+SINGLE_STEP_MAX_BEARING_RAD = 0.6
+WALK_MARGIN_M = 0.12
+# Fade-in of the second preview stage's ZMP error at the start of a motion without a standing lead-in [s].
+CORRECTION_FADE_IN_S = 0.4
+
+
+class ReachPlanner:
+    """Reaching with support polygon reshaping for one robot; see the module docstring."""
+
+    def __init__(self, robot: Any, options: ReachingOptions | None = None) -> None:
+        self.robot = robot
+        self.options = options or ReachingOptions()
+        self.tracker = ReachTracker(robot, self.options)
+        self.support = SupportPolygonPlanner(
+            robot, self.options.step_bound_ratio, self.options.comfort_reach_ratio
+        )
+        params = robot.params
+        opt = self.options
+        double_s = opt.double_support_ratio * params.double_support_s
+        double_s = double_s if opt.double_support_s is None else opt.double_support_s
+        single_s = opt.step_slowdown * (params.step_duration_s - params.double_support_s)
+        self.timing = WalkTiming(
+            single_support_s=single_s if opt.single_support_s is None else opt.single_support_s,
+            double_support_s=double_s,
+            dt_s=DT_S,
+        )
+        self.pattern_options = PatternOptions(step_height_m=float(params.step_height_m))
+        self.bounds = FootstepLimits.from_robot(robot)
+        self._envelopes: dict[str, ReachEnvelope] = {}
+
+    # ---------------------------------------------------------------------------------------- plan
+    def plan(self, request: ReachRequest) -> ReachResult:
+        """The whole-body reaching motion of ``request`` (validated here).
+
+        Raises:
+            InvalidRequestError: malformed request (names the field).
+            InfeasibleError: the target cannot be reached; the message and ``details`` name the
+                criterion that failed (``criterion``, ``time_s``, ``value``, ``threshold``).
+        """
+        t0 = time.perf_counter()
+        robot, opt = self.robot, self.options
+        req = request.validated(robot)
+        q0 = req.q_start
+        data = robot.new_data()
+        left, right = (_sole_pose(robot, q0, side, data) for side in ("left", "right"))
+        attempts: list[Attempt] = []
+
+        spec0 = self._standing_spec(req, left, right)
+        track0 = self.tracker.track(spec0, q0, req.hand)
+        attempts.append(Attempt("no_step", 0, track0.violation, track0.wall_time_s))
+        if track0.violation is None:
+            return self._finish(req, spec0, track0, None, track0, attempts, t0)
+        violation = track0.violation
+        if not req.allow_stepping:
+            raise self._infeasible(req, violation, "stepping is not allowed (allow_stepping=false)")
+
+        candidates = self._reshapings(req, left, right)
+        if not candidates:
+            comfort = self.support.comfort_stance(left, right, req.target_world_m, req.hand)
+            needed = self.support.steps_needed(left, right, comfort)
+            raise self._infeasible(
+                req,
+                violation,
+                f"reshaping the support polygon towards it would take at least {needed} steps "
+                f"(max_steps={opt.max_steps})",
+                steps_needed=needed,
+            )
+        last_violation = violation
+        for plan in candidates:
+            pattern = plan_pattern(
+                plan.footsteps,
+                self.timing,
+                self.pattern_options,
+                initial_com_m=robot.com(q0),
+                bounds=self.bounds,
+            )
+            spec = self._stepping_spec(req, pattern)
+            track = self.tracker.track(spec, q0, req.hand)
+            attempts.append(Attempt(plan.kind, plan.n_steps, track.violation, track.wall_time_s))
+            if track.violation is None:
+                return self._finish(req, spec, track, plan, track0, attempts, t0)
+            last_violation = track.violation
+        raise self._infeasible(
+            req,
+            last_violation,
+            "even after reshaping the support polygon ("
+            + ", ".join(f"{p.kind}: {p.n_steps} steps" for p in candidates)
+            + ")",
+        )
+
+    def without_reshaping(self, request: ReachRequest) -> tuple[np.ndarray | None, MonitorSeries]:
+        """The motion on the initial support polygon computed to its end instead of being discarded at
+        the first violation (the "without reshaping" curve of Fig. 7): (trajectory (n, nq), monitors)."""
+        req = request.validated(self.robot)
+        data = self.robot.new_data()
+        left, right = (_sole_pose(self.robot, req.q_start, side, data) for side in ("left", "right"))
+        track = self.tracker.track(
+            self._standing_spec(req, left, right), req.q_start, req.hand, stop_at_violation=False
+        )
+        return track.q, track.monitors
+
+    def envelope(self, hand: str) -> ReachEnvelope:
+        """The reach envelope of ``hand`` (measured at the first call, then cached)."""
+        if hand not in self._envelopes:
+            self._envelopes[hand] = measure_envelope(self.tracker, hand, self.support.shoulder_in_mid[hand])
+        return self._envelopes[hand]
+
+    def _reshapings(self, req: ReachRequest, left: SolePose, right: SolePose) -> list[StepPlan]:
+        """Support polygon reshapings to try, in order (Fig. 5), all facing the target: one step when it
+        brings the target within the reach envelope, in front of the shoulder ("so that the incomplete
+        task is fulfilled"); a walk to the stance where the target is just inside the envelope; a walk
+        to the comfort stance (well inside the arm's workspace)."""
+        support, opt = self.support, self.options
+        target = req.target_world_m
+        reach = self.envelope(req.hand).at(float(target[2]))
+        comfort_m = support.comfort_reach_m[req.hand]
+        plans: list[StepPlan] = []
+        near = support.comfort_stance(
+            left, right, target, req.hand, reach_m=max(comfort_m, reach - WALK_MARGIN_M)
+        )
+        single = support.single_step(left, right, near, req.hand)
+        if single is not None:
+            distance, bearing = support.from_shoulder(single.final_mid, target, req.hand)
+            if distance <= reach - REACH_MARGIN_M and abs(bearing) <= SINGLE_STEP_MAX_BEARING_RAD:
+                plans.append(single)
+        for goal in (near, support.comfort_stance(left, right, target, req.hand)):
+            walk = support.walk(left, right, goal, req.hand, opt.max_steps)
+            if walk is not None and all(walk.footsteps != p.footsteps for p in plans):
+                plans.append(walk)
+        return plans
+
+    # ------------------------------------------------------------------------------------ references
+    def _reach_duration(self, distance_m: float) -> float:
+        opt = self.options
+        return float(np.clip(distance_m / opt.hand_speed_m_s, opt.min_reach_s, opt.max_reach_s))
+
+    def _references(
+        self, req: ReachRequest, frame: dict[str, np.ndarray], s: np.ndarray, yaw: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Hand position, hand orientation and gaze point references along the profile ``s``, in the
+        body frame on the planned CoM turning by ``yaw``."""
+        robot, q0 = self.robot, req.q_start
+        data = robot.new_data()
+        T_hand0 = robot.frame_pose(q0, robot.frames.grasp(req.hand), data)
+        body_xy = frame["com_xy_m"]
+        hand = body_frame_path(body_xy, yaw, s, T_hand0.translation, req.target_world_m)
+        rot = None
+        if req.R_world_hand is not None:
+            rot = body_frame_rotations(yaw, s, T_hand0.rotation, req.R_world_hand)
+        gaze = None
+        if req.gaze:
+            T_gaze = robot.frame_pose(q0, robot.frames.gaze, data)
+            distance = max(0.3, float(np.linalg.norm(req.target_world_m - T_gaze.translation)))
+            start = T_gaze.translation + distance * T_gaze.rotation[:, 0]
+            gaze = body_frame_path(body_xy, yaw, s, start, req.target_world_m)
+        return hand, rot, gaze
+
+    def _standing_spec(self, req: ReachRequest, left: SolePose, right: SolePose) -> MotionSpec:
+        robot = self.robot
+        hand0 = robot.frame_pose(req.q_start, robot.frames.grasp(req.hand)).translation
+        duration = self._reach_duration(float(np.linalg.norm(req.target_world_m - hand0)))
+        n = round((duration + self.options.final_hold_s) / DT_S) + 1
+        frame = standing_frame(
+            n,
+            DT_S,
+            [left.x_m, left.y_m, 0.0, left.yaw_rad],
+            [right.x_m, right.y_m, 0.0, right.yaw_rad],
+            robot.com(req.q_start)[:2],
+            mid_pose(left, right)[2],
+        )
+        s = minimum_jerk(frame["times_s"], 0.0, duration)
+        hand, rot, gaze = self._references(req, frame, s, frame["body_yaw_rad"])
+        return MotionSpec(hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=duration, **frame)
+
+    def _stepping_spec(self, req: ReachRequest, pattern: WalkPattern) -> MotionSpec:
+        frame = pattern_frame(pattern)
+        # The hand arrives when the last weight transfer ends (the robot then stands on its new polygon).
+        hold = [seg for seg in pattern.schedule.segments if seg.role == "hold"]
+        t_arrive = float(frame["times_s"][hold[0].start]) if hold else float(frame["times_s"][-1])
+        hand0 = self.robot.frame_pose(req.q_start, self.robot.frames.grasp(req.hand)).translation
+        # Duration from the hand's motion relative to the body (the steps carry it the rest of the way).
+        r0 = _in_body(hand0, frame["com_xy_m"][0], frame["body_yaw_rad"][0])
+        r1 = _in_body(req.target_world_m, frame["com_xy_m"][-1], frame["body_yaw_rad"][-1])
+        duration = min(self._reach_duration(float(np.linalg.norm(r1 - r0))), t_arrive)
+        s = minimum_jerk(frame["times_s"], t_arrive - duration, duration)
+        # The feet turn the waist step by step; the references turn smoothly over the whole walk (a hand
+        # carried by each quick swing turn would have to whip round).
+        yaw = frame["body_yaw_rad"]
+        smooth_yaw = yaw[0] + (yaw[-1] - yaw[0]) * minimum_jerk(frame["times_s"], 0.0, t_arrive)
+        hand, rot, gaze = self._references(req, frame, s, smooth_yaw)
+        return MotionSpec(
+            hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=t_arrive, pattern=pattern, **frame
+        )
+
+    # ------------------------------------------------------------------------------------ finishing
+    def _finish(
+        self,
+        req: ReachRequest,
+        spec: MotionSpec,
+        track: TrackResult,
+        plan: StepPlan | None,
+        track0: TrackResult,
+        attempts: list[Attempt],
+        t0: float,
+    ) -> ReachResult:
+        """Multibody ZMP check (second preview stage where needed), foot slide, the result."""
+        robot, opt = self.robot, self.options
+        q = track.q
+        if q is None:
+            raise InternalError("a motion kept by the planner has no trajectory")
+        com_z = float(robot.com(req.q_start)[2])
+        gains = spec.pattern.gains if spec.pattern is not None else preview_gains(DT_S, com_z)
+        window = _correction_window(spec)
+        offset = np.zeros((spec.n_samples, 2))
+        corrections = 0
+        while True:
+            mb = multibody_zmp(robot.model, q, DT_S)
+            distance = distances_to_support(
+                mb.zmp_m, spec.phase, spec.left_sole, spec.right_sole, *robot.sole_size_m
+            )
+            if distance.max() <= -opt.zmp_margin_m or corrections >= opt.max_corrections:
+                break
+            # Second preview stage (Kajita 2003, IV-B): CoM correction from p_ref - p_multibody.
+            error = window[:, None] * (spec.zmp_reference_m - mb.zmp_m)
+            corr = second_stage_correction(gains, error, np.zeros_like(error))
+            corr = settle_at_end(
+                corr, round(self.options.final_hold_s / DT_S), DT_S, gains.com_height_m, np.zeros(2)
+            )
+            candidate = self.tracker.track(spec, req.q_start, req.hand, com_offset_xy_m=offset + corr.com_m)
+            if candidate.violation is not None:
+                break
+            offset = offset + corr.com_m
+            track, q = candidate, candidate.q
+            corrections += 1
+        slide = _max_sole_slide(robot, q, spec)
+        hand_final = robot.frame_pose(q[-1], robot.frames.grasp(req.hand)).translation
+        return ReachResult(
+            robot=robot.name,
+            hand=req.hand,
+            target_world_m=req.target_world_m.copy(),
+            times_s=spec.times_s,
+            q=q,
+            stepped=plan is not None,
+            footsteps=() if plan is None else plan.footsteps.steps,
+            monitors=track.monitors,
+            no_step_monitors=track0.monitors,
+            attempts=tuple(attempts),
+            thresholds=opt.thresholds(robot),
+            left_sole=spec.left_sole,
+            right_sole=spec.right_sole,
+            phase=spec.phase,
+            com_m=mb.com_m,
+            zmp_planned_m=spec.zmp_planned_m,
+            zmp_multibody_m=mb.zmp_m,
+            zmp_distance_m=distance,
+            corrections=corrections,
+            hand_error_m=float(np.linalg.norm(hand_final - req.target_world_m)),
+            max_sole_slide_m=slide,
+            reach_end_s=spec.reach_end_s,
+            wall_time_s=time.perf_counter() - t0,
+        )
+
+    def _infeasible(
+        self, req: ReachRequest, violation: Violation, why: str, **details: Any
+    ) -> InfeasibleError:
+        t = req.target_world_m
+        return InfeasibleError(
+            f"the {req.hand} hand cannot reach the target ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) m: criterion "
+            f"'{violation.criterion}' failed ({violation.describe()}) and {why}",
+            {
+                "criterion": violation.criterion,
+                "time_s": violation.time_s,
+                "value": violation.value,
+                "threshold": violation.threshold,
+                **details,
+            },
+        )
+
+
+def _sole_pose(robot: Any, q: np.ndarray, side: str, data: pin.Data) -> SolePose:
+    T = robot.sole_pose(q, side, data)
+    return SolePose(
+        float(T.translation[0]), float(T.translation[1]), math.atan2(T.rotation[1, 0], T.rotation[0, 0])
+    )
+
+
+def _in_body(point: np.ndarray, body_xy: np.ndarray, yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx, dy = point[0] - body_xy[0], point[1] - body_xy[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, point[2]])
+
+
+def _correction_window(spec: MotionSpec) -> np.ndarray:
+    """Weight (n,) of the ZMP error fed to the second preview stage: faded in at the start (a correction
+    cannot act before t = 0) and out once the hand has arrived (the robot comes to rest)."""
+    t = spec.times_s
+    if spec.pattern is not None:
+        start = [seg for seg in spec.pattern.schedule.segments if seg.role == "start"]
+        fade_in = (start[0].n * DT_S) if start else CORRECTION_FADE_IN_S
+    else:
+        fade_in = CORRECTION_FADE_IN_S
+    tail = max(DT_S, 0.5 * (t[-1] - spec.reach_end_s))
+    w = smoothstep5(t / fade_in) * (1.0 - smoothstep5((t - spec.reach_end_s) / tail))
+    return w
+
+
+def _max_sole_slide(robot: Any, q: np.ndarray, spec: MotionSpec) -> float:
+    """Largest horizontal distance [m] between a supporting sole and its planned pose over the motion."""
+    model, data = robot.model, robot.new_data()
+    ids = {side: robot.frame_id(robot.frames.sole(side)) for side in ("left", "right")}
+    planned = {"left": spec.left_sole, "right": spec.right_sole}
+    support = {"left": (DOUBLE, LEFT), "right": (DOUBLE, RIGHT)}
+    worst = 0.0
+    for k in range(q.shape[0]):
+        pin.forwardKinematics(model, data, q[k])
+        for side, fid in ids.items():
+            if spec.phase[k] in support[side]:
+                p = pin.updateFramePlacement(model, data, fid).translation
+                worst = max(worst, math.hypot(p[0] - planned[side][k, 0], p[1] - planned[side][k, 1]))
+    return worst
+
+
+@functools.lru_cache(maxsize=8)
+def planner_for(robot_name: str, options: ReachingOptions | None = None) -> ReachPlanner:
+    """The shared :class:`ReachPlanner` of a robot (by name) and options (its reach envelopes are
+    measured once)."""
+    return ReachPlanner(load_robot(robot_name), options or ReachingOptions())
+
+
+def plan_reach(robot: Any, request: ReachRequest, options: ReachingOptions | None = None) -> ReachResult:
+    """Plan a whole-body reach with support polygon reshaping (a cached :class:`ReachPlanner` per robot
+    and options). ``robot`` is a ``services.model.RobotModel`` or its name."""
+    name = robot if isinstance(robot, str) else robot.name
+    return planner_for(name, options or ReachingOptions()).plan(request)

@@ -1,0 +1,80 @@
+"""A reaching request: everything the stateless planner needs, validated against the robot."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from services.errors import InvalidRequestError
+from services.model.specs import check_side
+
+MAX_SOLE_HEIGHT_M = 0.005  # a starting sole farther than this from the ground is not standing
+MAX_SOLE_TILT_RAD = 0.02  # nor a sole tilted by more than this
+
+
+@dataclass(frozen=True)
+class ReachRequest:
+    """Reach ``target_world_m`` with the grasp frame of ``hand``.
+
+    Attributes:
+        hand: "left" or "right".
+        target_world_m: (3,) target point of the grasp frame origin in the world frame [m].
+        q_start: (nq,) the robot's starting configuration (both soles flat on the ground z = 0).
+        R_world_hand: optional (3, 3) orientation of the grasp frame at the target; ``None``: position
+            only (the paper's experiment).
+        gaze: keep the gaze on the target (task iv).
+        allow_stepping: the support polygon may be reshaped by stepping.
+    """
+
+    hand: str
+    target_world_m: np.ndarray
+    q_start: np.ndarray = field(repr=False)
+    R_world_hand: np.ndarray | None = None
+    gaze: bool = True
+    allow_stepping: bool = True
+
+    def validated(self, robot: Any) -> ReachRequest:
+        """A copy with arrays checked and converted; InvalidRequestError naming the field otherwise."""
+        check_side(self.hand)
+        target = np.asarray(self.target_world_m, dtype=float).reshape(-1)
+        if target.shape != (3,) or not np.all(np.isfinite(target)):
+            raise InvalidRequestError(f"target must be 3 finite numbers [m], got {self.target_world_m!r}")
+        if target[2] < 0.0:
+            raise InvalidRequestError(f"target z={target[2]:.3f} m is below the ground (z = 0)")
+        q = robot.check_q(self.q_start)
+        rotation = None
+        if self.R_world_hand is not None:
+            rotation = np.asarray(self.R_world_hand, dtype=float)
+            if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
+                raise InvalidRequestError("orientation must be a 3x3 rotation matrix")
+            if np.abs(rotation @ rotation.T - np.eye(3)).max() > 1e-6 or np.linalg.det(rotation) < 0:
+                raise InvalidRequestError("orientation is not a rotation matrix (R R^T != I or det < 0)")
+        data = robot.new_data()
+        for side in ("left", "right"):
+            T = robot.sole_pose(q, side, data)
+            tilt = math.acos(max(-1.0, min(1.0, float(T.rotation[2, 2]))))
+            if abs(T.translation[2]) > MAX_SOLE_HEIGHT_M or tilt > MAX_SOLE_TILT_RAD:
+                raise InvalidRequestError(
+                    f"q_start does not stand on flat ground: the {side} sole is at "
+                    f"z={T.translation[2]:.4f} m tilted by {tilt:.3f} rad (at most {MAX_SOLE_HEIGHT_M} m "
+                    f"and {MAX_SOLE_TILT_RAD} rad); "
+                    "plan from the robot's measured standing configuration"
+                )
+        return ReachRequest(self.hand, target, q.copy(), rotation, bool(self.gaze), bool(self.allow_stepping))
+
+
+def quaternion_to_matrix(quaternion_xyzw: Any) -> np.ndarray:
+    """3x3 rotation of a quaternion (x, y, z, w); InvalidRequestError if it is not one (norm far from 1)."""
+    quat = np.asarray(quaternion_xyzw, dtype=float).reshape(-1)
+    if quat.shape != (4,) or not np.all(np.isfinite(quat)):
+        raise InvalidRequestError(
+            f"orientation must be a quaternion [qx, qy, qz, qw], got {quaternion_xyzw!r}"
+        )
+    norm = float(np.linalg.norm(quat))
+    if abs(norm - 1.0) > 1e-3:
+        raise InvalidRequestError(f"orientation quaternion must have norm 1, got {norm:.4f}")
+    return pin.Quaternion(quat[3], quat[0], quat[1], quat[2]).normalized().toRotationMatrix()

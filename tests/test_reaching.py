@@ -1,0 +1,283 @@
+"""Whole-body reaching with task-driven support polygon reshaping (services/reaching), on both robots.
+
+Planning tests run the pure planner; the ``slow`` ones also execute the motions in ``sim.world.World``
+(pybullet, DIRECT) and measure the hand there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from services.errors import InfeasibleError, InvalidRequestError
+from services.model import load_robot
+from services.reaching import CRITERIA, ReachingOptions, ReachRequest, plan_reach
+from services.reaching.gaze import GazeDirectionTask
+from services.reaching.monitors import ArmMonitor
+from services.reaching.support_polygon import SupportPolygonPlanner
+from services.walking.footsteps import FootstepLimits, FootstepSequence, SolePose, validate_footsteps
+from services.walking.timing import DOUBLE, LEFT, RIGHT
+
+ROBOTS = ("hrp2_like", "talos")
+# Targets in the frame of the robot standing at the origin (x forward, y left) [m].
+WITHIN_REACH = {"hrp2_like": (0.45, 0.30, 0.90), "talos": (0.45, 0.30, 1.00)}
+FORWARD_BEYOND = {"hrp2_like": (0.90, 0.30, 0.90), "talos": (0.90, 0.30, 1.00)}
+SIDEWAYS_BEYOND = {"hrp2_like": (0.20, 0.75, 0.90), "talos": (0.20, 0.80, 1.00)}
+FAR_AWAY = (3.0, 0.3, 0.8)  # 3 m away
+
+
+def _request(robot, target, **kw) -> ReachRequest:
+    hand = "left" if target[1] >= 0 else "right"
+    return ReachRequest(hand, np.array(target, dtype=float), robot.q_half_sitting, **kw)
+
+
+@pytest.fixture(scope="module", params=ROBOTS)
+def robot(request):
+    return load_robot(request.param)
+
+
+# ------------------------------------------------------------------------------------------ monitors
+def test_manipulability_is_eq5_of_the_finite_difference_arm_jacobian():
+    robot = load_robot("hrp2_like")
+    model = robot.model
+    arm = robot.arm_joints("left")
+    monitor = ArmMonitor(
+        model,
+        robot.frames.grasp("left"),
+        arm,
+        robot.q_lower,
+        robot.q_upper,
+        robot.effort_max,
+        (robot.frames.left_sole, robot.frames.right_sole),
+    )
+    rng = np.random.default_rng(3)
+    step = 1e-6
+    for _ in range(3):
+        q = robot.q_half_sitting.copy()
+        idx = [robot.joint_index(j).idx_q for j in arm]
+        q[idx] += rng.uniform(-0.4, 0.4, len(idx))
+        q[idx] = np.clip(q[idx], robot.q_lower[idx] + 0.01, robot.q_upper[idx] - 0.01)
+        hand, w, _, _ = monitor.evaluate(q)
+        J = np.empty((3, len(idx)))
+        for c, i in enumerate(idx):
+            dq = q.copy()
+            dq[i] += step
+            J[:, c] = (monitor.hand_position(dq) - hand) / step
+        assert w == pytest.approx(math.sqrt(np.linalg.det(J @ J.T)), rel=1e-4)
+
+
+def test_gaze_direction_jacobian_matches_finite_differences():
+    robot = load_robot("talos")
+    model, data = robot.model, robot.new_data()
+    task = GazeDirectionTask(model, robot.frames.gaze, [1.2, 0.4, 0.9])
+    rng = np.random.default_rng(5)
+    eps = 1e-6
+    for _ in range(3):
+        q = pin.integrate(model, robot.q_half_sitting, rng.uniform(-0.2, 0.2, model.nv))
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        F, J = task.compute(q, data)
+        assert F.shape == (2,) and J.shape == (2, model.nv)
+        J_fd = np.empty_like(J)
+        for i in range(model.nv):
+            dv = np.zeros(model.nv)
+            dv[i] = eps
+            q2 = pin.integrate(model, q, dv)
+            pin.framesForwardKinematics(model, data, q2)
+            J_fd[:, i] = (task.compute_error(q2, data) - F) / eps
+        np.testing.assert_allclose(J, J_fd, atol=20 * eps)
+
+
+# ------------------------------------------------------------------------------------------ planning
+def _check_plan(robot, result) -> None:
+    """Properties every returned motion has: ZMP inside the support polygon, soles not sliding, the
+    hand on the target, the criteria in their admissible ranges, 5 ms samples within the limits."""
+    assert result.dt_s == pytest.approx(0.005)
+    assert result.q.shape == (result.times_s.shape[0], robot.nq)
+    np.testing.assert_allclose(result.q[0], robot.q_half_sitting, atol=1e-9)
+    assert result.min_zmp_margin_m > 0.0, "the multibody ZMP leaves the support polygon"
+    assert result.max_sole_slide_m < 1e-3, "a supporting sole slides in the plan"
+    assert result.hand_error_m < 1e-4
+    limits = result.thresholds
+    assert result.monitors.manipulability.min() >= limits.manipulability
+    assert result.monitors.ee_error_m.max() <= limits.ee_error_m
+    joints = result.q[:, 7:]
+    assert np.all(joints >= robot.q_lower[7:] - 1e-9) and np.all(joints <= robot.q_upper[7:] + 1e-9)
+
+
+def test_target_within_reach_takes_no_step(robot):
+    result = plan_reach(robot, _request(robot, WITHIN_REACH[robot.name]))
+    assert not result.stepped and result.footsteps == ()
+    assert [a.kind for a in result.attempts] == ["no_step"]
+    assert np.all(result.phase == DOUBLE)
+    _check_plan(robot, result)
+
+
+@pytest.mark.parametrize("where", ["forward", "sideways"])
+def test_target_beyond_reach_reshapes_the_support_polygon(robot, where):
+    target = (FORWARD_BEYOND if where == "forward" else SIDEWAYS_BEYOND)[robot.name]
+    result = plan_reach(robot, _request(robot, target))
+    assert result.stepped and len(result.footsteps) >= 1
+    first = result.attempts[0]
+    assert first.kind == "no_step" and first.violation is not None  # the initial polygon was discarded
+    assert result.attempts[-1].violation is None
+    assert result.no_step_monitors.times_s[-1] == pytest.approx(first.violation.time_s)
+    _check_plan(robot, result)
+    # The steps respect the robot's stepping bounds, and the support phases follow them.
+    q0 = robot.q_half_sitting
+    starts = {}
+    for side in ("left", "right"):
+        T = robot.sole_pose(q0, side)
+        starts[side] = SolePose(T.translation[0], T.translation[1], 0.0)
+    validate_footsteps(
+        FootstepSequence(starts["left"], starts["right"], result.footsteps), FootstepLimits.from_robot(robot)
+    )
+    assert {LEFT, RIGHT} & set(np.unique(result.phase))
+    # The robot ends facing the target more than it started (Fig. 5: the upper body turns to it).
+    bearing = math.atan2(target[1], target[0])
+    final_yaw = 0.5 * (result.left_sole[-1, 3] + result.right_sole[-1, 3])
+    assert abs(math.remainder(bearing - final_yaw, 2 * math.pi)) < abs(bearing)
+
+
+def test_impossible_target_is_infeasible_naming_the_criterion(robot):
+    with pytest.raises(InfeasibleError) as info:
+        plan_reach(robot, _request(robot, FAR_AWAY))
+    details = info.value.details
+    assert details["criterion"] in CRITERIA
+    assert f"criterion '{details['criterion']}' failed" in info.value.message
+    assert details["steps_needed"] > ReachingOptions().max_steps
+
+
+def test_without_stepping_a_far_target_is_infeasible(robot):
+    with pytest.raises(InfeasibleError, match="stepping is not allowed") as info:
+        plan_reach(robot, _request(robot, FORWARD_BEYOND[robot.name], allow_stepping=False))
+    assert info.value.details["criterion"] in CRITERIA
+
+
+def test_hand_orientation_is_reached_when_asked():
+    robot = load_robot("hrp2_like")
+    target = WITHIN_REACH[robot.name]
+    free = plan_reach(robot, _request(robot, target))
+    # The orientation the hand had without asking for one, turned by 0.3 rad about the vertical.
+    R_free = robot.frame_pose(free.q[-1], robot.frames.grasp("left")).rotation
+    R = pin.rpy.rpyToMatrix(0.0, 0.0, 0.3) @ R_free
+    result = plan_reach(robot, _request(robot, target, R_world_hand=R))
+    T = robot.frame_pose(result.q[-1], robot.frames.grasp("left"))
+    assert np.linalg.norm(pin.log3(T.rotation.T @ R)) < 1e-3
+    assert result.hand_error_m < 1e-4
+
+
+def test_weighted_pseudo_inverse_moves_the_light_arm_more_and_the_heavy_legs_less():
+    robot = load_robot("talos")
+    request = _request(robot, (0.5, 0.3, 0.9), gaze=False)
+    moves = {}
+    for weighted in (True, False):
+        q = plan_reach(robot, request, ReachingOptions(weighted=weighted)).q[-1] - robot.q_half_sitting
+        arm = [robot.joint_index(j).idx_q for j in robot.arm_joints("left")]
+        legs = [robot.joint_index(j).idx_q for j in robot.joint_names if j.startswith("leg_")]
+        moves[weighted] = (np.abs(q[arm]).sum(), np.abs(q[legs]).sum())
+    assert moves[True][0] > moves[False][0]
+    assert moves[True][1] < moves[False][1]
+
+
+def test_joint_limit_selection_matrix_keeps_arm_joints_off_their_limits():
+    robot = load_robot("talos")
+    request = _request(robot, (0.62, 0.3, 1.0))
+    free = plan_reach(robot, request, ReachingOptions())
+    margin = 0.15
+    selected = plan_reach(robot, request, ReachingOptions(joint_limit_selection_rad=margin))
+    assert free.monitors.joint_limit_margin_rad.min() < margin
+    assert selected.monitors.joint_limit_margin_rad.min() > margin - 0.01
+
+
+def test_single_step_reshaping():
+    """The paper's case: one step of the foot on the target side, turning towards the target."""
+    robot = load_robot("talos")
+    result = plan_reach(robot, _request(robot, (0.5, 0.65, 1.1)))
+    assert [a.kind for a in result.attempts][-1] == "single"
+    assert len(result.footsteps) == 1 and result.footsteps[0].side == "left"
+    assert result.footsteps[0].pose.yaw_rad > 0.1
+    _check_plan(robot, result)
+
+
+def test_support_polygon_planner_faces_the_target_and_respects_the_bounds(robot):
+    planner = SupportPolygonPlanner(robot)
+    q0 = robot.q_half_sitting
+    left = SolePose(*robot.sole_pose(q0, "left").translation[:2], 0.0)
+    right = SolePose(*robot.sole_pose(q0, "right").translation[:2], 0.0)
+    target = np.array([-0.8, 1.0, 0.9])
+    goal = planner.comfort_stance(left, right, target, "left")
+    distance, bearing = planner.from_shoulder(goal, target, "left")
+    assert distance == pytest.approx(planner.comfort_reach_m["left"], abs=1e-9)
+    assert bearing == pytest.approx(0.0, abs=1e-9)
+    walk = planner.walk(left, right, goal, "left", max_steps=20)
+    assert walk is not None and walk.n_steps >= planner.steps_needed(left, right, goal)
+    validate_footsteps(walk.footsteps, planner.limits)
+    assert walk.final_mid == pytest.approx(goal, abs=1e-9)
+    assert planner.walk(left, right, goal, "left", max_steps=2) is None
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"hand": "middle"}, "side must be"),
+        ({"target_world_m": np.array([0.5, 0.3])}, "target must be 3 finite numbers"),
+        ({"target_world_m": np.array([0.5, 0.3, -0.1])}, "below the ground"),
+        ({"R_world_hand": np.ones((3, 3))}, "not a rotation"),
+    ],
+)
+def test_malformed_requests_are_invalid(change, message):
+    robot = load_robot("hrp2_like")
+    fields = {"hand": "left", "target_world_m": np.array([0.5, 0.3, 0.9]), "q_start": robot.q_half_sitting}
+    fields.update(change)
+    with pytest.raises(InvalidRequestError, match=message):
+        plan_reach(robot, ReachRequest(**fields))
+
+
+def test_a_start_not_standing_on_the_ground_is_invalid():
+    robot = load_robot("hrp2_like")
+    q = robot.q_half_sitting.copy()
+    q[2] += 0.05
+    with pytest.raises(InvalidRequestError, match="does not stand on flat ground"):
+        plan_reach(robot, ReachRequest("left", np.array([0.5, 0.3, 0.9]), q))
+    with pytest.raises(InvalidRequestError, match="q must have shape"):
+        plan_reach(robot, ReachRequest("left", np.array([0.5, 0.3, 0.9]), q[:-1]))
+
+
+def test_options_are_validated():
+    with pytest.raises(InvalidRequestError, match="unknown criteria"):
+        ReachingOptions(criteria=("manipulability", "luck"))
+    with pytest.raises(InvalidRequestError, match="knot_stride"):
+        ReachingOptions(knot_stride=0)
+
+
+# ------------------------------------------------------------------------------------------ in the sim
+def _execute(robot, target) -> tuple:
+    from sim.world import World
+
+    with World(robot, "empty") as world:
+        q0 = world.state().q
+        hand = "left" if target[1] >= 0 else "right"
+        result = plan_reach(robot, ReachRequest(hand, np.array(target, dtype=float), q0))
+        execution = world.execute(result.q, hold_s=1.0)
+        q = world.state().q
+        hand_error = float(np.linalg.norm(robot.frame_pose(q, robot.frames.grasp(hand)).translation - target))
+        return result, execution, hand_error, world.fallen()
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+@pytest.mark.parametrize("case", ["within", "forward", "sideways"])
+def test_reaching_in_the_sim(robot, case):
+    target = {"within": WITHIN_REACH, "forward": FORWARD_BEYOND, "sideways": SIDEWAYS_BEYOND}[case][
+        robot.name
+    ]
+    result, execution, hand_error, fallen = _execute(robot, target)
+    assert result.stepped == (case != "within")
+    assert execution.outcome == "completed", execution.message
+    assert not fallen
+    assert hand_error < 0.01, f"hand {1e3 * hand_error:.1f} mm from the target"
+    assert execution.foot_slip_m < 0.01
