@@ -36,6 +36,7 @@ from services.errors import (
     InternalError,
     InvalidRequestError,
     NotFoundError,
+    RequestTimeoutError,
     UnavailableError,
 )
 
@@ -55,6 +56,13 @@ class RelayReply(msgspec.Struct, kw_only=True, frozen=True):
 RELAY = EndpointSpec("probe", "relay", RelayRequest, RelayReply, "calls diag/echo, reports pongs received")
 
 
+class SleepRequest(msgspec.Struct, kw_only=True, frozen=True):
+    seconds: float
+
+
+SLEEP = EndpointSpec("probe", "sleep", SleepRequest, SleepRequest, "answers after `seconds` [s]")
+
+
 class ProbeService(Service):
     """Test peer: calls diag from a handler and listens to diag/pong."""
 
@@ -71,6 +79,11 @@ class ProbeService(Service):
     def relay(self, request: RelayRequest) -> RelayReply:
         reply = self.client.call(ECHO, EchoRequest(text=request.text), timeout_s=5.0)
         return RelayReply(echoed=reply.text, pongs=list(self.pongs))
+
+    @handles(SLEEP)
+    def sleep(self, request: SleepRequest) -> SleepRequest:
+        time.sleep(request.seconds)
+        return request
 
 
 # --- tests -------------------------------------------------------------------------------------------
@@ -144,6 +157,14 @@ def test_handler_errors_become_typed_replies_and_service_keeps_serving(bus, code
     if code == "bug":
         assert "RuntimeError" in info.value.message
     assert bus.client.call(ECHO, EchoRequest(text="alive"), timeout_s=5.0).text == "alive"
+
+
+def test_a_reply_too_late_is_a_timeout_and_the_service_keeps_serving(bus):
+    """zenoh ends a query that outlives its timeout with an error reply of its own ("Timeout"): the
+    client reports it as ``timeout`` (retried by the supervisor), not as an ``internal`` error."""
+    with pytest.raises(RequestTimeoutError, match=r"probe/sleep gave no reply within 0\.5 s"):
+        bus.client.call(SLEEP, SleepRequest(seconds=2.0), timeout_s=0.5)
+    assert bus.client.call(SLEEP, SleepRequest(seconds=0.0), timeout_s=5.0).seconds == 0.0
 
 
 def test_unknown_service_is_unavailable(bus):

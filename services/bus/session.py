@@ -149,6 +149,10 @@ class TypedSubscriber:
             self._sub.undeclare()
 
 
+#: The error payload zenoh itself replies with when a query times out (not an ErrorInfo).
+ZENOH_TIMEOUT = b"Timeout"
+
+
 class Client:
     """Calls endpoints of running services; raises the typed error of an error reply.
 
@@ -179,7 +183,10 @@ class Client:
         for reply in replies:
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
-            raise error_from_reply(reply.err.payload.to_bytes())
+            raw = reply.err.payload.to_bytes()
+            if raw == ZENOH_TIMEOUT:
+                break  # zenoh's own end of the query: no reply in time (below)
+            raise error_from_reply(raw)
         waited = time.monotonic() - started
         if waited < 0.9 * timeout and not self.is_alive(service):
             token = keys.alive(self.robot, service)
