@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from services.errors import HumanoidError, InvalidRequestError
-from supervisor.report import ActionReport
+from supervisor.report import ActionError, ActionReport
 from supervisor.retry import DEFAULT_POLICY, RetryPolicy
 from supervisor.script import Step
 
@@ -96,7 +96,14 @@ class Runner:
             attempt += 1
             if self.stop.is_set():
                 self._emit("stopped", step, attempt, "stopped", "stopped by the operator")
-                return ActionReport(step.action, step.args, ok=False, reason="stopped", attempts=attempt)
+                return ActionReport(
+                    step.action,
+                    step.args,
+                    ok=False,
+                    reason="stopped",
+                    message="stopped by the operator",
+                    attempts=attempt,
+                )
             resolved = self.resolve(step)
             self._emit("started", step, attempt)
             began = time.monotonic()
@@ -111,11 +118,23 @@ class Runner:
                     message=exc.message,
                     details=exc.details,
                 )
+            except ActionError as exc:
+                report = ActionReport(
+                    step.action,
+                    resolved.args,
+                    ok=False,
+                    reason=exc.reason,
+                    message=exc.message,
+                    details=exc.details,
+                )
             report = dataclasses.replace(report, attempts=attempt, wall_time_s=time.monotonic() - began)
             if report.ok:
                 if step.bind:
                     self.bindings[step.bind] = report.details.get("object", report.details.get("value"))
                 self._emit("finished", step, attempt, message=report.message)
+                return report
+            if report.reason == "stopped":
+                self._emit("stopped", step, attempt, "stopped", report.message)
                 return report
             self._emit("failed", step, attempt, report.reason, report.message)
             rule = self.policy.rule(report.reason)
@@ -131,6 +150,10 @@ class Runner:
                 except HumanoidError as exc:
                     self._emit(
                         "failed", step, attempt, exc.code, f"remedy {rule.remedy} failed: {exc.message}"
+                    )
+                except ActionError as exc:
+                    self._emit(
+                        "failed", step, attempt, exc.reason, f"remedy {rule.remedy} failed: {exc.message}"
                     )
 
     def _emit(self, kind: str, step: Step, attempt: int, reason: str = "", message: str = "") -> None:

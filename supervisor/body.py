@@ -1,0 +1,265 @@
+"""The robot's body as the supervisor uses it: proprioception, trajectory execution, head, grippers.
+
+Everything goes through ``sim`` (the only component that executes, CONVENTIONS §1): the state is the
+robot's own proprioception (``sim/state``: joints, base pose, what each hand holds), planners'
+trajectories are played by ``sim/execute``, and short head motions are made here (a smooth joint
+trajectory from the current configuration). Object positions never come from here.
+
+Long trajectories are sent in chunks of about one second of sim time: the supervisor reports progress
+between chunks and honours "stop" there (the sim freezes physics between requests, so consecutive
+chunks play as one trajectory; each chunk starts at the previous chunk's last sample).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from services.bus.schemas import sim as sim_msg
+from services.model import RobotModel, load_robot
+from supervisor.calls import ServiceCaller
+from supervisor.report import ActionError
+
+#: Samples of one chunk of an executed trajectory (1 s at 5 ms).
+CHUNK_SAMPLES = 200
+#: Head pan / tilt joints of the models (pan positive = left, tilt positive = down) [rad].
+HEAD_SPEED_RAD_S = 1.5
+EXECUTE_TIMEOUT_S = 60.0
+#: Plan from the last commanded configuration when every joint is within this of it [rad].
+PLAN_FROM_COMMAND_RAD = 0.05
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Executed:
+    """What an execution did: sim time spent [s], the final configuration, the last reply, and whether
+    it stopped early on touching the object it was told to expect (``touch``)."""
+
+    duration_s: float
+    q: np.ndarray
+    reply: sim_msg.ExecuteReply
+    touched: bool = False
+
+
+class Body:
+    """Proprioception and motion of the simulated robot through ``sim``."""
+
+    def __init__(self, bus: ServiceCaller, stop: threading.Event | None = None) -> None:
+        self.bus = bus
+        self.stop = stop or threading.Event()
+        self._robot: RobotModel | None = None
+        self._commanded: np.ndarray | None = None  # last sample of the last completed trajectory
+
+    # State -----------------------------------------------------------------------------------------
+    def state(self) -> sim_msg.StateReply:
+        return self.bus.call(sim_msg.STATE, sim_msg.StateRequest(), 10.0)
+
+    @property
+    def robot(self) -> RobotModel:
+        """The robot model the sim simulates (loaded on first use from ``sim/state``)."""
+        if self._robot is None:
+            self._robot = load_robot(self.state().model)
+        return self._robot
+
+    def q(self) -> np.ndarray:
+        state = self.state()
+        if state.fallen:
+            raise ActionError("fell", "the robot is on the ground: reset the sim (`humanoid fetch` does)")
+        return np.asarray(state.q, dtype=float)
+
+    def plan_q(self) -> np.ndarray:
+        """The configuration to plan from: the last commanded one (the end of the trajectory just played)
+        placed standing at the measured mid-feet pose, when the joints are where it commanded them; else
+        the measured one.
+
+        Planners want both soles flat on the ground; a measured configuration of a robot leaning to
+        reach is a few mrad off (a sole tilted by 0.022 rad was refused by reaching), the commanded one is
+        flat by construction. The sim accepts either as a trajectory's first sample (within 0.2 rad).
+        """
+        q = self.q()
+        commanded = self._commanded
+        if commanded is None:
+            return q
+        robot = self.robot
+        grippers = [robot.joint_index(robot.gripper_joint(side)).idx_q for side in ("left", "right")]
+        body = np.ones(robot.nq, dtype=bool)
+        body[:7] = False
+        body[grippers] = False  # they move with sim/gripper, not with trajectories
+        if float(np.max(np.abs(commanded[body] - q[body]))) > PLAN_FROM_COMMAND_RAD:
+            return q
+        x, y, yaw = robot.mid_feet_pose(q)
+        planned = np.asarray(robot.place_on_ground(commanded, x, y, yaw), dtype=float)
+        planned[grippers] = q[grippers]
+        return planned
+
+    def held(self) -> dict[str, str]:
+        return dict(self.state().held)
+
+    def base_xy_yaw(self, q: np.ndarray | None = None) -> tuple[float, float, float]:
+        """Mid-feet pose on the ground (x [m], y [m], yaw [rad]) at ``q`` (default: now)."""
+        return self.robot.mid_feet_pose(self.q() if q is None else q)
+
+    # Execution -------------------------------------------------------------------------------------
+    def execute(
+        self,
+        Q: np.ndarray,
+        *,
+        what: str,
+        dt_s: float = 0.005,
+        allowed_contacts: Sequence[str] = (),
+        progress: Progress | None = None,
+        hold_s: float = 0.0,
+        touch: str = "",
+    ) -> Executed:
+        """Play the (N, nq) trajectory ``Q`` in chunks; ActionError(fell | collision | stopped).
+
+        ``touch``: an object the motion is expected to bump into (a guarded move: lowering a held object
+        onto a table of uncertain height); stopping on contacts with it only is a success with
+        ``touched`` set, as a force sensor in the wrist would tell.
+        """
+        Q = np.asarray(Q, dtype=float)
+        if Q.ndim != 2 or Q.shape[0] < 2:
+            raise ActionError("internal", f"{what}: a trajectory needs (N >= 2, nq) samples, got {Q.shape}")
+        total = (Q.shape[0] - 1) * dt_s
+        spent = 0.0
+        start = 0
+        reply: sim_msg.ExecuteReply | None = None
+        self._commanded = None
+        while start < Q.shape[0] - 1:
+            if self.stop.is_set():
+                raise ActionError("stopped", f"{what}: stopped by the operator after {spent:.1f} s")
+            end = min(Q.shape[0], start + CHUNK_SAMPLES + 1)
+            last = end == Q.shape[0]
+            request = sim_msg.ExecuteRequest(
+                q=np.ascontiguousarray(Q[start:end]),
+                dt_s=dt_s,
+                allowed_contacts=list(allowed_contacts),
+                hold_s=hold_s if last else 0.0,
+            )
+            reply = self.bus.call(sim_msg.EXECUTE, request, EXECUTE_TIMEOUT_S)
+            spent += reply.duration_s
+            if reply.outcome == "collision" and touch and all(c.other == touch for c in reply.collisions):
+                return Executed(spent, np.asarray(reply.q, dtype=float), reply, touched=True)
+            if reply.outcome != "completed":
+                raise self._failure(what, reply, spent, total)
+            if progress is not None and not last:
+                progress(f"{what}: {spent:.1f} of {total:.1f} s")
+            start = end - 1
+        assert reply is not None
+        self._commanded = Q[-1].copy()
+        return Executed(spent, np.asarray(reply.q, dtype=float), reply)
+
+    @staticmethod
+    def _failure(what: str, reply: sim_msg.ExecuteReply, spent: float, total: float) -> ActionError:
+        details = {
+            "outcome": reply.outcome,
+            "at_s": spent,
+            "of_s": total,
+            "collisions": [
+                {"robot_link": c.robot_link, "other": c.other, "position": c.position}
+                for c in reply.collisions
+            ],
+            "tracking_error_rad": reply.tracking_error_rad,
+        }
+        if reply.outcome == "fell":
+            return ActionError(
+                "fell", f"{what}: the robot fell after {spent:.1f} s: {reply.message}", details
+            )
+        return ActionError(
+            "collision",
+            f"{what}: stopped by a collision after {spent:.1f} of {total:.1f} s: {reply.message}",
+            details,
+        )
+
+    def move_joints(
+        self,
+        targets: Mapping[str, float],
+        *,
+        what: str,
+        speed_rad_s: float = HEAD_SPEED_RAD_S,
+        q: np.ndarray | None = None,
+    ) -> Executed | None:
+        """Move the named joints to ``targets`` [rad] with a quintic profile, the others held; None if
+        already there."""
+        q0 = self.q() if q is None else np.asarray(q, dtype=float)
+        robot = self.robot
+        q1 = q0.copy()
+        for name, value in targets.items():
+            i = robot.joint_index(name).idx_q
+            q1[i] = float(np.clip(value, robot.q_lower[i], robot.q_upper[i]))
+        travel = float(np.max(np.abs(q1 - q0))) if q1.size else 0.0
+        if travel < 1e-3:
+            return None
+        duration = max(0.3, 1.875 * travel / speed_rad_s)  # quintic peak speed = 1.875 travel / T
+        n = math.ceil(duration / 0.005) + 1
+        tau = np.linspace(0.0, 1.0, n)[:, None]
+        s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+        return self.execute(q0[None, :] + s * (q1 - q0)[None, :], what=what)
+
+    def straighten(self, *, what: str = "stand up straight", tolerance_rad: float = 0.05) -> Executed | None:
+        """Bring the chest joints back to the half-sitting posture (slowly, everything else held).
+
+        Reaching leans the chest toward the target; the walking planner keeps the waist and chest
+        upright from its first sample, so a walk planned from a leaning posture would start with a jump
+        of the chest (its multibody ZMP leaves the support polygon at t = 0). None if already straight.
+        """
+        q = self.q()
+        robot = self.robot
+        names = [n for n in robot.joint_names if n.upper().startswith(("CHEST", "TORSO"))]
+        targets = {n: float(robot.q_half_sitting[robot.joint_index(n).idx_q]) for n in names}
+        if all(abs(q[robot.joint_index(n).idx_q] - v) < tolerance_rad for n, v in targets.items()):
+            return None
+        return self.move_joints(targets, what=what, speed_rad_s=0.5, q=q)
+
+    # Head --------------------------------------------------------------------------------------------
+    def head_joints(self) -> tuple[str, str]:
+        """(pan, tilt) joint names of the robot model."""
+        names = self.robot.joint_names
+        if "HEAD_JOINT0" in names:
+            return "HEAD_JOINT0", "HEAD_JOINT1"
+        return "head_1_joint", "head_2_joint"  # talos: head_1 = yaw, head_2 = pitch
+
+    def head_angles(self, q: np.ndarray) -> tuple[float, float]:
+        pan, tilt = self.head_joints()
+        return float(q[self.robot.joint_index(pan).idx_q]), float(q[self.robot.joint_index(tilt).idx_q])
+
+    def head_limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((pan min, pan max), (tilt min, tilt max)) [rad]."""
+        out = []
+        for name in self.head_joints():
+            i = self.robot.joint_index(name).idx_q
+            out.append((float(self.robot.q_lower[i]), float(self.robot.q_upper[i])))
+        return out[0], out[1]
+
+    def move_head(self, pan_rad: float, tilt_rad: float, *, what: str = "head") -> Executed | None:
+        pan, tilt = self.head_joints()
+        return self.move_joints({pan: pan_rad, tilt: tilt_rad}, what=what)
+
+    def head_angles_towards(self, q: np.ndarray, point_world: Sequence[float]) -> tuple[float, float]:
+        """Pan and tilt [rad] that point the gaze axis at ``point_world`` [m] from configuration ``q``.
+
+        Two fixed-point passes: the gaze frame moves a little with the head joints (neck offset).
+        """
+        robot = self.robot
+        pan_name, tilt_name = self.head_joints()
+        i_pan, i_tilt = robot.joint_index(pan_name).idx_q, robot.joint_index(tilt_name).idx_q
+        q = np.asarray(q, dtype=float).copy()
+        target = np.asarray(point_world, dtype=float)
+        (pan_lo, pan_hi), (tilt_lo, tilt_hi) = self.head_limits()
+        for _ in range(3):
+            T_world_gaze = robot.frame_pose(q, robot.frames.gaze)
+            d = T_world_gaze.rotation.T @ (target - T_world_gaze.translation)  # in the gaze frame
+            pan = q[i_pan] + math.atan2(d[1], d[0])
+            tilt = q[i_tilt] - math.atan2(d[2], math.hypot(d[0], d[1]))
+            q[i_pan] = float(np.clip(pan, pan_lo, pan_hi))
+            q[i_tilt] = float(np.clip(tilt, tilt_lo, tilt_hi))
+        return float(q[i_pan]), float(q[i_tilt])
+
+    # Grippers ----------------------------------------------------------------------------------------
+    def gripper(self, side: str, action: str) -> sim_msg.GripperReply:
+        return self.bus.call(sim_msg.GRIPPER, sim_msg.GripperRequest(side=side, action=action), 15.0)

@@ -1,0 +1,72 @@
+"""Service calls of the supervisor: health-checked, tagged with the service, sim time remembered."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from services.bus.session import Client
+from services.bus.spec import EndpointSpec
+from services.errors import HumanoidError, RequestTimeoutError, UnavailableError
+from supervisor.health import HealthMonitor
+from supervisor.report import ActionError
+
+
+class ServiceCaller:
+    """``call(spec, request, timeout_s)`` for the actions.
+
+    Before a call, the service must have its liveliness token and a recent heartbeat
+    (:meth:`HealthMonitor.check`); an error of any call carries ``details["service"]`` so that the
+    ``wait_service`` remedy knows which service to wait for. ``sim_time_s`` is the latest sim time seen
+    in a reply [s].
+    """
+
+    def __init__(self, client: Client, health: HealthMonitor, stop: threading.Event | None = None) -> None:
+        self.client = client
+        self.health = health
+        self.stop = stop or threading.Event()
+        self.sim_time_s = 0.0
+        self.calls: dict[str, int] = {}
+        #: Called with the spec before each call (tracing; tests use it to kill a service mid-request).
+        self.on_call: Callable[[EndpointSpec], None] | None = None
+
+    def call(self, spec: EndpointSpec, request: Any, timeout_s: float) -> Any:
+        """The reply; the typed error of the service; ActionError("stopped") once stop is set."""
+        if self.stop.is_set():
+            raise ActionError("stopped", f"stopped by the operator before calling {spec.path}")
+        if self.on_call is not None:
+            self.on_call(spec)
+        started = time.monotonic()
+        try:
+            self.health.check(spec.service)
+            try:
+                reply = self.client.call(spec, request, timeout_s)
+            except RequestTimeoutError:
+                if time.monotonic() - started < 0.9 * timeout_s and self._went_away(spec.service):
+                    raise UnavailableError(
+                        f"service {spec.service!r} went away while serving {spec.path} (its process died?); "
+                        "`humanoid up` restarts it",
+                        {"service": spec.service},
+                    ) from None
+                raise
+        except HumanoidError as exc:
+            exc.details.setdefault("service", spec.service)
+            exc.details.setdefault("endpoint", spec.path)
+            raise
+        self.calls[spec.path] = self.calls.get(spec.path, 0) + 1
+        sim_time = getattr(reply, "sim_time_s", None)
+        if isinstance(sim_time, float) and sim_time > 0.0:
+            self.sim_time_s = sim_time
+        return reply
+
+    def _went_away(self, service: str, within_s: float = 1.0) -> bool:
+        """Whether ``service``'s liveliness token disappears within ``within_s`` (a query that ended
+        early without a reply: its queryable vanished with its process)."""
+        deadline = time.monotonic() + within_s
+        while time.monotonic() < deadline:
+            if not self.health.health(service).alive:
+                return True
+            time.sleep(0.02)
+        return False

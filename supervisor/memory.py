@@ -1,0 +1,63 @@
+"""What the supervisor believes about the world: objects as perception last localized them.
+
+Only perception writes here (never the sim's ground truth): each entry is a ``perception/locate``
+reply, with the sim time it was made at. The robot's own pose comes from its proprioception
+(``sim/state``) when needed, so nothing about the robot is stored.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from services.errors import NotFoundError
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """An object seen by perception.
+
+    position_m: world position of its reference point (centre of a ball, middle of the visible
+    silhouette of a box or table) [m]; size_m: (width, height) of its image box at its depth [m];
+    distance_m: from the camera [m]; confidence in [0, 1]; sim_time_s: when [s]; camera_m: world
+    position of the camera that saw it [m].
+    """
+
+    name: str
+    position_m: np.ndarray
+    size_m: tuple[float, float]
+    distance_m: float
+    confidence: float
+    sim_time_s: float
+    camera_m: np.ndarray
+
+    def describe(self) -> str:
+        x, y, z = self.position_m
+        return f"{self.name} at ({x:.2f}, {y:.2f}, {z:.2f}) m, {self.distance_m:.2f} m away"
+
+
+@dataclass
+class Memory:
+    """Latest sighting per object name, and what each hand holds (from grasp/open outcomes)."""
+
+    sightings: dict[str, Sighting] = field(default_factory=dict)
+    holding: dict[str, str] = field(default_factory=dict)  # side -> object
+
+    def remember(self, sighting: Sighting) -> None:
+        self.sightings[sighting.name] = sighting
+
+    def forget(self, name: str) -> None:
+        self.sightings.pop(name, None)
+
+    def get(self, name: str) -> Sighting:
+        """The last sighting of ``name``; NotFoundError saying to localize it first."""
+        sighting = self.sightings.get(name)
+        if sighting is None:
+            known = ", ".join(sorted(self.sightings)) or "none yet"
+            raise NotFoundError(
+                f"where {name} is is not known: localize it first (`localize {name}`); "
+                f"located so far: {known}",
+                {"object": name, "reason": "not_localized"},
+            )
+        return sighting

@@ -1,0 +1,153 @@
+"""Seeing objects: one ``perception/locate`` call, and the look-around search when not in view.
+
+The search follows services/perception/look_around.py (the perception helper's plan for it): the head
+scans rows of pan angles at a few gaze depressions (:func:`scan_angles`), then the body turns on the
+spot (:func:`turn_offsets`, relative to the heading at the start) and the head scans again. An object
+that is seen off the image centre is looked at and localized again: the paper "localizes precisely the
+colored ball" once it is close (Fig. 11 (c)); the centroid stereo is most accurate away from borders.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from services.bus.schemas import perception as perception_msg
+from services.errors import NotFoundError
+from services.perception.look_around import scan_angles, turn_offsets
+from supervisor.body import Body, Progress
+from supervisor.calls import ServiceCaller
+from supervisor.memory import Memory, Sighting
+
+#: NotFoundError reasons of perception/locate that another viewpoint may fix.
+LOOK_AROUND_REASONS = ("not_in_view", "not_in_right_view", "no_disparity", "stereo_mismatch", "ambiguous", "")
+#: Re-centre and localize again when the object's image is farther than this from the centre
+#: (fraction of the half-width) [-].
+RECENTRE_FRACTION = 0.4
+LOCATE_TIMEOUT_S = 20.0
+
+
+class Eyes:
+    """``perception/locate`` from the robot's current configuration, and the look-around search."""
+
+    def __init__(self, bus: ServiceCaller, body: Body, memory: Memory) -> None:
+        self.bus = bus
+        self.body = body
+        self.memory = memory
+
+    def locate(self, name: str, q: np.ndarray | None = None) -> Sighting:
+        """Localize ``name`` now (no motion); NotFoundError from perception otherwise."""
+        q = self.body.q() if q is None else q
+        reply = self.bus.call(
+            perception_msg.LOCATE,
+            perception_msg.LocateRequest(object=name, model=self.body.robot.name, q=q),
+            LOCATE_TIMEOUT_S,
+        )
+        T = np.asarray(reply.T_world_camera, dtype=float)
+        sighting = Sighting(
+            name=name,
+            position_m=np.asarray(reply.position, dtype=float),
+            size_m=(float(reply.size_m[0]), float(reply.size_m[1])),
+            distance_m=float(reply.distance_m),
+            confidence=float(reply.confidence),
+            sim_time_s=float(reply.sim_time_s),
+            camera_m=T[:3, 3].copy(),
+        )
+        self.memory.remember(sighting)
+        self._last_box = (reply.box_left.u_px, reply.box_left.v_px)
+        return sighting
+
+    def off_centre(self) -> float:
+        """How far the last sighting's image box is from the image centre (fraction of the half-width)."""
+        u, v = self._last_box
+        width = 640.0
+        return max(abs(u - width / 2), abs(v - 240.0) * width / 480.0) / (width / 2)
+
+    def look_at(self, point_m: np.ndarray, what: str) -> None:
+        q = self.body.q()
+        pan, tilt = self.body.head_angles_towards(q, point_m)
+        self.body.move_head(pan, tilt, what=what)
+
+    def localize(
+        self,
+        name: str,
+        *,
+        turn: Callable[[float, str], None],
+        progress: Progress,
+        look_around: bool = True,
+    ) -> tuple[Sighting, int]:
+        """Find ``name``: (sighting, views taken). Looks where it was last seen first, then scans with
+        the head and turns the body (``turn(angle_rad, why)``) between scans.
+
+        NotFoundError (reason ``not_found_around``) listing what was tried if it is nowhere.
+        """
+        views = 0
+        reasons: list[str] = []
+
+        def attempt() -> Sighting | None:
+            nonlocal views
+            views += 1
+            try:
+                return self.locate(name)
+            except NotFoundError as exc:
+                reason = str(exc.details.get("reason", ""))
+                reasons.append(reason or "not_found")
+                if reason not in LOOK_AROUND_REASONS or not look_around:
+                    raise
+                return None
+
+        found = attempt()
+        if found is None and name in self.memory.sightings:
+            progress(f"looking where {name} was last seen")
+            self.look_at(self.memory.sightings[name].position_m, f"look toward the last sighting of {name}")
+            found = attempt()
+        if found is None:
+            found = self._search(name, attempt, turn, progress)
+        if found is None:
+            tried = ", ".join(sorted(set(reasons)))
+            raise NotFoundError(
+                f"{name} is nowhere around: looked in {views} directions (head scans and turning on the "
+                f"spot all around) and perception did not find it ({tried})",
+                {"object": name, "reason": "not_found_around", "views": views},
+            )
+        if self.off_centre() > RECENTRE_FRACTION:
+            progress(f"{name} seen at the image border: looking at it to localize it precisely")
+            self.look_at(found.position_m, f"look at {name}")
+            again = attempt()
+            found = again if again is not None else found
+        return found, views
+
+    def _scan_order(self) -> list[tuple[float, float]]:
+        """The head views of :func:`scan_angles`, nearest pan first and, at one pan, every tilt: what is
+        ahead (the usual place of what is looked for) is seen before the sides."""
+        views = scan_angles(self.body.robot)
+        return sorted(views, key=lambda view: (round(abs(view[0]), 3), view[0], views.index(view)))
+
+    def _search(
+        self,
+        name: str,
+        attempt: Callable[[], Sighting | None],
+        turn: Callable[[float, str], None],
+        progress: Progress,
+    ) -> Sighting | None:
+        robot = self.body.robot
+        turned = 0.0
+        for offset in [0.0, *turn_offsets(robot)]:
+            if offset != 0.0:
+                progress(
+                    f"{name} not in view: turning by {math.degrees(offset - turned):.0f} deg to look further"
+                )
+                turn(offset - turned, f"turn to look for {name}")
+                turned = offset
+            for pan, tilt in self._scan_order():
+                progress(
+                    f"looking for {name}: head pan {math.degrees(pan):.0f} deg, "
+                    f"tilt {math.degrees(tilt):.0f} deg"
+                )
+                self.body.move_head(pan, tilt, what="head scan")
+                found = attempt()
+                if found is not None:
+                    return found
+        return None

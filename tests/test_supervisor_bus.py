@@ -1,0 +1,144 @@
+"""The supervisor on a real bus with the sim and perception services: events, health, perception actions.
+
+The planner-dependent actions and the whole fetch are in test_supervisor_fetch.py.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+from services.bus.schemas import sim as sim_msg
+from services.bus.schemas.supervisor import EVENTS
+from services.bus.session import TypedSubscriber
+from services.errors import UnavailableError
+from supervisor.core import Supervisor
+from supervisor.script import parse_script
+
+
+@pytest.fixture(scope="module")
+def stack(module_bus_harness):
+    h = module_bus_harness
+    h.spawn_service("sim.service", "--scene", "ball_fetch", name="sim")
+    h.spawn_service("services.perception.service", name="perception")
+    return h
+
+
+@pytest.fixture
+def sup(stack):
+    s = Supervisor(stack.session, stack.bus.robot)
+    stack.client.call(sim_msg.RESET, sim_msg.ResetRequest(scene="ball_fetch"), 30)
+    try:
+        yield s
+    finally:
+        s.close()
+
+
+def test_detect_and_look_at_publish_events_and_use_perception(stack, sup) -> None:
+    events = TypedSubscriber(stack.session, stack.bus.robot, EVENTS)
+    try:
+        report = sup.run(parse_script("detect orange_ball\nlook_at orange_ball"), run_id="t1")
+        assert report.ok, report.failure
+        seen = []
+        while True:
+            try:
+                seen.append(events.recv(timeout_s=2.0))
+            except TimeoutError:
+                break
+    finally:
+        events.undeclare()
+    kinds = [e.kind for e in seen]
+    assert kinds[0] == "run_started" and kinds[-1] == "run_finished" and seen[-1].ok
+    assert kinds.count("started") == 2 and kinds.count("finished") == 2
+    assert {e.run_id for e in seen} == {"t1"}
+    # The supervisor's belief comes from perception: within a few cm of where the sim put the ball.
+    gt = {o.name: o for o in stack.client.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 5).objects}
+    seen_at = sup.actions.memory.get("orange_ball").position_m
+    assert np.linalg.norm(seen_at - np.asarray(gt["orange_ball"].position)) < 0.05
+    # look_at turned the head toward the ball: it is now near the image centre.
+    assert sup.actions.eyes.off_centre() < 0.2
+
+
+def test_unknown_object_and_unlocalized_target_fail_with_clear_reasons(sup) -> None:
+    report = sup.run(parse_script("detect red_ball"))
+    assert not report.ok and report.failure.reason == "invalid_request"
+    assert "orange_ball" in report.failure.message  # the message lists the known objects
+    report = sup.run(parse_script("goto yellow_table"))
+    assert not report.ok and report.failure.reason == "not_found"
+    assert "localize it first" in report.failure.message
+
+
+def test_grasp_on_nothing_is_not_grasped_and_retried_then_reported(sup) -> None:
+    report = sup.run(parse_script("grasp right as ball"))
+    assert not report.ok
+    failure = report.failure
+    assert failure.reason == "not_grasped" and failure.attempts == 3  # 1 + 2 retries of the policy
+    assert "closed on nothing" in failure.message
+    kinds = [e.kind for e in sup.events]
+    assert kinds.count("retried") == 2 and kinds.count("failed") == 3
+
+
+def test_stop_aborts_before_the_next_call(sup) -> None:
+    sup.runner.on_event = lambda event: sup.request_stop() if event.kind == "started" else None
+    report = sup.run(parse_script("detect orange_ball\ndetect green_box"))
+    assert not report.ok
+    assert report.failure.reason == "stopped"
+    assert len(report.reports) == 1
+
+
+def test_health_monitor_sees_a_killed_service_go(module_bus_harness, stack) -> None:
+    h = module_bus_harness
+    proc = h.spawn_service("services.bus.diag", name="diag")
+    sup = Supervisor(h.session, h.bus.robot)
+    try:
+        assert sup.health.wait_alive("diag", 5.0)
+        sup.health.check("diag")
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        gone = threading.Event()
+        for _ in range(200):
+            if "diag" not in sup.health.alive():
+                gone.set()
+                break
+            gone.wait(0.05)
+        assert gone.is_set()
+        with pytest.raises(UnavailableError, match="no liveliness token"):
+            sup.health.check("diag")
+        assert not sup.health.wait_alive("diag", 0.3)
+    finally:
+        sup.close()
+
+
+def test_console_reads_commands_suggests_and_runs_them(stack, sup) -> None:
+    import io
+
+    from supervisor.repl import ConsoleLoop
+
+    out = io.StringIO()
+    loop = ConsoleLoop(sup, sup.known_objects(), out)
+    sup.out = out  # progress lines of the running actions go to the same place
+    code = loop.run(["tkae the orange ball", "help", "look at the orange ball"])
+    text = out.getvalue()
+    assert code == 0, text
+    assert "The closest I know: 'take the orange ball'" in text
+    assert "Commands:" in text and "put it on the table" in text
+    assert "ok: looking at orange_ball" in text
+    assert "SUCCESS" in text
+
+
+def test_console_stop_aborts_the_running_command(stack, sup) -> None:
+    import io
+
+    from supervisor.repl import ConsoleLoop
+
+    out = io.StringIO()
+    sup.out = out
+    code = ConsoleLoop(sup, sup.known_objects(), out).run(["find the yellow table", "stop"])
+    text = out.getvalue()
+    assert code == 1, text
+    assert "stopping" in text and "stopped by the operator" in text
+    assert sup.events[-1].kind == "run_finished" and not sup.events[-1].ok
