@@ -1,9 +1,8 @@
 """``humanoid``: the single command line of the stack.
 
-Subcommands come from the packages: each module of :data:`CLI_MODULES` that exists defines
+Subcommands come from the packages: each module of :data:`CLI_MODULES` defines
 ``add_cli(subparsers)`` and registers its subcommands with ``set_defaults(func=...)``, where
-``func(args) -> int`` is the exit code. A module that does not exist yet is skipped; any other
-import error is a bug and surfaces.
+``func(args) -> int`` is the exit code.
 """
 
 from __future__ import annotations
@@ -11,32 +10,16 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from types import ModuleType
 
 #: Modules contributing subcommands, in the order they appear in ``humanoid --help``.
 CLI_MODULES = (
     "services.bus.cli",
-    "sim.cli",
     "vision.cli",
     "services.model.cli",
     "services.ik.cli",
-    "services.walking.cli",
     "services.footsteps.cli",
-    "services.reaching.cli",
-    "services.navigation.cli",
-    "services.perception.cli",
     "supervisor.cli",
 )
-
-
-def _import_optional(name: str) -> ModuleType | None:
-    """The module, or None if it (or its package) does not exist; other import errors propagate."""
-    try:
-        return importlib.import_module(name)
-    except ModuleNotFoundError as exc:
-        if exc.name == name or (exc.name is not None and name.startswith(exc.name + ".")):
-            return None
-        raise
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -49,9 +32,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in CLI_MODULES:
-        module = _import_optional(name)
-        if module is None:
-            continue
+        module = importlib.import_module(name)
         add_cli = getattr(module, "add_cli", None)
         if add_cli is None:
             raise AttributeError(f"{name} has no add_cli(subparsers) function")
