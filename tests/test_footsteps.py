@@ -12,8 +12,9 @@ import pytest
 
 from services.errors import InfeasibleError, InvalidRequestError
 from services.footsteps import scenarios
-from services.footsteps.chain import Stance, VirtualChain
+from services.footsteps.chain import Stance, VirtualChain, footprint_frame
 from services.footsteps.constraints import (
+    FootprintDisksTask,
     FrontStepBoundsTask,
     NonOverlapTask,
     RootSoleOnFootprintTask,
@@ -28,6 +29,7 @@ from services.footsteps.geometry import (
 from services.footsteps.planner import initial_stance, plan_footsteps
 from services.footsteps.request import DiskObstacle, FootstepPlanRequest, FootstepTask, PlannerOptions
 from services.ik.kinematics import compute_kinematics
+from services.ik.tasks.foot_outside_disk import FootOutsideDiskTask
 from services.model import load_robot
 from services.model.geometry import polygon_signed_margin
 from services.walking.footsteps import FootstepLimits, SolePose, validate_footsteps
@@ -76,16 +78,15 @@ def test_root_insertion_keeps_the_world_state(robot, stance):
     q = pin.integrate(chain.model, q, 0.05 * rng.standard_normal(chain.model.nv))
     data = chain.model.createData()
     pin.framesForwardKinematics(chain.model, data, q)
-    before = {
-        f: pin.SE3(data.oMf[chain.model.getFrameId(f)]) for f in ("left_sole", "right_sole", "right_grasp")
-    }
+    frames = ("left_sole", "right_sole", "right_grasp")
+    before = {f: chain.world_placement(data.oMf[chain.model.getFrameId(f)]) for f in frames}
     poses_before = chain.footprint_poses(q)
     grown, q2 = chain.with_root_footprint(q)
     assert grown.n_steps == 4 and grown.sides[1:] == chain.sides
     data2 = grown.model.createData()
     pin.framesForwardKinematics(grown.model, data2, q2)
     for f, T in before.items():
-        assert (data2.oMf[grown.model.getFrameId(f)].inverse() * T).isIdentity(1e-10)
+        assert (grown.world_placement(data2.oMf[grown.model.getFrameId(f)]).inverse() * T).isIdentity(1e-10)
     for a, b in zip(poses_before, grown.footprint_poses(q2)[1:], strict=True):
         assert np.allclose(a.as_array(), b.as_array(), atol=1e-12)
     # the new root footprint is the other initial sole
@@ -138,6 +139,35 @@ def test_footstep_constraint_jacobians_match_finite_differences(robot, stance, s
         # central differences: error O(h^2 |F'''|) + rounding O(eps / h)
         np.testing.assert_allclose(J, J_num, atol=1e-6, err_msg=task.name)
         assert F.shape[0] == J.shape[0]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_disk_rows_match_finite_differences_and_the_generic_disk_task(robot, stance, seed):
+    """The vectorized disk rows of every movable footprint equal services.ik's FootOutsideDiskTask
+    of each (disk, footprint), and their Jacobian matches finite differences, also with a disk
+    centre under a footprint."""
+    rng = np.random.default_rng(seed)
+    chain, q0 = grown_chain(robot, stance, "right" if seed % 2 else "left", 4)
+    q = pin.integrate(chain.model, q0, 0.3 * rng.standard_normal(chain.model.nv))
+    data = chain.model.createData()
+    compute_kinematics(chain.model, data, q, False)
+    fp = chain.footprint_poses(q)[2]
+    disks_world = [(fp.x_m + 0.01, fp.y_m - 0.02, 0.05), (0.8, -0.3, 0.25), (-0.4, 0.5, 0.1)]
+    centers = [chain.model_point((x, y)) for x, y, _ in disks_world]
+    task = FootprintDisksTask(chain, robot.sole_size_m, centers, [r for *_, r in disks_world], margin_m=0.01)
+    G, J = task.compute(q, data)
+    frames = [footprint_frame(i) for i in range(1, chain.n_footprints)] + [chain.front_sole_frame]
+    assert G.shape == (len(disks_world) * len(frames),) and J.shape == (G.shape[0], chain.model.nv)
+    k = 0
+    for c, (*_, radius) in zip(centers, disks_world, strict=True):
+        for frame in frames:
+            generic = FootOutsideDiskTask(chain.model, frame, robot.sole_size_m, c, radius, margin_m=0.01)
+            F_g, J_g = generic.compute(q, data)
+            np.testing.assert_allclose(G[k], F_g[0], atol=1e-12)
+            np.testing.assert_allclose(J[k], J_g[0], atol=1e-10)
+            k += 1
+    assert G[1] > 0.0  # the first disk centre is under F_2: that row is violated, the inside case
+    np.testing.assert_allclose(J, _numeric_jacobian(task, chain.model, data, q), atol=1e-6)
 
 
 def test_relative_planar_pose_is_the_chain_joint_value(robot, stance):
@@ -379,3 +409,75 @@ def test_the_same_planner_runs_on_talos():
     result = plan_footsteps(request, talos)
     assert result.n_steps >= 2
     check_plan(talos, request, result)
+
+
+# ------------------------------------------------------------------------------------ the QP method
+
+
+def _random_qp(rng, r=12, m=30, n_slack=10):
+    A = rng.standard_normal((r + 3, r))
+    H = A.T @ A + 0.1 * np.eye(r)
+    g = 3.0 * rng.standard_normal(r)
+    D = rng.standard_normal((m, r))
+    D[5] = D[4]  # a duplicated row: dependent normals
+    lo, hi = -rng.uniform(0.05, 1.0, m), rng.uniform(0.05, 1.0, m)  # feasible at y = 0
+    lo[::7], hi[1::7] = -1e20, 1e20  # one-sided rows
+    return H, g, D, lo, hi, m - n_slack
+
+
+def _proxsuite_reference(H, g, D, lo, hi, first_slack_row):
+    from proxsuite import proxqp
+
+    r, m = H.shape[0], D.shape[0]
+    n_slack = m - first_slack_row
+    H_qp = np.zeros((r + n_slack, r + n_slack))
+    H_qp[:r, :r], H_qp[r:, r:] = H, np.eye(n_slack)
+    C = np.zeros((m, r + n_slack))
+    C[:, :r] = D
+    C[first_slack_row:, r:] = -np.eye(n_slack)
+    g_qp = np.concatenate((g, np.zeros(n_slack)))
+    result = proxqp.dense.solve(H_qp, g_qp, None, None, C, lo, hi, eps_abs=1e-11, eps_rel=0.0)
+    return result.x[:r]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_dual_active_set_qp_is_the_exact_optimum_and_reproducible(seed):
+    """The planner's QP method (services.ik.active_set, Goldfarb-Idnani) gives proxsuite's optimum,
+    from any guess of the active set (right, wrong, dependent), with bitwise identical results."""
+    from services.ik.active_set import solve_dual_active_set
+
+    rng = np.random.default_rng(seed)
+    H, g, D, lo, hi, fsr = _random_qp(rng)
+    reference = _proxsuite_reference(H, g, D, lo, hi, fsr)
+    cold = solve_dual_active_set(H, g, D, lo, hi, fsr, 1e-9)
+    np.testing.assert_allclose(cold.y, reference, atol=1e-6)
+    values = D[:fsr] @ cold.y
+    assert np.all(values >= lo[:fsr] - 1e-9) and np.all(values <= hi[:fsr] + 1e-9)
+    assert cold.rows.shape[0] >= 1  # the unconstrained minimizer violates some row here
+    wrong = (np.arange(0, 30, 3), np.where(np.arange(0, 30, 3) % 2 == 0, 1.0, -1.0))
+    dependent = (np.array([4, 5, 6]), np.array([1.0, 1.0, -1.0]))
+    for guess in ((cold.rows, cold.signs), wrong, dependent):
+        warm = solve_dual_active_set(H, g, D, lo, hi, fsr, 1e-9, guess=guess)
+        np.testing.assert_allclose(warm.y, reference, atol=1e-6)
+    again = solve_dual_active_set(H, g, D, lo, hi, fsr, 1e-9)
+    assert again.y.tobytes() == cold.y.tobytes()
+
+
+def test_planner_qp_method_gives_the_working_set_step(robot, stance):
+    """One step of the hierarchy on the chain, with the planner's QP method and with the default
+    (working set + proxsuite), from a configuration where limits and constraints are active."""
+    from services.footsteps.planner import SOLVER_CONFIG
+    from services.footsteps.problem import build_levels, joint_limits
+    from services.ik.solver import HierarchicalSolver
+
+    request = scenarios.reach().request
+    chain, q = grown_chain(robot, stance, "left", 4)
+    q = pin.integrate(chain.model, q, 0.05 * np.random.default_rng(5).standard_normal(chain.model.nv))
+    levels = build_levels(chain, request, [])
+    lower, upper = joint_limits(chain, request)
+    steps = []
+    for config in (SOLVER_CONFIG, None):
+        solver = HierarchicalSolver(chain.model, lower, upper, dq_max=0.25 / 0.7, config=config)
+        steps.append(solver.solve(levels, q, alpha=0.7))
+        assert any(report.used_qp for report in solver.last_report)
+    np.testing.assert_allclose(steps[0], steps[1], atol=1e-6)

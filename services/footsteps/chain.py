@@ -26,10 +26,18 @@ choice of the front foot side for a given number of steps (both are tried by the
 
 ``p = 0`` (no step) uses the same model as ``p = 1``; the planner then also holds the front foot at
 its initial pose.
+
+Frames: the model is expressed in the frame of the root footprint F_0 (a flat frame on the ground,
+``T_world_root`` in the world), so that it depends only on the robot, the sides and the step bounds,
+not on where the robot stands: models are built once and shared (:func:`chain_model`). Targets and
+obstacles are brought into that frame (:meth:`VirtualChain.model_point`), footprints and
+configurations are returned in the world.
 """
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +50,9 @@ from services.walking.footsteps import Side, SolePose, other_side
 
 FREE_FLYER_NQ = 7
 _JOINT_SUFFIXES = ("dx", "dy", "dtheta")
+MODEL_CACHE_SIZE = 128  # chain models kept (a few hundred kB each)
+_models: OrderedDict[tuple, tuple[RobotModel, pin.Model]] = OrderedDict()
+_models_lock = threading.Lock()
 
 
 def footprint_frame(i: int) -> str:
@@ -101,49 +112,29 @@ class VirtualChain:
         self.chain_nq = 3 * (self.n_footprints - 1)
         self.front_sole_frame = robot.frames.sole(front_side)
         self.root_sole_frame = robot.frames.sole(self.root_side)
+        # the model's frame: the root footprint F_0, flat on the ground
         self.T_world_root = se3_of(start.of(self.sides[0]))
-        self.model = self._build()
+        self.T_root_world = self.T_world_root.inverse()
+        self.model = chain_model(robot, self.sides, self.bounds)
         self.footprint_frame_ids = tuple(
             int(self.model.getFrameId(footprint_frame(i))) for i in range(self.n_footprints)
         )
+        self.front_sole_fid = int(self.model.getFrameId(self.front_sole_frame))
         self.robot_nq = robot.model.nq
+        # the structure, for caches of objects built on the model (data, solvers, tasks)
+        self.key = (id(robot), self.sides, self.bounds)
 
-    # ------------------------------------------------------------------------------------ construction
-    def _build(self) -> pin.Model:
-        bounds = self.bounds
-        chain = pin.Model()
-        chain.name = f"footprints_{self.n_steps}"
-        parent_frame = chain.addFrame(
-            pin.Frame(footprint_frame(0), 0, 0, self.T_world_root, pin.FrameType.OP_FRAME)
-        )
-        joint = 0
-        placement = self.T_world_root
-        for i in range(1, self.n_footprints):
-            limits = bounds.for_swing(self.sides[i])  # F_i in the frame of F_{i-1} (section 4)
-            for axis, (jmodel, suffix) in enumerate(
-                zip(
-                    (pin.JointModelPX(), pin.JointModelPY(), pin.JointModelRZ()), _JOINT_SUFFIXES, strict=True
-                )
-            ):
-                lo, hi = limits[axis]
-                joint = chain.addJoint(
-                    joint,
-                    jmodel,
-                    placement,
-                    f"{footprint_frame(i)}_{suffix}",
-                    np.array([1e3]),
-                    np.array([1e3]),
-                    np.array([lo]),
-                    np.array([hi]),
-                )
-                chain.appendBodyToJoint(joint, pin.Inertia.Zero(), pin.SE3.Identity())
-                placement = pin.SE3.Identity()
-            parent_frame = chain.addFrame(
-                pin.Frame(footprint_frame(i), joint, parent_frame, pin.SE3.Identity(), pin.FrameType.OP_FRAME)
-            )
-        model = pin.appendModel(chain, self.robot.model, parent_frame, pin.SE3.Identity())
-        model.name = f"{self.robot.name}+{chain.name}"
-        return model
+    # ------------------------------------------------------------------------------------ frames
+    def model_point(self, p_world: np.ndarray | tuple[float, ...]) -> np.ndarray:
+        """A world point [m] (3-D, or 2-D on the ground) in the model's frame (that of F_0)."""
+        p = np.asarray(p_world, dtype=float)
+        if p.shape == (2,):
+            return self.T_root_world.act(np.array([p[0], p[1], 0.0]))[:2]
+        return self.T_root_world.act(p)
+
+    def world_placement(self, T_model: pin.SE3) -> pin.SE3:
+        """A placement of the model's frame (e.g. ``data.oMf[i]``) in the world."""
+        return self.T_world_root * T_model
 
     # ------------------------------------------------------------------------------------ configuration
     def robot_slice(self) -> slice:
@@ -205,11 +196,61 @@ class VirtualChain:
         return [f"{footprint_frame(i)}_{s}" for s in _JOINT_SUFFIXES]
 
     def front_footprint(self, data: pin.Data) -> SolePose:
-        """Ground footprint of the robot's front sole in the state held by ``data``."""
-        return sole_pose_of(data.oMf[self.model.getFrameId(self.front_sole_frame)])
+        """Ground footprint of the robot's front sole in the state held by ``data`` (world)."""
+        return sole_pose_of(self.world_placement(data.oMf[self.front_sole_fid]))
 
     def __repr__(self) -> str:
         return (
             f"VirtualChain({self.robot.name}, steps={self.n_steps}, front={self.front_side}, "
             f"sides={'/'.join(s[0].upper() for s in self.sides)}, nq={self.model.nq})"
         )
+
+
+def chain_model(robot: RobotModel, sides: tuple[Side, ...], bounds: FootstepBounds) -> pin.Model:
+    """The pinocchio model of the chain F_0 .. F_{p-1} (``sides``) with the robot appended under
+    F_{p-1}, in the frame of F_0 (shared: models are read-only; cached, thread-safe)."""
+    key = (id(robot), sides, bounds)
+    with _models_lock:
+        hit = _models.get(key)
+        if hit is not None and hit[0] is robot:
+            _models.move_to_end(key)
+            return hit[1]
+    model = _build(robot, sides, bounds)
+    with _models_lock:
+        _models[key] = (robot, model)  # (the robot is kept alive with it: id(robot) stays unique)
+        while len(_models) > MODEL_CACHE_SIZE:
+            _models.popitem(last=False)
+    return model
+
+
+def _build(robot: RobotModel, sides: tuple[Side, ...], bounds: FootstepBounds) -> pin.Model:
+    chain = pin.Model()
+    n_footprints = len(sides)
+    chain.name = f"footprints_{n_footprints}"
+    parent_frame = chain.addFrame(
+        pin.Frame(footprint_frame(0), 0, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME)
+    )
+    joint = 0
+    for i in range(1, n_footprints):
+        limits = bounds.for_swing(sides[i])  # F_i in the frame of F_{i-1} (section 4)
+        for axis, (jmodel, suffix) in enumerate(
+            zip((pin.JointModelPX(), pin.JointModelPY(), pin.JointModelRZ()), _JOINT_SUFFIXES, strict=True)
+        ):
+            lo, hi = limits[axis]
+            joint = chain.addJoint(
+                joint,
+                jmodel,
+                pin.SE3.Identity(),
+                f"{footprint_frame(i)}_{suffix}",
+                np.array([1e3]),
+                np.array([1e3]),
+                np.array([lo]),
+                np.array([hi]),
+            )
+            chain.appendBodyToJoint(joint, pin.Inertia.Zero(), pin.SE3.Identity())
+        parent_frame = chain.addFrame(
+            pin.Frame(footprint_frame(i), joint, parent_frame, pin.SE3.Identity(), pin.FrameType.OP_FRAME)
+        )
+    model = pin.appendModel(chain, robot.model, parent_frame, pin.SE3.Identity())
+    model.name = f"{robot.name}+{chain.name}"
+    return model

@@ -8,18 +8,25 @@
   Q_i is exactly the pose of F_i in F_{i-1}.
 - :class:`NonOverlapTask`: no overlap of the footprints of every support polygon (Fig. 5), the
   inner corners of each foot kept outside the other foot's half-plane, following eqs. (12)-(13).
+- :class:`FootprintDisksTask`: every movable footprint and the front sole outside every disk
+  obstacle (section 4.1): the relative velocity of the disk centre and the closest footprint point
+  bounded as in eq. (13).
 
-Disk obstacles (section 4.1), the front foot flat on the ground, the CoM over the final support
-polygon (eq. 11), self-collision (eq. 13) and joint limits are generic tasks of ``services.ik``.
+The front foot flat on the ground, the CoM over the final support polygon (eq. 11), self-collision
+(eq. 13) and joint limits are generic tasks of ``services.ik``. Every task reads the chain model's
+kinematics, in the frame of the root footprint F_0 (:mod:`services.footsteps.chain`).
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
 
 from services.footsteps.chain import VirtualChain
-from services.footsteps.geometry import non_overlap_rows
+from services.footsteps.geometry import non_overlap_rows_many
 from services.ik.task import Task
 
 LOCAL = pin.ReferenceFrame.LOCAL
@@ -54,6 +61,30 @@ def relative_planar_pose(
     J_yaw = (x_rel[0] * J_x[1] - x_rel[1] * J_x[0]) / n2
     r = np.array([p_rel[0], p_rel[1], np.arctan2(x_rel[1], x_rel[0])])
     return r, np.vstack([J_p[:2], J_yaw[None, :]])
+
+
+class FrontRelativePose:
+    """:func:`relative_planar_pose` of the front sole in F_{p-1}, computed once per configuration for
+    the tasks that read it (step bounds, non-overlap, the front foot hold): the solver evaluates
+    every task at the same q with ``data`` already filled, so the pose is recomputed only when q or
+    ``data`` changes. The returned arrays are read-only."""
+
+    def __init__(self, chain: VirtualChain) -> None:
+        self.model = chain.model
+        self.parent_fid = chain.footprint_frame_ids[-1]
+        self.child_fid = chain.front_sole_fid
+        self._data: pin.Data | None = None
+        self._q = np.zeros(0)
+        self._value: tuple[np.ndarray, np.ndarray] | None = None
+
+    def get(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
+        """(r, dr/dq~) at q (``data`` holding the kinematics of q)."""
+        if self._value is None or data is not self._data or not np.array_equal(q, self._q):
+            r, J = relative_planar_pose(self.model, data, self.parent_fid, self.child_fid)
+            r.flags.writeable = False
+            J.flags.writeable = False
+            self._value, self._data, self._q = (r, J), data, np.array(q)
+        return self._value
 
 
 class RootSoleOnFootprintTask(Task):
@@ -102,15 +133,14 @@ class FrontStepBoundsTask(Task):
         gain: float = 1.0,
         margin: tuple[float, float] = (0.0, 0.0),
         name: str = "front_step_bounds",
+        front: FrontRelativePose | None = None,
     ) -> None:
         limits = chain.bounds.for_swing(chain.front_side)
         inset = np.array([margin[0], margin[0], margin[1]])
         lower = np.array([lim[0] for lim in limits]) + inset
         upper = np.array([lim[1] for lim in limits]) - inset
         super().__init__(name, gain, lower=lower, upper=upper)
-        self.model = chain.model
-        self.parent_fid = chain.footprint_frame_ids[-1]
-        self.child_fid = int(chain.model.getFrameId(chain.front_sole_frame))
+        self.front = front or FrontRelativePose(chain)
 
     def compute_error(self, q: np.ndarray, data: pin.Data) -> np.ndarray:
         return self.compute(q, data)[0]
@@ -119,7 +149,7 @@ class FrontStepBoundsTask(Task):
         return self.compute(q, data)[1]
 
     def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
-        return relative_planar_pose(self.model, data, self.parent_fid, self.child_fid)
+        return self.front.get(q, data)
 
 
 class FrontFootHoldTask(Task):
@@ -133,12 +163,15 @@ class FrontFootHoldTask(Task):
     """
 
     def __init__(
-        self, chain: VirtualChain, r_target: np.ndarray, gain: float = 1.0, name: str = "hold:front"
+        self,
+        chain: VirtualChain,
+        r_target: np.ndarray,
+        gain: float = 1.0,
+        name: str = "hold:front",
+        front: FrontRelativePose | None = None,
     ) -> None:
         super().__init__(name, gain)
-        self.model = chain.model
-        self.parent_fid = chain.footprint_frame_ids[-1]
-        self.child_fid = int(chain.model.getFrameId(chain.front_sole_frame))
+        self.front = front or FrontRelativePose(chain)
         self.r_target = np.asarray(r_target, dtype=float).reshape(3)
 
     def compute_error(self, q: np.ndarray, data: pin.Data) -> np.ndarray:
@@ -148,7 +181,7 @@ class FrontFootHoldTask(Task):
         return self.compute(q, data)[1]
 
     def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
-        r, J = relative_planar_pose(self.model, data, self.parent_fid, self.child_fid)
+        r, J = self.front.get(q, data)
         error = r - self.r_target
         error[2] = (error[2] + np.pi) % (2.0 * np.pi) - np.pi
         return error, J
@@ -170,15 +203,21 @@ class NonOverlapTask(Task):
         margin_m: float = 0.01,
         gain: float = 1.0,
         name: str = "non_overlap",
+        front: FrontRelativePose | None = None,
     ) -> None:
         super().__init__(name, gain, lower=-np.inf, upper=0.0)
         self.model = chain.model
         self.length_m, self.width_m = float(sole_size_m[0]), float(sole_size_m[1])
         self.margin_m = float(margin_m)
-        self.child_is_left = [side == "left" for side in chain.sides[1:]]
-        self.front_is_left = chain.front_side == "left"
-        self.parent_fid = chain.footprint_frame_ids[-1]
-        self.front_fid = int(chain.model.getFrameId(chain.front_sole_frame))
+        self.child_is_left = np.array([side == "left" for side in chain.sides[1:]], dtype=bool)
+        self.front_is_left = np.array([chain.front_side == "left"])
+        self.n_chain = len(self.child_is_left)
+        self.front = front or FrontRelativePose(chain)
+        # Q_i: q and v indices coincide for the chain (vector-space joints at the start of q~); the
+        # rows of support polygon i only involve Q_i.
+        n = self.n_chain
+        self._rows = np.repeat(np.arange(4 * n).reshape(n, 4), 3, axis=1).reshape(n, 4, 3)
+        self._cols = np.broadcast_to((3 * np.arange(n))[:, None, None] + np.arange(3), (n, 4, 3))
 
     def compute_error(self, q: np.ndarray, data: pin.Data) -> np.ndarray:
         return self.compute(q, data)[0]
@@ -187,18 +226,126 @@ class NonOverlapTask(Task):
         return self.compute(q, data)[1]
 
     def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
-        n_pairs = len(self.child_is_left) + 1
-        G = np.empty(4 * n_pairs)
-        J = np.zeros((4 * n_pairs, self.model.nv))
-        for i, is_left in enumerate(self.child_is_left):
-            # Q_i: q and v indices coincide for the chain (vector-space joints at the start of q~).
-            g, dg = non_overlap_rows(
-                q[3 * i : 3 * i + 3], is_left, self.length_m, self.width_m, self.margin_m
+        n = self.n_chain
+        G = np.empty(4 * (n + 1))
+        J = np.zeros((4 * (n + 1), self.model.nv))
+        if n:
+            g, dg = non_overlap_rows_many(
+                q[: 3 * n].reshape(n, 3), self.child_is_left, self.length_m, self.width_m, self.margin_m
             )
-            G[4 * i : 4 * i + 4] = g
-            J[4 * i : 4 * i + 4, 3 * i : 3 * i + 3] = dg
-        r, J_r = relative_planar_pose(self.model, data, self.parent_fid, self.front_fid)
-        g, dg = non_overlap_rows(r, self.front_is_left, self.length_m, self.width_m, self.margin_m)
-        G[-4:] = g
-        J[-4:] = dg @ J_r
+            G[: 4 * n] = g.ravel()
+            J[self._rows, self._cols] = dg
+        r, J_r = self.front.get(q, data)
+        g, dg = non_overlap_rows_many(r[None], self.front_is_left, self.length_m, self.width_m, self.margin_m)
+        G[-4:] = g[0]
+        J[-4:] = dg[0] @ J_r
         return G, J
+
+
+class FootprintDisksTask(Task):
+    """Disk obstacles on the ground (section 4.1): the movable footprints F_1 .. F_{p-1} and the
+    front sole each stay ``margin_m`` outside every disk; one row per (disk, footprint), disk-major.
+
+    As for a pair of capsules (eqs. 12-13): B is the point of the footprint rectangle closest to the
+    disk centre c (the closest edge point when c is under the sole), s the signed distance from c to
+    the footprint (negative inside), G = radius + margin - s <= 0 and dG = n^T dB with n the
+    footprint's outward normal at B and B held fixed in the footprint. The footprints of the chain
+    are planar functions of Q_1 .. Q_i (F_i = F_{i-1} (+) Q_i, F_0 the model's origin), so their
+    rows are computed for all footprints and disks at once: dB/d(dx_j, dy_j) are the x and y axes of
+    F_{j-1} and dB/d(dtheta_j) = e_z x (B - O_j) for j <= i. The front sole's rows use its frame
+    Jacobian, with the exact yaw rate of its x axis.
+
+    ``centers_xy`` are in the model's frame (:meth:`VirtualChain.model_point`).
+    """
+
+    def __init__(
+        self,
+        chain: VirtualChain,
+        sole_size_m: tuple[float, float],
+        centers_xy: Sequence[Sequence[float]],
+        radii_m: Sequence[float],
+        margin_m: float = 0.0,
+        gain: float = 1.0,
+        name: str = "disks",
+    ) -> None:
+        super().__init__(name, gain, lower=-np.inf, upper=0.0)
+        self.model = chain.model
+        self.front_fid = chain.front_sole_fid
+        self.n_chain = chain.n_footprints - 1
+        self.half = 0.5 * np.array(sole_size_m, dtype=float)
+        self.centers = np.array(centers_xy, dtype=float).reshape(-1, 2)
+        self.clearance = np.asarray(radii_m, dtype=float).reshape(-1) + float(margin_m)
+        self.lower_triangle = np.tril(np.ones((self.n_chain, self.n_chain)))
+
+    def compute_error(self, q: np.ndarray, data: pin.Data) -> np.ndarray:
+        return self.compute(q, data)[0]
+
+    def compute_jacobian(self, q: np.ndarray, data: pin.Data) -> np.ndarray:
+        return self.compute(q, data)[1]
+
+    def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
+        n, k = self.n_chain, self.centers.shape[0]
+        # F_0 .. F_{p-1}: yaws and origins by composing the Q_i from the model's origin
+        Q = q[: 3 * n].reshape(n, 3)
+        yaw = np.concatenate(([0.0], np.cumsum(Q[:, 2])))
+        cos, sin = np.cos(yaw), np.sin(yaw)
+        moves = _rotate(cos[:-1], sin[:-1], Q[:, :2])
+        origins = np.concatenate((np.zeros((1, 2)), np.cumsum(moves, axis=0)))
+        T_front = data.oMf[self.front_fid]
+        R_front = T_front.rotation
+        yaw_front = math.atan2(R_front[1, 0], R_front[0, 0])
+        # the movable footprints F_1 .. F_{p-1}, then the front sole
+        fp_origin = np.concatenate((origins[1:], T_front.translation[None, :2]))
+        fp_cos = np.append(cos[1:], math.cos(yaw_front))
+        fp_sin = np.append(sin[1:], math.sin(yaw_front))
+        d = self.centers[:, None, :] - fp_origin[None]  # (k, n + 1, 2)
+        local = _rotate(fp_cos, -fp_sin, d)  # in each footprint's frame
+        h = self.half
+        B_local = np.clip(local, -h, h)
+        offset = local - B_local
+        outside = np.sqrt(np.einsum("...i,...i->...", offset, offset))
+        is_out = outside > 1e-9
+        n_local = offset / np.where(is_out, outside, 1.0)[..., None]
+        signed = outside
+        if not is_out.all():
+            # the centre under a sole: the nearest edge, negative distance
+            x, y = local[..., 0], local[..., 1]
+            gaps = np.stack((h[0] - x, x + h[0], h[1] - y, y + h[1]), -1)
+            edge = gaps.argmin(axis=-1)
+            gap = np.take_along_axis(gaps, edge[..., None], -1)[..., 0]
+            inner_n = _EDGE_NORMALS[edge]
+            inside = ~is_out
+            n_local = np.where(inside[..., None], inner_n, n_local)
+            B_local = np.where(inside[..., None], local + gap[..., None] * inner_n, B_local)
+            signed = np.where(inside, -gap, outside)
+        G = self.clearance[:, None] - signed
+        # outward normal and lever of B in the model frame
+        normal = _rotate(fp_cos, fp_sin, n_local)
+        lever = _rotate(fp_cos, fp_sin, B_local)
+        J = np.zeros((k, n + 1, self.model.nv))
+        if n:
+            nx, ny = normal[:, :n, 0:1], normal[:, :n, 1:2]  # (k, n, 1): footprint i, joints j below
+            B = fp_origin[None, :n] + lever[:, :n]
+            tri = self.lower_triangle
+            J[:, :n, 0 : 3 * n : 3] = (nx * cos[:-1] + ny * sin[:-1]) * tri
+            J[:, :n, 1 : 3 * n : 3] = (ny * cos[:-1] - nx * sin[:-1]) * tri
+            # n . (e_z x (B - O_j)) with O_j the origin of F_j (the joint axis of dtheta_j)
+            J[:, :n, 2 : 3 * n : 3] = (
+                ny * (B[..., 0:1] - origins[1:, 0]) - nx * (B[..., 1:2] - origins[1:, 1])
+            ) * tri
+        J_f = pin.getFrameJacobian(self.model, data, self.front_fid, LWA)
+        x_axis = R_front[:, 0]
+        # exact yaw rate of the sole x axis projected on the ground, d atan2(x_y, x_x), tilt included
+        tilt = x_axis[2] / (x_axis[0] ** 2 + x_axis[1] ** 2)
+        J_yaw = J_f[5] - tilt * (x_axis[0] * J_f[3] + x_axis[1] * J_f[4])
+        n_f, lever_f = normal[:, n], lever[:, n]
+        J[:, n] = n_f.dot(J_f[:2]) + (n_f[:, 1] * lever_f[:, 0] - n_f[:, 0] * lever_f[:, 1])[:, None] * J_yaw
+        return G.ravel(), J.reshape(k * (n + 1), self.model.nv)
+
+
+_EDGE_NORMALS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+
+
+def _rotate(cos: np.ndarray, sin: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Planar vectors ``v`` (..., 2) rotated by the angles of (cos, sin) (broadcast against v[..., 0])."""
+    return np.stack((cos * v[..., 0] - sin * v[..., 1], sin * v[..., 0] + cos * v[..., 1]), -1)

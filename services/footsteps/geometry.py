@@ -71,23 +71,36 @@ def non_overlap_rows(
     with sigma = +1 when B is the left foot. With |dtheta| < pi/2 the inner corners are the points of
     each rectangle closest to the other's line, so these rows keep the two rectangles disjoint.
     """
-    sigma = 1.0 if child_is_left else -1.0
-    dx, dy, th = float(r[0]), float(r[1]), float(r[2])
-    c, s = math.cos(th), math.sin(th)
+    G, dG = non_overlap_rows_many(
+        np.asarray(r, dtype=float).reshape(1, 3), np.array([child_is_left]), length_m, width_m, margin_m
+    )
+    return G[0], dG[0]
+
+
+def non_overlap_rows_many(
+    r: np.ndarray, child_is_left: np.ndarray, length_m: float, width_m: float, margin_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`non_overlap_rows` of n support polygons at once: ``r`` (n, 3), ``child_is_left`` (n,)
+    booleans; G (n, 4) and dG/dr (n, 4, 3)."""
+    sigma = np.where(child_is_left, 1.0, -1.0)[:, None]  # (n, 1), against the two corners (2,)
+    dx, dy, th = r[:, 0:1], r[:, 1:2], r[:, 2:3]
+    c, s = np.cos(th), np.sin(th)
     hl, hw = 0.5 * length_m, 0.5 * width_m
-    G = np.empty(4)
-    dG = np.zeros((4, 3))
-    for k, ax in enumerate((hl, -hl)):
-        # B's inner corner b = (ax, -sigma hw) in A: y = dy + s ax + c (-sigma hw).
-        ay = -sigma * hw
-        y = dy + s * ax + c * ay
-        G[k] = hw + margin_m - sigma * y
-        dG[k] = -sigma * np.array([0.0, 1.0, c * ax - s * ay])
-        # A's inner corner a = (ax, sigma hw) in B: y' = -s (ax - dx) + c (sigma hw - dy).
-        by = sigma * hw
-        yp = -s * (ax - dx) + c * (by - dy)
-        G[2 + k] = hw + margin_m + sigma * yp
-        dG[2 + k] = sigma * np.array([s, -c, -c * (ax - dx) - s * (by - dy)])
+    ax = np.array([hl, -hl])  # the two inner corners of a foot, x in its own frame
+    ay = -sigma * hw  # B's inner edge in B; A's inner edge in A is at -ay
+    n = r.shape[0]
+    G = np.empty((n, 4))
+    dG = np.zeros((n, 4, 3))
+    # rows 0-1, B's inner corners (ax, ay) in A: y = dy + s ax + c ay
+    G[:, :2] = hw + margin_m - sigma * (dy + s * ax + c * ay)
+    dG[:, :2, 1] = -sigma
+    dG[:, :2, 2] = -sigma * (c * ax - s * ay)
+    # rows 2-3, A's inner corners (ax, -ay) in B: y' = -s (ax - dx) + c (-ay - dy)
+    ex, ey = ax - dx, -ay - dy
+    G[:, 2:] = hw + margin_m + sigma * (c * ey - s * ex)
+    dG[:, 2:, 0] = sigma * s
+    dG[:, 2:, 1] = -sigma * c
+    dG[:, 2:, 2] = -sigma * (c * ex + s * ey)
     return G, dG
 
 

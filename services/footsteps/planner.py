@@ -8,7 +8,9 @@
 from __future__ import annotations
 
 import math
+import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -25,7 +27,7 @@ from services.footsteps.request import (
     PlanTrace,
     TaskResidual,
 )
-from services.ik.solver import HierarchicalSolver
+from services.ik.solver import HierarchicalSolver, SolverConfig
 from services.model import FootstepBounds, RobotModel, load_robot
 from services.walking.footsteps import Side, SolePose
 
@@ -34,6 +36,33 @@ RELATIVE_EPSILON = 0.3  # see _Algorithm1._stalled
 CONSTRAINT_TOL = 1e-3  # level-0 value (eqs. 5-6) accepted in a solution [m, rad]
 FLAT_TOL_M = 5e-3  # q_start: soles within this of the ground
 FLAT_TOL_RAD = 2e-2  # q_start: soles within this of horizontal
+# Each level's QP by the dual active-set method (services.ik.active_set): the same optimum as
+# proxsuite's, but bitwise reproducible, so that identical requests give identical plans (the
+# threshold decisions of Algorithm 1 amplify 1e-16 differences into different step counts).
+SOLVER_CONFIG = SolverConfig(qp_method="dual_active_set")
+# Solvers (with their pinocchio data, whose allocation grows as nv^3: ~8 ms at 12 steps) are kept per
+# chain structure and bounds, per thread: a request reuses those of the previous ones.
+SOLVER_CACHE_SIZE = 24
+_local = threading.local()
+
+
+def _solver_for(chain: VirtualChain, request: FootstepPlanRequest, dq_max: float) -> HierarchicalSolver:
+    """The hierarchical solver of ``chain`` with the request's joint limits and per-iteration bound
+    (cached; the solver holds no state between solves that changes its results)."""
+    cache: OrderedDict | None = getattr(_local, "solvers", None)
+    if cache is None:
+        cache = _local.solvers = OrderedDict()
+    key = (chain.key, id(chain.model), request.options.joint_margin_rad, dq_max)
+    solver = cache.get(key)
+    if solver is not None and solver.model is chain.model:
+        cache.move_to_end(key)
+        return solver
+    q_lower, q_upper = joint_limits(chain, request)
+    solver = HierarchicalSolver(chain.model, q_lower, q_upper, dq_max=dq_max, config=SOLVER_CONFIG)
+    cache[key] = solver
+    while len(cache) > SOLVER_CACHE_SIZE:
+        cache.popitem(last=False)
+    return solver
 
 
 @dataclass
@@ -99,8 +128,8 @@ class _Algorithm1:
         # step that no task needs is then not taken); once the chain grows, holding it next to the
         # root foot would only fight the added steps.
         self.levels = build_levels(chain, self.request, held, hold_front=chain.n_steps <= self.n_initial)
-        q_lower, q_upper = joint_limits(chain, self.request)
-        self.solver = HierarchicalSolver(chain.model, q_lower, q_upper, dq_max=self.dq_max)
+        self.solver = _solver_for(chain, self.request, self.dq_max)
+        self.solver.reset()  # (its QP warm starts come from this chain's iterations only)
         self.bound_q = self.solver.bound_q_idx
         self.q_lo = self.solver.q_lower[self.bound_q]
         self.q_hi = self.solver.q_upper[self.bound_q]
@@ -283,17 +312,17 @@ def _preference(request: FootstepPlanRequest, out: _Outcome, alternative: tuple)
 
 def _moved_footprints(out: _Outcome) -> bool:
     """Whether the outcome's plan has at least one step (a footprint off its initial pose)."""
-    data = out.chain.model.createData()
-    pin.framesForwardKinematics(out.chain.model, data, out.q_tilde)
-    return bool(_footsteps(out.chain, out.q_tilde, data))
+    return bool(_footsteps(out.chain, out.q_tilde))
 
 
-def _footsteps(chain: VirtualChain, q_tilde: np.ndarray, data: pin.Data) -> list[PlannedFootstep]:
+def _footsteps(chain: VirtualChain, q_tilde: np.ndarray) -> list[PlannedFootstep]:
     """Landings in walking order (F_1 .. F_{p-1}, then the front foot), null steps discarded: "the
     footprints that remained at their initial position and orientation are useless" (section 5.1)."""
     if chain.n_steps == 0:
         return []
-    poses = [*chain.footprint_poses(q_tilde)[1:], chain.front_footprint(data)]
+    robot = chain.robot
+    front = sole_pose_of(robot.sole_pose(chain.robot_q_world(q_tilde), chain.front_side, robot.new_data()))
+    poses = [*chain.footprint_poses(q_tilde)[1:], front]
     sides = [*chain.sides[1:], chain.front_side]
     current = {"left": chain.start.left, "right": chain.start.right}
     steps: list[PlannedFootstep] = []
@@ -415,9 +444,7 @@ def _result_of(
     robot: RobotModel, request: FootstepPlanRequest, stance: Stance, out: _Outcome
 ) -> FootstepPlanResult:
     chain = out.chain
-    data = chain.model.createData()
-    pin.framesForwardKinematics(chain.model, data, out.q_tilde)
-    steps = _footsteps(chain, out.q_tilde, data)
+    steps = _footsteps(chain, out.q_tilde)
     residuals = tuple(
         TaskResidual(t.name, float(v), t.tol(), bool(v <= t.tol()))
         for t, v in zip(request.tasks, out.values, strict=True)

@@ -9,7 +9,9 @@ import numpy as np
 
 from services.footsteps.chain import VirtualChain, footprint_frame
 from services.footsteps.constraints import (
+    FootprintDisksTask,
     FrontFootHoldTask,
+    FrontRelativePose,
     FrontStepBoundsTask,
     NonOverlapTask,
     RootSoleOnFootprintTask,
@@ -20,7 +22,6 @@ from services.ik.level import Level
 from services.ik.task import Task
 from services.ik.tasks.com_support_polygon import ComSupportPolygonTask
 from services.ik.tasks.feet_flat import FeetFlatTask
-from services.ik.tasks.foot_outside_disk import FootOutsideDiskTask
 from services.ik.tasks.frame_pose import FramePoseTask
 from services.ik.tasks.frame_position import FramePositionTask
 from services.ik.tasks.gaze import GazeTask
@@ -45,18 +46,22 @@ def robot_rest(robot: RobotModel, task: FootstepTask | None) -> np.ndarray:
     return np.array(robot.q_half_sitting)
 
 
-def constraint_tasks(chain: VirtualChain, request: FootstepPlanRequest) -> list[Task]:
+def constraint_tasks(
+    chain: VirtualChain, request: FootstepPlanRequest, front: FrontRelativePose | None = None
+) -> list[Task]:
     """Level 0: the permanent constraints of sections 3.2-3.3 on the chain with its current number of
-    steps (p = 0: the front foot also held at its initial sole)."""
+    steps (p = 0: the front foot also held at its initial sole). ``front``: the front sole's pose in
+    F_{p-1}, shared with the other tasks that read it."""
     robot, model, opts = chain.robot, chain.model, request.options
     gain = opts.gain
+    front = front or FrontRelativePose(chain)
     tasks: list[Task] = [RootSoleOnFootprintTask(chain, gain=gain)]
     if chain.n_steps == 0:
         tasks.append(
             FramePoseTask(
                 model,
                 chain.front_sole_frame,
-                se3_of(chain.start.of(chain.front_side)),
+                chain.T_root_world * se3_of(chain.start.of(chain.front_side)),
                 gain=gain,
                 name="front_foot_fixed",
             )
@@ -76,23 +81,19 @@ def constraint_tasks(chain: VirtualChain, request: FootstepPlanRequest) -> list[
         )
     )
     if chain.n_steps >= 1:
-        tasks.append(FrontStepBoundsTask(chain, gain=gain))
-        tasks.append(NonOverlapTask(chain, robot.sole_size_m, opts.overlap_margin_m, gain=gain))
-        movable = [footprint_frame(i) for i in range(1, chain.n_footprints)] + [chain.front_sole_frame]
-        for k, disk in enumerate(request.disks):
-            for frame in movable:
-                tasks.append(
-                    FootOutsideDiskTask(
-                        model,
-                        frame,
-                        robot.sole_size_m,
-                        (disk.x_m, disk.y_m),
-                        disk.radius_m,
-                        margin_m=opts.disk_margin_m,
-                        gain=gain,
-                        name=f"disk{k}:{frame}",
-                    )
+        tasks.append(FrontStepBoundsTask(chain, gain=gain, front=front))
+        tasks.append(NonOverlapTask(chain, robot.sole_size_m, opts.overlap_margin_m, gain=gain, front=front))
+        if request.disks:
+            tasks.append(
+                FootprintDisksTask(
+                    chain,
+                    robot.sole_size_m,
+                    [chain.model_point((d.x_m, d.y_m)) for d in request.disks],
+                    [d.radius_m for d in request.disks],
+                    margin_m=opts.disk_margin_m,
+                    gain=gain,
                 )
+            )
     if opts.self_collision and robot.collision_pairs:
         capsules = list(robot.capsules)  # services.model.Capsule is an IK capsule (CapsuleLike)
         index = {c.name: i for i, c in enumerate(robot.capsules)}
@@ -151,18 +152,19 @@ class SaturatedTask(Task):
 
 
 def desired_task(chain: VirtualChain, task: FootstepTask, gain: float, max_rate: dict[str, float]) -> Task:
-    """The IK task of one requested task on the chain model (saturated, see :class:`SaturatedTask`)."""
+    """The IK task of one requested task on the chain model (saturated, see :class:`SaturatedTask`);
+    targets are brought into the model's frame."""
     robot, model = chain.robot, chain.model
     inner: Task
     if task.kind == "reach":
         inner = FramePositionTask(
-            model, robot.frames.grasp(task.hand), task.target_m, gain=gain, name=task.name
+            model, robot.frames.grasp(task.hand), chain.model_point(task.target_m), gain=gain, name=task.name
         )
     elif task.kind == "gaze":
         inner = GazeTask(
             model,
             robot.frames.gaze,
-            task.target_m,
+            chain.model_point(task.target_m),
             axis_in_camera=GAZE_AXIS_IN_FRAME,
             gain=gain,
             name=task.name,
@@ -194,7 +196,8 @@ def build_levels(
     gain = request.options.gain
     o = request.options
     rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad}
-    levels = [Level(tuple(constraint_tasks(chain, request)), name="constraints")]
+    front = FrontRelativePose(chain)
+    levels = [Level(tuple(constraint_tasks(chain, request, front)), name="constraints")]
     for task in request.tasks:
         levels.append(Level((desired_task(chain, task, gain, rates),), name=task.name))
     for i, Q_init in held:
@@ -210,6 +213,6 @@ def build_levels(
         levels.append(Level((hold,), name=hold.name))
     if hold_front and chain.n_steps >= 1:
         folded = relative_pose(chain.start.of(chain.front_side), chain.start.of(chain.root_side))
-        hold_front = FrontFootHoldTask(chain, folded, gain=gain)
+        hold_front = FrontFootHoldTask(chain, folded, gain=gain, front=front)
         levels.append(Level((hold_front,), name=hold_front.name))
     return levels

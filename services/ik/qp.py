@@ -6,7 +6,11 @@ import numpy as np
 import scipy.linalg.lapack as lapack
 from proxsuite import proxqp
 
+from services.errors import InvalidRequestError
+from services.ik.active_set import ActiveSetError, solve_dual_active_set
+
 BIG = 1e20  # proxsuite's "no bound"
+QP_METHODS = ("working_set", "dual_active_set")
 
 
 class WorkingSetQP:
@@ -26,6 +30,12 @@ class WorkingSetQP:
     slacks the right sides), the KKT conditions of the inequality QP hold, so it is that QP's
     optimum (H is positive definite). Otherwise proxsuite solves it; QP objects are kept per
     dimension and warm-started from their previous solution.
+
+    ``method="dual_active_set"`` solves the QP instead by the dual active-set method of Goldfarb
+    and Idnani (:mod:`services.ik.active_set`): the same optimum (to the feasibility tolerance),
+    computed by a fixed sequence of dense operations, hence bitwise reproducible (proxsuite's
+    results vary from run to run at the 1e-15 level); the working set above remains the fallback
+    for degenerate data.
     """
 
     def __init__(
@@ -36,7 +46,11 @@ class WorkingSetQP:
         tol: float,
         preconditioner: bool = False,
         kkt_shortcut: bool = True,
+        method: str = "working_set",
     ) -> None:
+        if method not in QP_METHODS:
+            raise InvalidRequestError(f"qp method must be one of {list(QP_METHODS)}, got {method!r}")
+        self.method = method
         self.eps_abs = eps_abs
         self.max_iter = max_iter
         self.max_rounds = max_rounds
@@ -49,6 +63,16 @@ class WorkingSetQP:
         self.failures = 0
         self.kkt_solves = 0
         self.full_solves = 0
+        self.active_set_solves = 0
+        self.active_set_failures = 0
+        self.active_set_iterations = 0
+        # per QP key: (rows, first slack row, active rows, signs) of the last solution, a guess
+        self._active: dict[object, tuple[int, int, np.ndarray, np.ndarray]] = {}
+
+    def reset(self) -> None:
+        """Forget the active sets of earlier solves (the warm starts of ``dual_active_set``): the
+        solves that follow then depend on their own data only."""
+        self._active.clear()
 
     def solve(
         self,
@@ -59,9 +83,27 @@ class WorkingSetQP:
         hi: np.ndarray,
         first_slack_row: int,
         y_start: np.ndarray,
+        key: object = None,
     ) -> np.ndarray:
+        """The QP's optimum y. ``key`` names the QP (e.g. a level of the hierarchy): with
+        ``dual_active_set``, the active set of the last solve with the same key and row layout
+        starts this one (same optimum, fewer iterations when the QPs follow each other closely)."""
         r = H.shape[0]
         tol = self.tol
+        if self.method == "dual_active_set":
+            m = D.shape[0]
+            last = self._active.get(key) if key is not None else None
+            guess = last[2:] if last is not None and last[:2] == (m, first_slack_row) else None
+            try:
+                solution = solve_dual_active_set(H, g, D, lo, hi, first_slack_row, tol, guess=guess)
+            except ActiveSetError:
+                self.active_set_failures += 1  # degenerate data: the working set below
+            else:
+                self.active_set_solves += 1
+                self.active_set_iterations += solution.iterations
+                if key is not None:
+                    self._active[key] = (m, first_slack_row, solution.rows, solution.signs)
+                return solution.y
         values = D.dot(y_start)
         working = (values < lo - tol) | (values > hi + tol)
         upper = values > hi  # the side of each working row: the bound it crossed

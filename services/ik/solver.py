@@ -64,6 +64,9 @@ class SolverConfig:
             proxsuite.
         always_qp: solve every level with proxsuite even when the unconstrained minimizer is feasible
             (for tests comparing both paths; slower).
+        qp_method: ``"working_set"`` (KKT guesses, then proxsuite) or ``"dual_active_set"``
+            (Goldfarb-Idnani, ``services.ik.active_set``: the same optimum, bitwise reproducible
+            from run to run, and faster on these small QPs); see ``services.ik.qp.WorkingSetQP``.
     """
 
     rank_tol: float = 1e-6
@@ -74,6 +77,7 @@ class SolverConfig:
     max_qp_rounds: int = 8
     qp_kkt_shortcut: bool = True
     always_qp: bool = False
+    qp_method: str = "working_set"
 
 
 @dataclass(frozen=True)
@@ -189,6 +193,7 @@ class HierarchicalSolver:
             cfg.feasibility_tol,
             cfg.qp_preconditioner,
             cfg.qp_kkt_shortcut,
+            cfg.qp_method,
         )
         self._last: tuple | None = None
 
@@ -311,7 +316,7 @@ class HierarchicalSolver:
                     if violated or cfg.always_qp:
                         used_qp = True
                         damping = mu if M is not None else level.damping
-                        y = self._solve_qp(M, e, r, damping, Z_level, dq, y, K, K_lo, K_hi, system)
+                        y = self._solve_qp(M, e, r, damping, Z_level, dq, y, K, K_lo, K_hi, system, k)
                         candidate = dq + (y if Z_level is None else Z_level.dot(y))
                         # absorb the QP's tolerance: dq stays feasible for the levels below
                         values = K.dot(candidate)
@@ -342,8 +347,9 @@ class HierarchicalSolver:
         self._last = (tuple(levels), tuple(systems), dq, info)
         return dq
 
-    def _solve_qp(self, M, e, r, damping, Z_level, dq, y_free, K, K_lo, K_hi, system) -> np.ndarray:
-        """The level's QP (module docstring) in its variable y, on proxsuite."""
+    def _solve_qp(self, M, e, r, damping, Z_level, dq, y_free, K, K_lo, K_hi, system, k=None) -> np.ndarray:
+        """The level's QP (module docstring) in its variable y (``k``: the level's index, the key of
+        its warm start with ``qp_method="dual_active_set"``)."""
         base = K.dot(dq)
         blocks, lows, highs = [K if Z_level is None else K.dot(Z_level)], [K_lo - base], [K_hi - base]
         first_slack_row = K.shape[0]
@@ -368,7 +374,13 @@ class HierarchicalSolver:
         if not movable.all():
             first_slack_row = int(np.count_nonzero(movable[:first_slack_row]))
             D, lows_all, highs_all = D[movable], lows_all[movable], highs_all[movable]
-        return self._qp.solve(H, g, D, lows_all, highs_all, first_slack_row, y_free)
+        return self._qp.solve(H, g, D, lows_all, highs_all, first_slack_row, y_free, key=k)
+
+    def reset(self) -> None:
+        """Forget what earlier solves leave for the next ones (the QP warm starts of
+        ``qp_method="dual_active_set"``): the solves that follow depend on their own data only."""
+        self._qp.reset()
+        self._last = None
 
     @property
     def last_report(self) -> tuple[LevelReport, ...]:

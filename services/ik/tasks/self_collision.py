@@ -10,7 +10,7 @@ import pinocchio as pin
 from services.errors import InvalidRequestError
 from services.ik.capsule import CapsuleLike
 from services.ik.geometry import closest_point_on_segment, closest_points_segments
-from services.ik.kinematics import frame_id, point_jacobian
+from services.ik.kinematics import LWA, frame_id
 from services.ik.task import Task
 
 
@@ -63,6 +63,11 @@ class SelfCollisionTask(Task):
         self.margin_m = float(margin_m)
         self.activation_m = float(activation_m)
         self.max_rows_per_pair = max_rows_per_pair
+        # distinct frames: their placements and Jacobians are read once per evaluation
+        self._frames, self._frame_of = np.unique(self.frame_ids, return_inverse=True)
+        self._frames = [int(f) for f in self._frames]
+        self._n_frames = len(self._frames)
+        self._axis_local = self.p1_local - self.p0_local
 
     def _pairs_by_name(self, pairs: Sequence[tuple[str, str]]) -> list[tuple[int, int]]:
         index = {c.name: i for i, c in enumerate(self.capsules)}
@@ -73,15 +78,23 @@ class SelfCollisionTask(Task):
             )
         return [(index[a], index[b]) for a, b in pairs]
 
+    def _frame_placements(self, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (f, 3, 3) and translations (f, 3) of the capsules' distinct frames."""
+        rotations = np.empty((self._n_frames, 3, 3))
+        translations = np.empty((self._n_frames, 3))
+        for k, fid in enumerate(self._frames):
+            T = data.oMf[fid]
+            rotations[k] = T.rotation
+            translations[k] = T.translation
+        return rotations, translations
+
     def segments_world(self, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
         """World endpoints (k x 3 each) of every capsule segment."""
-        p0 = np.empty_like(self.p0_local)
-        p1 = np.empty_like(self.p1_local)
-        for i, fid in enumerate(self.frame_ids):
-            T = data.oMf[int(fid)]
-            p0[i] = T.rotation @ self.p0_local[i] + T.translation
-            p1[i] = T.rotation @ self.p1_local[i] + T.translation
-        return p0, p1
+        return self._segments(*self._frame_placements(data))
+
+    def _segments(self, rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        R, t = rotations[self._frame_of], translations[self._frame_of]
+        return np.einsum("kij,kj->ki", R, self.p0_local) + t, np.einsum("kij,kj->ki", R, self.p1_local) + t
 
     def distances(self, data: pin.Data) -> np.ndarray:
         """Surface distance [m] of every checked pair (negative when the capsules overlap)."""
@@ -99,66 +112,114 @@ class SelfCollisionTask(Task):
         return self.compute(q, data)[1]
 
     def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
-        p0, p1 = self.segments_world(data)
+        rotations, translations = self._frame_placements(data)
+        p0, p1 = self._segments(rotations, translations)
         a, b = self.pair_a, self.pair_b
         s, t = closest_points_segments(p0[a], p1[a], p0[b], p1[b])
         A = p0[a] + s[:, None] * (p1[a] - p0[a])
         B = p0[b] + t[:, None] * (p1[b] - p0[b])
         clearance = self.radii[a] + self.radii[b] + self.margin_m
-        active = np.flatnonzero(np.linalg.norm(B - A, axis=1) < clearance + self.activation_m)
-        values: list[float] = []
-        rows: list[np.ndarray] = []
-        for k in active:
-            i, j = int(a[k]), int(b[k])
-            for s_i, t_j in self._point_pairs(p0, p1, i, j, float(s[k]), float(t[k]), clearance[k]):
-                value, row = self._row(data, i, j, s_i, t_j, clearance[k])
-                values.append(value)
-                rows.append(row)
-        if not rows:
+        gap = np.sqrt(np.einsum("ij,ij->i", B - A, B - A))
+        active = np.flatnonzero(gap < clearance + self.activation_m)
+        if not active.shape[0]:
             return np.zeros(0), np.zeros((0, self.model.nv))
-        return np.array(values), np.vstack(rows)
+        rows_i, rows_j, rows_s, rows_t, rows_clear = self._point_pairs(
+            p0, p1, a[active], b[active], s[active], t[active], clearance[active]
+        )
+        # rows: G = clearance - |AB|, dG = -n^T (J_B - J_A) with the points fixed in their frames
+        fa, fb = self._frame_of[rows_i], self._frame_of[rows_j]
+        A_off = np.einsum(
+            "rij,rj->ri", rotations[fa], self.p0_local[rows_i] + rows_s[:, None] * self._axis_local[rows_i]
+        )
+        B_off = np.einsum(
+            "rij,rj->ri", rotations[fb], self.p0_local[rows_j] + rows_t[:, None] * self._axis_local[rows_j]
+        )
+        AB = (translations[fb] + B_off) - (translations[fa] + A_off)
+        distance = np.sqrt(np.einsum("ij,ij->i", AB, AB))
+        far = distance > 1e-9
+        n = np.where(far[:, None], AB / np.where(far, distance, 1.0)[:, None], np.array([0.0, 0.0, 1.0]))
+        used = np.zeros(self._n_frames, dtype=bool)
+        used[fa] = True
+        used[fb] = True
+        J = np.empty((self._n_frames, 6, self.model.nv))
+        for k in np.flatnonzero(used).tolist():
+            J[k] = pin.getFrameJacobian(self.model, data, self._frames[k], LWA)
+        # point velocity v + w x r: n^T (v + w x r) = n^T v + (r x n)^T w
+        rows = np.einsum("ri,riv->rv", n, J[fb, :3] - J[fa, :3])
+        rows += np.einsum("ri,riv->rv", _cross(B_off, n), J[fb, 3:])
+        rows -= np.einsum("ri,riv->rv", _cross(A_off, n), J[fa, 3:])
+        return rows_clear - distance, -rows
 
     def _point_pairs(
-        self, p0: np.ndarray, p1: np.ndarray, i: int, j: int, s: float, t: float, clearance: float
-    ) -> list[tuple[float, float]]:
-        pairs = [(s, t)]
+        self,
+        p0: np.ndarray,
+        p1: np.ndarray,
+        ai: np.ndarray,
+        bj: np.ndarray,
+        s: np.ndarray,
+        t: np.ndarray,
+        clearance: np.ndarray,
+    ) -> tuple[np.ndarray, ...]:
+        """Segment parameters of the rows of the active pairs (i, j): the closest points, then up to
+        ``max_rows_per_pair - 1`` endpoint-to-segment pairs within the activation distance, closest
+        first, each more than 1 cm (along either segment) from the pairs already chosen."""
         if self.max_rows_per_pair == 1:
-            return pairs
+            return ai, bj, s, t, clearance
         # Endpoint-to-segment candidates: each endpoint of one segment against the other segment.
-        ends_i = np.array([p0[i], p1[i]])
-        ends_j = np.array([p0[j], p1[j]])
-        t_of_i = closest_point_on_segment(ends_i, np.repeat(p0[j][None], 2, 0), np.repeat(p1[j][None], 2, 0))
-        s_of_j = closest_point_on_segment(ends_j, np.repeat(p0[i][None], 2, 0), np.repeat(p1[i][None], 2, 0))
-        candidates = [(0.0, t_of_i[0]), (1.0, t_of_i[1]), (s_of_j[0], 0.0), (s_of_j[1], 1.0)]
-        scored = []
-        for s_c, t_c in candidates:
-            A = p0[i] + s_c * (p1[i] - p0[i])
-            B = p0[j] + t_c * (p1[j] - p0[j])
-            distance = float(np.linalg.norm(B - A))
-            if distance < clearance + self.activation_m:
-                scored.append((distance, s_c, t_c))
-        scored.sort()
-        len_i = float(np.linalg.norm(p1[i] - p0[i]))
-        len_j = float(np.linalg.norm(p1[j] - p0[j]))
-        for _, s_c, t_c in scored:
-            if len(pairs) == self.max_rows_per_pair:
-                break
-            # A candidate within 1 cm of a chosen pair on both segments adds no information.
-            if all(abs(s_c - s_p) * len_i > 0.01 or abs(t_c - t_p) * len_j > 0.01 for s_p, t_p in pairs):
-                pairs.append((s_c, t_c))
-        return pairs
+        k = ai.shape[0]
+        ends_i = np.stack((p0[ai], p1[ai]), 1).reshape(2 * k, 3)
+        ends_j = np.stack((p0[bj], p1[bj]), 1).reshape(2 * k, 3)
+        t_of_i = closest_point_on_segment(ends_i, np.repeat(p0[bj], 2, 0), np.repeat(p1[bj], 2, 0)).reshape(
+            k, 2
+        )
+        s_of_j = closest_point_on_segment(ends_j, np.repeat(p0[ai], 2, 0), np.repeat(p1[ai], 2, 0)).reshape(
+            k, 2
+        )
+        cand_s = np.concatenate((np.zeros((k, 1)), np.ones((k, 1)), s_of_j), 1)
+        cand_t = np.concatenate((t_of_i, np.zeros((k, 1)), np.ones((k, 1))), 1)
+        d_i, d_j = p1[ai] - p0[ai], p1[bj] - p0[bj]
+        A = p0[ai][:, None] + cand_s[..., None] * d_i[:, None]
+        B = p0[bj][:, None] + cand_t[..., None] * d_j[:, None]
+        cand_d = np.sqrt(np.einsum("kci,kci->kc", B - A, B - A))
+        len_i = np.sqrt(np.einsum("ij,ij->i", d_i, d_i)).tolist()
+        len_j = np.sqrt(np.einsum("ij,ij->i", d_j, d_j)).tolist()
+        within = (cand_d < (clearance + self.activation_m)[:, None]).tolist()
+        cand_d, cand_s, cand_t = cand_d.tolist(), cand_s.tolist(), cand_t.tolist()
+        out_i, out_j, out_s, out_t, out_c = [], [], [], [], []
+        for r, (i, j, s_r, t_r) in enumerate(
+            zip(ai.tolist(), bj.tolist(), s.tolist(), t.tolist(), strict=True)
+        ):
+            pairs = [(s_r, t_r)]
+            scored = sorted((cand_d[r][c], cand_s[r][c], cand_t[r][c]) for c in range(4) if within[r][c])
+            for _, s_c, t_c in scored:
+                if len(pairs) == self.max_rows_per_pair:
+                    break
+                # A candidate within 1 cm of a chosen pair on both segments adds no information.
+                if all(
+                    abs(s_c - s_p) * len_i[r] > 0.01 or abs(t_c - t_p) * len_j[r] > 0.01 for s_p, t_p in pairs
+                ):
+                    pairs.append((s_c, t_c))
+            for s_p, t_p in pairs:
+                out_i.append(i)
+                out_j.append(j)
+                out_s.append(s_p)
+                out_t.append(t_p)
+                out_c.append(clearance[r])
+        return (
+            np.array(out_i, dtype=int),
+            np.array(out_j, dtype=int),
+            np.array(out_s),
+            np.array(out_t),
+            np.array(out_c),
+        )
 
-    def _row(
-        self, data: pin.Data, i: int, j: int, s: float, t: float, clearance: float
-    ) -> tuple[float, np.ndarray]:
-        A_local = self.p0_local[i] + s * (self.p1_local[i] - self.p0_local[i])
-        B_local = self.p0_local[j] + t * (self.p1_local[j] - self.p0_local[j])
-        A, J_A = point_jacobian(self.model, data, int(self.frame_ids[i]), A_local)
-        B, J_B = point_jacobian(self.model, data, int(self.frame_ids[j]), B_local)
-        AB = B - A
-        distance = float(np.linalg.norm(AB))
-        n = AB / distance if distance > 1e-9 else np.array([0.0, 0.0, 1.0])
-        return clearance - distance, -(n @ (J_B - J_A))
+
+_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (k, 3) arrays (np.cross without its axis handling)."""
+    return a[:, _NEXT] * b[:, _PREV] - a[:, _PREV] * b[:, _NEXT]
 
 
 def default_pairs(model: pin.Model, frame_ids: np.ndarray) -> list[tuple[int, int]]:

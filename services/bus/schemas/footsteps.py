@@ -1,0 +1,138 @@
+"""Messages of the ``footsteps`` service: footstep planning as inverse kinematics (Kanoun, Laumond,
+Yoshida, ``000_49c4a782ba599e49.txt``): where to put the feet, and the final whole-body posture, so
+that the hand reaches a point, the gaze stays on a point and the posture stays comfortable.
+
+World frame, z up, flat ground at z = 0; poses on the ground are (x [m], y [m], yaw [rad]).
+Configurations follow the pinocchio layout of the request's model
+(``q = [x, y, z, qx, qy, qz, qw, joints...]``, joint order ``PlanReply.joint_names``); they travel as
+raw float64 bytes (binary frames of ``services.bus.codec``).
+
+A request typed by hand needs only the tasks::
+
+    humanoid call footsteps/plan '{"tasks": [{"kind": "reach", "target": [1.5, -0.2, 0.8]},
+                                   {"kind": "posture"}], "disks": [{"x": 0.8, "y": 0.0, "radius": 0.2}]}'
+
+(``q_start`` omitted: half-sitting with the mid-feet frame on the world origin.)
+"""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+
+from services.bus.spec import EndpointSpec
+
+
+class Task(msgspec.Struct, kw_only=True, frozen=True):
+    """A desired task (section 4 of the paper); the order of ``PlanRequest.tasks`` is the priority order.
+
+    ``reach``: the grasp frame of ``hand`` at ``target``; ``gaze``: the gaze axis through ``target``
+    (OG x OB = 0, section 4.3); ``posture``: q - q_rest = 0 over the actuated joints (eq. 14).
+    """
+
+    kind: str  # "reach", "gaze" or "posture"
+    target: list[float] | None = None  # reach/gaze: [x, y, z] world [m]
+    hand: str = "right"  # reach: "left" or "right"
+    tolerance: float | None = None  # solved below this value: [m] reach/gaze, [rad] posture; None: 2 mm,
+    #                                 5 mm, and for the posture none (an objective, never required)
+    epsilon: float | None = None  # minimum value decrease per iteration of eq. (15) [m or rad]; None: default
+    q_rest: np.ndarray | None = None  # posture: (nq,) float64 rest configuration; None: half-sitting
+
+
+class Disk(msgspec.Struct, kw_only=True, frozen=True):
+    """A disk on the ground that no footprint may enter (section 4.1): centre (x, y), radius [m]."""
+
+    x: float
+    y: float
+    radius: float
+
+
+class Options(msgspec.Struct, kw_only=True, frozen=True):
+    """Numerical settings of the planner (``services.footsteps.request.PlannerOptions``); None keeps
+    the planner's default."""
+
+    gain: float | None = None  # lambda of eqs. (2), (4), (11), (13)
+    alpha: float | None = None  # integration step of q <- q + alpha dq, in (0, 1]
+    dq_max: float | None = None  # bound on |alpha dq| per coordinate per iteration [rad or m]
+    com_margin_m: float | None = None  # CoM projection kept this far inside the support polygon [m]
+    overlap_margin_m: float | None = None  # gap between the footprints of a support polygon [m]
+    disk_margin_m: float | None = None  # gap between a footprint and a disk [m]
+    collision_margin_m: float | None = None  # gap between capsules (eq. 12) [m]
+    self_collision: bool | None = None  # eq. (13) on/off
+    joint_margin_rad: float | None = None  # joint limits kept this far inside the range [rad]
+    step_region_scale: float | None = None  # step bounds shrunk towards their middle, in (0, 1]
+    max_rate_m: float | None = None  # saturation of the reach/gaze desired rate [m per IK time]
+    max_rate_rad: float | None = None  # saturation of the posture desired rate [rad per IK time]
+
+
+class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """What to plan. The planner is stateless: plan from the robot's measured configuration."""
+
+    tasks: list[Task]  # highest priority first
+    model: str = "hrp2_like"  # services.model.load_robot name: hrp2_like or talos
+    q_start: np.ndarray | None = None  # (nq,) float64, both soles flat on the ground; None: half-sitting
+    disks: list[Disk] = []
+    front_foot: str = "auto"  # foot of the last step, "left"/"right"; "auto": both solved, the one with
+    #                           fewer steps kept (section 5.2: this is the choice of the start foot)
+    initial_steps: int = 0  # initial guess of the number of steps (section 5.1)
+    max_steps: int = 20  # Algorithm 1 never grows the chain beyond this many steps
+    max_iterations: int = 2000  # IK iterations per front-foot choice
+    time_budget_s: float = 10.0  # wall-clock budget; past it: infeasible with the residuals reached [s]
+    options: Options | None = None
+    trace: bool = False  # also return the task values at every iteration (Fig. 10)
+
+
+class Footstep(msgspec.Struct, kw_only=True, frozen=True):
+    """A landing: the ``side`` sole at (x, y) [m] with ``yaw`` [rad], world frame."""
+
+    side: str
+    x: float
+    y: float
+    yaw: float
+
+
+class Residual(msgspec.Struct, kw_only=True, frozen=True):
+    """A task's final value (eqs. 5-6: [m] reach/gaze, [rad] posture) against its tolerance (None: an
+    objective, never required)."""
+
+    name: str  # e.g. "reach:right", "gaze", "posture"
+    value: float
+    tolerance: float | None
+    solved: bool
+
+
+class Alternative(msgspec.Struct, kw_only=True, frozen=True):
+    """A front-foot choice that was solved (section 5.2)."""
+
+    front_foot: str
+    solved: bool
+    steps: int
+    posture_residual_rad: float  # ||q - q_rest|| over the actuated joints [rad]
+
+
+class PlanReply(msgspec.Struct, kw_only=True, frozen=True):
+    """The plan: footsteps in walking order, the final whole-body configuration, residuals."""
+
+    model: str  # robot model the configuration belongs to
+    joint_names: list[str]  # actuated joints in q order (after the 7 base coordinates)
+    footsteps: list[Footstep]  # walking order; footprints that never moved are discarded (section 5.1)
+    left_start: list[float]  # [x, y, yaw] of the left sole before the first step
+    right_start: list[float]  # [x, y, yaw] of the right sole before the first step
+    q_final: np.ndarray  # (nq,) float64 final configuration: the robot on the last footprints
+    residuals: list[Residual]  # every task, in priority order
+    iterations: int  # IK iterations of the retained front-foot choice
+    steps_added_at: list[int]  # iterations after which Algorithm 1 added a footstep
+    solve_time_s: float  # wall time of the planning (both front-foot choices) [s]
+    front_foot: str  # front-foot choice retained ("left" or "right")
+    chain_steps: int  # steps of the virtual chain before the null steps were discarded
+    alternatives: list[Alternative]  # every front-foot choice solved
+    task_values: np.ndarray | None = None  # (iterations + 1, n_tasks) float64 values per iteration (trace)
+
+
+PLAN = EndpointSpec(
+    "footsteps",
+    "plan",
+    PlanRequest,
+    PlanReply,
+    "footstep planning as inverse kinematics: footsteps and final posture for hand/gaze/posture tasks",
+)
