@@ -20,7 +20,8 @@ class SimConfig:
             off (default): execute as fast as possible and freeze physics between requests.
         physics_dt_s: physics step [s] (1 kHz).
         control_dt_s: trajectory sample period and state publishing period [s] (5 ms = 200 Hz).
-        solver_iterations: pybullet constraint solver iterations per step.
+        solver_iterations: pybullet constraint solver iterations per step (None: the robot's
+            ``pybullet_solver_iterations``, 20 for hrp2_like, 50 for talos).
         position_gain, velocity_gain: pybullet position-control gains of every joint (the motor is a
             constraint: ``kp (q* - q) / dt + kd (v* - v)``, forces capped at the URDF effort limits).
         max_start_jump_rad: a trajectory whose first sample is farther than this from the current
@@ -38,7 +39,7 @@ class SimConfig:
     realtime: bool = False
     physics_dt_s: float = 0.001
     control_dt_s: float = 0.005
-    solver_iterations: int = 20
+    solver_iterations: int | None = None
     position_gain: float = 0.3
     velocity_gain: float = 1.0
     max_start_jump_rad: float = 0.2
@@ -67,9 +68,14 @@ class SimConfig:
             raise InvalidRequestError(
                 "sim config: settle_s, contact_force_n and loaded_foot_force_n must be >= 0"
             )
-        if self.solver_iterations < 1:
+        if self.solver_iterations is not None and (
+            isinstance(self.solver_iterations, bool)
+            or not isinstance(self.solver_iterations, int)
+            or self.solver_iterations < 1
+        ):
             raise InvalidRequestError(
-                f"sim config: solver_iterations must be >= 1, got {self.solver_iterations}"
+                "sim config: solver_iterations must be an integer >= 1 (or null: the robot's), "
+                f"got {self.solver_iterations!r}"
             )
         ratio = self.control_dt_s / self.physics_dt_s
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

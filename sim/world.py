@@ -85,6 +85,13 @@ class World:
         self._data = self.robot.new_data()
         self.reset(scene, seed)
 
+    @property
+    def solver_iterations(self) -> int:
+        """pybullet constraint-solver iterations per physics step: the config's, else the robot's."""
+        if self.config.solver_iterations is not None:
+            return self.config.solver_iterations
+        return self.robot.pybullet_solver_iterations
+
     # ---------------------------------------------------------------------------------- life cycle
     def close(self) -> None:
         """Disconnect from pybullet (the world is unusable afterwards)."""
@@ -115,7 +122,7 @@ class World:
         p.resetSimulation(physicsClientId=c)
         p.setGravity(0.0, 0.0, -9.81, physicsClientId=c)
         p.setPhysicsEngineParameter(
-            fixedTimeStep=cfg.physics_dt_s, numSolverIterations=cfg.solver_iterations, physicsClientId=c
+            fixedTimeStep=cfg.physics_dt_s, numSolverIterations=self.solver_iterations, physicsClientId=c
         )
         self.layout = new_layout
         self.floor_id, self.bodies = build_scene(new_layout, c)

@@ -245,6 +245,38 @@ def test_pybullet_state_round_trip_and_frames_match(name, client):
             assert np.allclose(T_world_link.homogeneous, T_world_joint.homogeneous, atol=1e-6)
 
 
+@pytest.mark.parametrize("name", ROBOTS)
+def test_pybullet_feet_collide_through_a_flat_sole_box_at_the_sole_frame(name, client):
+    """talos's foot mesh has a non-flat bottom: in pybullet (only) each foot collides through one box of
+    the sole rectangle whose bottom face is the sole frame; hrp2_like's URDF foot already is such a box."""
+    robot = load_robot(name)
+    sim = PybulletRobot(robot, client)
+    q = robot.q_half_sitting
+    for side in ("left", "right"):
+        link = sim.sole_links[side]
+        shapes = p.getCollisionShapeData(sim.body_id, link, physicsClientId=client)
+        assert [shape[2] for shape in shapes] == [p.GEOM_BOX]
+        size = np.array(shapes[0][3])
+        np.testing.assert_allclose(size[:2], robot.sole_size_m, atol=1e-9)
+        # Box corners in the world: pybullet gives the shape pose in the link's inertial frame.
+        state = p.getLinkState(sim.body_id, link, computeForwardKinematics=1, physicsClientId=client)
+        T_world_inertial = pin.XYZQUATToSE3(np.array([*state[0], *state[1]]))
+        T_world_box = T_world_inertial * pin.XYZQUATToSE3(np.array([*shapes[0][5], *shapes[0][6]]))
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        corners = (signs * size / 2) @ T_world_box.rotation.T + T_world_box.translation
+        T_sole = robot.sole_pose(q, side)
+        local = (corners - T_sole.translation) @ T_sole.rotation  # corners in the sole frame
+        bottom = local[local[:, 2] < size[2] / 2]
+        np.testing.assert_allclose(bottom[:, 2], 0.0, atol=1e-9)  # the bottom face is the sole
+        half = np.broadcast_to(np.array(robot.sole_size_m) / 2, (4, 2))
+        np.testing.assert_allclose(np.abs(bottom[:, :2]), half, atol=1e-9)
+    if name == "talos":
+        assert robot.pybullet_sole_box_m == 0.02 and robot.pybullet_solver_iterations == 50
+        # The pinocchio model keeps the URDF's foot mesh.
+        geoms = robot.build_geometry_model("collision").geometryObjects
+        assert any(g.name.startswith("leg_left_6_link") and g.meshPath.endswith(".stl") for g in geoms)
+
+
 def _stand(name: str, cid: int, duration_s: float = 10.0, dt_s: float = 1e-3) -> tuple[float, float]:
     """Max base tilt [deg] and max sole slip [m] while standing in half-sitting under position control."""
     robot = load_robot(name)
@@ -365,6 +397,39 @@ def test_params_validation_messages():
     (dx, dy, dth) = robot.params.footstep_bounds.for_swing("right")
     assert dy == (-0.25, -0.07) and dx == (-0.22, 0.22)
     assert dth == pytest.approx((-math.pi / 4, 0.1))
+
+
+def test_convex_hull_keeps_rectangle_corners_that_differ_by_float_noise():
+    """A rectangle given twice (the second copy off by float noise) has a 4-vertex hull. The former
+    monotone chain (cross product <= 1e-12 m^2 = collinear) dropped real corners next to pairs of
+    near-duplicate points: here it returned 3 vertices, without the corner (1.1434, -2.0590)."""
+    pts = np.array(
+        [
+            [1.1434142164861272, -1.9190459993194082],
+            [1.143414216486128, -2.059045999319408],
+            [1.1434142164861285, -2.0590459993194075],
+            [1.1434142164861285, -1.9190459993194076],
+            [1.3834142164861265, -1.9190459993194078],
+            [1.3834142164861287, -2.0590459993194075],
+            [1.3834142164861287, -1.9190459993194076],
+            [1.3834142164861292, -2.0590459993194066],
+        ]
+    )
+    hull = convex_hull_ccw(pts)
+    assert hull.shape == (4, 2)
+    for corner in ([1.1434, -1.9190], [1.1434, -2.0590], [1.3834, -2.0590], [1.3834, -1.9190]):
+        assert np.abs(hull - corner).max(axis=1).min() < 1e-4
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        yaw = rng.choice([0.0, math.pi / 2, math.pi, rng.uniform(-math.pi, math.pi)])
+        c, s = math.cos(yaw), math.sin(yaw)
+        corners = np.array([[0.12, 0.07], [-0.12, 0.07], [-0.12, -0.07], [0.12, -0.07]]) @ np.array(
+            [[c, s], [-s, c]]
+        ) + rng.uniform(-2.0, 2.0, 2)
+        noisy = corners + rng.normal(0.0, 1e-15, corners.shape)
+        hull = convex_hull_ccw(np.vstack([corners, noisy, corners.mean(axis=0)]))
+        assert hull.shape == (4, 2)
+        assert all(polygon_signed_margin(hull, pt) >= -1e-12 for pt in corners)
 
 
 def test_geometry_helpers():

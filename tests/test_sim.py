@@ -12,6 +12,7 @@ import pytest
 from services.errors import InvalidRequestError, NotFoundError
 from sim import motions
 from sim.cameras import Intrinsics, look_at, project, projection_matrix, view_matrix
+from sim.config import SimConfig
 from sim.scene import COLOURS, ObjectSpec, available_scenes, layout, load_scene, parse_scene, with_object
 from sim.world import World
 
@@ -173,6 +174,21 @@ def test_stands_in_half_sitting_for_10_s_without_drifting(model):
         for side, p0 in soles0.items():
             assert np.linalg.norm(world.robot.sole_pose(end.q, side).translation[:2] - p0[:2]) < 1.5e-3
         assert world.collisions() == []
+
+
+def test_solver_iterations_are_the_robots_unless_configured():
+    import pybullet as p
+
+    assert SimConfig().solver_iterations is None
+    for model, expected in (("hrp2_like", 20), ("talos", 50)):
+        with World(model, "empty") as world:
+            assert world.solver_iterations == expected == world.robot.pybullet_solver_iterations
+            params = p.getPhysicsEngineParameters(physicsClientId=world.client)
+            assert params["numSolverIterations"] == expected
+    with World("talos", "empty", config=SimConfig(solver_iterations=30)) as world:
+        assert p.getPhysicsEngineParameters(physicsClientId=world.client)["numSolverIterations"] == 30
+    with pytest.raises(InvalidRequestError, match=r"solver_iterations must be an integer >= 1 .* got 0"):
+        SimConfig(solver_iterations=0)
 
 
 @pytest.mark.parametrize("model", ["hrp2_like", "talos"])

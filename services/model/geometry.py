@@ -12,27 +12,53 @@ def yaw_of(R: np.ndarray) -> float:
     return math.atan2(float(R[1, 0]), float(R[0, 0]))
 
 
-def convex_hull_ccw(points_xy: np.ndarray) -> np.ndarray:
+HULL_GRID_M = 1e-9
+"""Grid [m] onto which :func:`convex_hull_ccw` snaps its points, and its collinearity tolerance: points
+that differ by float noise are one point; a vertex closer than this to the segment joining its neighbours
+on the hull is dropped."""
+
+
+def convex_hull_ccw(points_xy: np.ndarray, grid_m: float = HULL_GRID_M) -> np.ndarray:
     """Convex hull of 2-D points, counter-clockwise, without collinear points (Andrew's monotone chain)
-    (M, 2)."""
-    pts = np.unique(np.asarray(points_xy, dtype=float).reshape(-1, 2), axis=0)
-    if len(pts) <= 2:
-        return pts
+    (M, 2) [m]; the vertices are input points.
 
-    def cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-        return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+    Robust to float noise: the points are snapped to a ``grid_m`` grid first, so that copies of a point
+    that differ by rounding (a sole corner computed twice, through different transforms) are one point,
+    and a left-turning vertex is dropped only if it lies within ``grid_m`` of the segment joining its
+    neighbours (a distance to the segment, not an area: with near-duplicate neighbours the former test,
+    cross product <= 1e-12 m^2, dropped real corners of a rectangle). A rectangle keeps its four
+    corners.
+    """
+    pts = np.asarray(points_xy, dtype=float).reshape(-1, 2)
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("convex_hull_ccw: points must be finite")
+    snapped, first = np.unique(np.round(pts / grid_m), axis=0, return_index=True)
+    if len(snapped) <= 2:
+        return pts[first]
 
-    lower: list[np.ndarray] = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 1e-12:
-            lower.pop()
-        lower.append(p)
-    upper: list[np.ndarray] = []
-    for p in pts[::-1]:
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-12:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    grid = snapped.tolist()  # Python floats: a few times faster than numpy scalars here
+
+    def keep(o: list[float], a: list[float], b: list[float]) -> bool:
+        """True if o -> a -> b turns left and a is farther than one grid step from the segment o-b
+        (grid units; o and b are distinct grid points)."""
+        bx, by, ax, ay = b[0] - o[0], b[1] - o[1], a[0] - o[0], a[1] - o[1]
+        if ax * by - ay * bx <= 0.0:
+            return False
+        t = min(max((ax * bx + ay * by) / (bx * bx + by * by), 0.0), 1.0)
+        return math.hypot(ax - t * bx, ay - t * by) > 1.0
+
+    def chain(order: range) -> list[int]:
+        out: list[int] = []
+        for i in order:
+            while len(out) >= 2 and not keep(grid[out[-2]], grid[out[-1]], grid[i]):
+                out.pop()
+            out.append(i)
+        return out
+
+    n = len(grid)
+    lower, upper = chain(range(n)), chain(range(n - 1, -1, -1))
+    hull = lower[:-1] + upper[:-1]
+    return pts[first[hull]]
 
 
 def polygon_signed_margin(polygon_ccw: np.ndarray, point_xy: np.ndarray) -> float:

@@ -8,6 +8,8 @@ pybullet facts handled here (CONVENTIONS §5):
 - inertias come from the URDF (``URDF_USE_INERTIA_FROM_FILE``), not recomputed from collision shapes.
 - after ``resetJointState`` contact queries still see the old pose until a ``stepSimulation``.
 - ``package://`` mesh paths (talos) are resolved into a cached copy of the URDF with absolute paths.
+- soles must be exactly flat: a robot whose foot collision mesh is not (``robot.pybullet_sole_box_m``,
+  talos) gets a box of the sole rectangle under each foot instead, in this copy only.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import pybullet as p
 
 from services.errors import InvalidRequestError
 from services.model.robot_model import FREE_FLYER_NQ, FREE_FLYER_NV, RobotModel
-from services.model.urdf_flatten import flatten_fixed_joints
+from services.model.urdf_flatten import flatten_fixed_joints, replace_foot_collisions_with_sole_boxes
 
 _PACKAGE_RE = re.compile(r'filename="package://([^"]+)"')
 
@@ -33,8 +35,10 @@ def pybullet_urdf_path(robot: RobotModel, flatten: bool = True) -> tuple[Path, d
     """A URDF pybullet can load for ``robot`` and the map of merged link -> host link.
 
     ``package://`` paths are made absolute (resolved against ``robot.package_dirs``) and, if ``flatten``,
-    fixed joints are folded into their parents with exact mass properties (see ``urdf_flatten``). The
-    result is cached under the system temp directory, keyed by its content.
+    fixed joints are folded into their parents with exact mass properties (see ``urdf_flatten``). If
+    ``robot.pybullet_sole_box_m`` is set, the collision shapes of each foot are replaced with a box of the
+    sole rectangle (``robot.sole_size_m``) that thick, its bottom face on the sole frame. The result is
+    cached under the system temp directory, keyed by its content.
     """
     text = robot.urdf_path.read_text(encoding="utf-8")
 
@@ -49,6 +53,11 @@ def pybullet_urdf_path(robot: RobotModel, flatten: bool = True) -> tuple[Path, d
         )
 
     text = _PACKAGE_RE.sub(resolve, text)
+    if robot.pybullet_sole_box_m is not None:
+        soles = tuple(robot.frames.sole(side) for side in ("left", "right"))
+        text, _ = replace_foot_collisions_with_sole_boxes(
+            text, soles, robot.sole_size_m, robot.pybullet_sole_box_m
+        )
     merged: dict[str, str] = {}
     if flatten:
         text, merged = flatten_fixed_joints(text)
@@ -82,6 +91,8 @@ class PybulletRobot:
         lateral_friction: float | None = 1.0,
         sole_spinning_friction: float = 0.01,
         sole_friction_anchor: bool = True,
+        sole_contact_stiffness_n_m: float | None = 1e6,
+        sole_contact_damping_n_s_m: float | None = 2e4,
     ) -> None:
         """Load ``robot`` into pybullet ``client`` and place it at ``q`` (default: half-sitting at origin).
 
@@ -89,7 +100,17 @@ class PybulletRobot:
         get torsional friction ``sole_spinning_friction`` [m] and pybullet's friction anchor: without them a
         position-controlled robot standing on two flat box soles slowly spins in place (stick-slip of
         the 4-point box contacts, about 2 mm of foot slip in 10 s).
+
+        The sole contacts are a spring-damper (``sole_contact_stiffness_n_m`` [N/m],
+        ``sole_contact_damping_n_s_m`` [N s/m]; None for both: pybullet's rigid contact), like the rubber
+        of a real sole (HRP-2's ankle has rubber bushes): a standing robot sinks about 0.1 mm. pybullet's
+        rigid contact has no damping; a position-controlled robot on it rocks on its soles at about 3 Hz,
+        undamped, and every weight transfer of a walk excites that rocking: with 0.1 s of double support
+        5 of 9 walks tried fell (backward, curved, in place...); with these contacts none did
+        (services/model/README.md).
         """
+        if (sole_contact_stiffness_n_m is None) != (sole_contact_damping_n_s_m is None):
+            raise InvalidRequestError("give both sole contact stiffness and damping, or neither")
         self.robot = robot
         self.client = client
         flags = p.URDF_USE_INERTIA_FROM_FILE
@@ -141,6 +162,12 @@ class PybulletRobot:
         self.sole_links: dict[str, int] = {
             side: self.link_index(robot.frames.sole(side)) for side in ("left", "right")
         }
+        contact: dict[str, float] = {}
+        if sole_contact_stiffness_n_m is not None and sole_contact_damping_n_s_m is not None:
+            contact = {
+                "contactStiffness": sole_contact_stiffness_n_m,
+                "contactDamping": sole_contact_damping_n_s_m,
+            }
         for link in self.sole_links.values():
             p.changeDynamics(
                 self.body_id,
@@ -148,6 +175,7 @@ class PybulletRobot:
                 spinningFriction=sole_spinning_friction,
                 frictionAnchor=int(sole_friction_anchor),
                 physicsClientId=client,
+                **contact,
             )
         self.reset(robot.q_half_sitting if q is None else q)
 

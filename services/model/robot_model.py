@@ -136,6 +136,10 @@ class RobotModel:
 
         self.params: RobotParams = load_params(desc.params_path)
         self.sole_size_m: tuple[float, float] = desc.sole_size_m
+        # pybullet only: flat sole box thickness [m] replacing the foot collision shapes (None: keep the
+        # URDF's), and the constraint-solver iterations the robot needs in pybullet.
+        self.pybullet_sole_box_m: float | None = desc.pybullet_sole_box_m
+        self.pybullet_solver_iterations: int = desc.pybullet_solver_iterations
         self.cameras: dict[str, CameraSpec] = dict(desc.cameras)
         self.stereo_pairs: dict[str, StereoPair] = dict(desc.stereo_pairs)
         for cam in self.cameras.values():

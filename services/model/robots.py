@@ -65,6 +65,11 @@ class RobotDescription:
     # y [m] in the grasp frame of the fixed finger's inner face per side (one-moving-finger grippers),
     # or None when the fingers close symmetrically about the grasp frame.
     fixed_finger_y_m: dict[str, float] | None = None
+    # pybullet only (the pinocchio model keeps the URDF shapes): if set, each foot's collision shapes are
+    # replaced with one box of the sole rectangle, this thick [m], whose bottom face is the sole frame.
+    pybullet_sole_box_m: float | None = None
+    # pybullet constraint-solver iterations per physics step this robot needs (sim default).
+    pybullet_solver_iterations: int = 20
     notes: str = ""
 
 
@@ -334,6 +339,13 @@ def talos() -> RobotDescription:
         capsules=tuple(capsules),
         # Foot size from talos.srdf <specificities> (0.205 x 0.122 m), inside the collision mesh footprint.
         sole_size_m=(0.205, 0.122),
+        # The foot collision mesh (ankle_X_collision.stl) has a convex, non-flat bottom (1.9 mm of relief,
+        # lowest vertex 0.4 mm below the sole frame): pybullet supports the foot on 1-4 of its vertices and
+        # the stance foot rocks until the robot falls while walking. A box of the sole size is flat.
+        pybullet_sole_box_m=0.02,
+        # Heavier links and stiff position motors: on rigid flat soles, with 20 iterations the side steps
+        # and arcs fell; on the damped sole contact 20 suffice (arc 0.7 mm off), 50 track closer (0.3 mm).
+        pybullet_solver_iterations=50,
         notes="cameras, gaze and grasp frames are synthetic (added at load time, not in the URDF)",
     )
 

@@ -1,4 +1,6 @@
-"""Fold every fixed joint of a URDF into its parent link (for pybullet), keeping mass properties exact.
+"""URDF edits for pybullet: fold every fixed joint into its parent link keeping mass properties exact
+(:func:`flatten_fixed_joints`), and replace a foot's collision shapes with a flat sole box
+(:func:`replace_foot_collisions_with_sole_boxes`).
 
 pybullet's own ``URDF_MERGE_FIXED_LINKS`` loses the merged link's inertial offset (the CoM of e.g. a
 foot with a sole frame ends at the link origin), which makes a standing robot slip. Here the inertias
@@ -124,3 +126,43 @@ def flatten_fixed_joints(urdf_text: str) -> tuple[str, dict[str, str]]:
     for name in merged:
         root.remove(links[name])
     return ET.tostring(root, encoding="unicode"), merged
+
+
+def replace_foot_collisions_with_sole_boxes(
+    urdf_text: str, sole_links: tuple[str, ...], size_m: tuple[float, float], thickness_m: float
+) -> tuple[str, dict[str, str]]:
+    """Return (URDF text, map sole link -> foot link) where the collision shapes of every foot carrying
+    one of ``sole_links`` are replaced with one box.
+
+    The foot link of a sole is its nearest ancestor reached through fixed joints only, or the sole link
+    itself. The box is ``size_m`` = (length along the sole x, width along y) [m] and ``thickness_m`` [m]
+    high, its bottom face centred on the sole frame: a flat sole exactly at the sole frame (CONVENTIONS
+    §5: "soles must be exactly flat"). Collision shapes of the links between the sole and the foot
+    (fixed-joint children) are removed as well. Visuals and inertials are untouched.
+    """
+    if thickness_m <= 0.0 or min(size_m) <= 0.0:
+        raise ValueError(f"sole box size {size_m} x {thickness_m} m must be positive")
+    root = ET.fromstring(urdf_text)
+    links = {link.get("name"): link for link in root.findall("link")}
+    parent_joint = {j.find("child").get("link"): j for j in root.findall("joint")}
+    feet: dict[str, str] = {}
+    for sole in sole_links:
+        if sole not in links:
+            raise ValueError(f"sole link {sole!r} is not in the URDF")
+        name, T_foot_sole, chain = sole, pin.SE3.Identity(), [sole]
+        while name in parent_joint and parent_joint[name].get("type") == "fixed":
+            j = parent_joint[name]
+            T_foot_sole = _origin(j) * T_foot_sole
+            name = j.find("parent").get("link")
+            chain.append(name)
+        for link_name in chain:
+            for geom in links[link_name].findall("collision"):
+                links[link_name].remove(geom)
+        collision = ET.SubElement(links[name], "collision")
+        collision.set("name", f"{sole}_box")
+        lift = pin.SE3(np.eye(3), np.array([0.0, 0.0, thickness_m / 2.0]))
+        _set_origin(collision, T_foot_sole * lift)
+        geometry = ET.SubElement(collision, "geometry")
+        ET.SubElement(geometry, "box").set("size", _fmt(np.array([size_m[0], size_m[1], thickness_m])))
+        feet[sole] = name
+    return ET.tostring(root, encoding="unicode"), feet

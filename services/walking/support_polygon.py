@@ -9,30 +9,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from services.model.geometry import convex_hull_ccw
 from services.walking.footsteps import SolePose, sole_corners
 from services.walking.timing import DOUBLE, LEFT, RIGHT
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Convex hull (h, 2) of points (m, 2), counter-clockwise, without repeated points (monotone chain)."""
-    pts = np.unique(np.asarray(points, dtype=float), axis=0)
-    if pts.shape[0] < 3:
-        return pts
-
-    def cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[np.ndarray] = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 1e-12:
-            lower.pop()
-        lower.append(p)
-    upper: list[np.ndarray] = []
-    for p in pts[::-1]:
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-12:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    """Convex hull (h, 2) [m] of points (m, 2), counter-clockwise, without repeated or collinear points:
+    :func:`services.model.geometry.convex_hull_ccw` (monotone chain on points snapped to 1e-9 m, so that
+    corners differing only by float noise neither split nor drop a vertex)."""
+    return convex_hull_ccw(points)
 
 
 def signed_distance(points: np.ndarray, hull: np.ndarray) -> np.ndarray:
