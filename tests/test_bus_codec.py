@@ -124,14 +124,14 @@ def test_discovery_finds_diag_without_importing_services():
     assert found["record"].module == "services.bus.recorder"
 
 
-def test_shm_cleanup_spares_segments_a_living_process_holds(tmp_path):
+def test_shm_cleanup_spares_segments_a_living_process_this_one_included_holds(tmp_path):
     held = tmp_path / "1.zenoh"
     orphan = tmp_path / "2.zenoh"
     mine = tmp_path / "3.zenoh"
+    old = time.time() - 10
     for path in (held, orphan, mine):
         path.write_bytes(b"x")
-    old = time.time() - 10
-    os.utime(orphan, (old, old))
+        os.utime(path, (old, old))
     holder = subprocess.Popen(
         [sys.executable, "-c", f"import fcntl,time; f=open({str(held)!r}); fcntl.flock(f, fcntl.LOCK_SH); "
          "print('locked', flush=True); time.sleep(60)"],
@@ -142,9 +142,9 @@ def test_shm_cleanup_spares_segments_a_living_process_holds(tmp_path):
         with open(mine) as f:
             fcntl.flock(f, fcntl.LOCK_SH)
             found = {p.name for p in orphaned(tmp_path)}
-        assert found == {"2.zenoh", "3.zenoh"}  # the orphan, and the one only this process holds
+        # Only the orphan: this process's own segment is its live pool (every session of it sends through it).
+        assert found == {"2.zenoh"}
     finally:
         holder.kill()
         holder.wait()
-    os.utime(held, (old, old))
-    assert "1.zenoh" in {p.name for p in orphaned(tmp_path, own_pid=0)}  # its holder is gone
+    assert {p.name for p in orphaned(tmp_path)} == {"1.zenoh", "2.zenoh", "3.zenoh"}  # their holders are gone

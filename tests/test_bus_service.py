@@ -29,7 +29,7 @@ from services.bus.schemas.diag import (
     StreamRequest,
 )
 from services.bus.service import Service, handles, run_service, subscribes
-from services.bus.session import TypedPublisher
+from services.bus.session import TypedPublisher, close_session, open_session
 from services.bus.spec import EndpointSpec
 from services.errors import (
     InfeasibleError,
@@ -188,6 +188,21 @@ def test_heartbeat_counts_requests(bus):
     assert len(beats) >= 2
     assert beats[-1].seq > beats[0].seq
     assert beats[-1].requests_served >= 1 and beats[-1].requests_failed >= 1
+
+
+def test_large_requests_still_arrive_after_another_session_of_this_process_closed(bus_harness):
+    """zenoh keeps one shared-memory pool per process for all its sessions: closing one session must not
+    unlink it, or a service started afterwards cannot map it and never receives a large request (the
+    CI failure of the supervisor tests: sim/execute "gave no reply" once an earlier test module closed
+    its session)."""
+    blob = np.random.default_rng(0).random((400, 400))  # 1.3 MB: through shared memory
+    first = bus_harness.spawn_service("services.bus.diag")
+    assert np.array_equal(bus_harness.client.call(ECHO, EchoRequest(blob=blob), timeout_s=10.0).blob, blob)
+    close_session(open_session(bus_harness.bus))
+    bus_harness.stop(first)
+    bus_harness.wait_gone("diag")
+    bus_harness.spawn_service("services.bus.diag")  # a process that has never mapped the pool
+    assert np.array_equal(bus_harness.client.call(ECHO, EchoRequest(blob=blob), timeout_s=10.0).blob, blob)
 
 
 def test_sigterm_stops_a_service_even_with_a_busy_handler(bus_harness):
