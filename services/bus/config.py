@@ -33,7 +33,11 @@ class BusConfig:
         listen: endpoints this session listens on (``tcp/127.0.0.1:0`` = a free loopback port).
         connect: extra endpoints to connect to (other hosts, a zenoh router).
         multicast_scouting: UDP multicast discovery; off so nothing leaves the machine by default.
-        shared_memory: zenoh shared-memory transport between local processes.
+        shared_memory: zenoh's shared-memory transport between local processes. Off by default: with
+            zenoh 1.10 a large message from a process whose pool segment had been unlinked (zenoh
+            sweeps what it takes for orphans) never reached a service started afterwards, silently
+            (the supervisor's 2 MB sim/execute requests in the full test suite); loopback TCP moves
+            such messages in about a millisecond.
         zenoh: raw zenoh config overrides, ``{"path/in/config": value}``, applied last.
     """
 
@@ -43,7 +47,7 @@ class BusConfig:
     listen: tuple[str, ...] = ("tcp/127.0.0.1:0",)
     connect: tuple[str, ...] = ()
     multicast_scouting: bool = False
-    shared_memory: bool = True
+    shared_memory: bool = False
     zenoh: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
