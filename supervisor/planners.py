@@ -5,8 +5,7 @@ Every plan starts at the configuration ``sim/state`` reports now (the planners a
 
 * ``navigation/goto``: walk in front of an object (from the map of perception's sightings) or to a pose;
 * ``walking/plan``: a footstep sequence (a turn on the spot from ``turn_in_place``) to a whole body walk;
-* ``reaching/reach``: whole-body reaching with support polygon reshaping (stepping when needed);
-* ``footsteps/plan``: footstep planning as inverse kinematics, for targets too far for reaching's steps.
+* ``reaching/reach``: whole-body reaching with support polygon reshaping (stepping when needed).
 """
 
 from __future__ import annotations
@@ -20,7 +19,7 @@ import numpy as np
 from services.bus.schemas import navigation as nav_msg
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import walking as walk_msg
-from services.walking.footsteps import SolePose, turn_in_place
+from services.walking.footsteps import FootstepLimits, SolePose, turn_in_place
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.memory import Memory
@@ -88,6 +87,26 @@ class Planners:
         Q[:, :2] += offset
         return Q
 
+    def _walk(
+        self,
+        request: walk_msg.PlanRequest,
+        offset: np.ndarray,
+        *,
+        planner: str = "walking/plan",
+        goal: list[float] | None = None,
+        plan_s: float = 0.0,
+    ) -> Plan:
+        """``walking/plan`` of ``request`` (in the local frame), as a world-frame :class:`Plan`."""
+        reply = self.bus.call(walk_msg.PLAN, request, PLAN_TIMEOUT_S)
+        return Plan(
+            q=self._world(reply.q, offset),
+            dt_s=float(reply.dt_s),
+            n_steps=len(reply.steps),
+            planner=planner,
+            goal=goal or [],
+            plan_s=plan_s,
+        )
+
     # navigation -----------------------------------------------------------------------------------------
     def _goto(self, **goal: object) -> Plan:
         q, offset = self._local(self.body.plan_q())
@@ -123,11 +142,9 @@ class Planners:
             right_start=list(reply.right_start),
             double_support_s=TURN_DOUBLE_SUPPORT_S,
         )
-        walked = self.bus.call(walk_msg.PLAN, walk, PLAN_TIMEOUT_S)
-        return Plan(
-            q=self._world(walked.q, offset),
-            dt_s=float(walked.dt_s),
-            n_steps=len(walked.steps),
+        return self._walk(
+            walk,
+            offset,
             planner="navigation/goto + walking/plan",
             goal=goal_world,
             plan_s=float(reply.timings_s.get("total_s", 0.0)),
@@ -163,6 +180,7 @@ class Planners:
             left_start=soles["left"],
             right_start=soles["right"],
             sole_size_m=tuple(robot.sole_size_m),
+            limits=FootstepLimits.from_robot(robot),
         )
         request = walk_msg.PlanRequest(
             steps=[
@@ -173,13 +191,7 @@ class Planners:
             q_start=q,
             double_support_s=TURN_DOUBLE_SUPPORT_S,
         )
-        reply = self.bus.call(walk_msg.PLAN, request, PLAN_TIMEOUT_S)
-        return Plan(
-            q=self._world(reply.q, offset),
-            dt_s=float(reply.dt_s),
-            n_steps=len(reply.steps),
-            planner="walking/plan",
-        )
+        return self._walk(request, offset)
 
     # reaching -------------------------------------------------------------------------------------------
     def reach(
@@ -246,10 +258,4 @@ class Planners:
             q_start=q,
             double_support_s=TURN_DOUBLE_SUPPORT_S,
         )
-        reply = self.bus.call(walk_msg.PLAN, request, PLAN_TIMEOUT_S)
-        return Plan(
-            q=self._world(reply.q, offset),
-            dt_s=float(reply.dt_s),
-            n_steps=len(reply.steps),
-            planner="walking/plan",
-        )
+        return self._walk(request, offset)
