@@ -116,7 +116,7 @@ class Up:
 
 
 def test_restart_after_sigkill_status_and_clean_stop(tmp_path):
-    orphans_before = {p.name for p in orphaned(own_pid=0)}
+    orphans_before = {p.name for p in orphaned()}
     log_file = tmp_path / "up.mcap"
     up = Up("--services", "diag", "--record", str(log_file))
     try:
@@ -165,7 +165,7 @@ def test_restart_after_sigkill_status_and_clean_stop(tmp_path):
         assert "SERVICE" in text and "diag" in text and f"log written to {log_file}" in text
     finally:
         up.close()
-    leftovers = {p.name for p in orphaned(own_pid=0)} - orphans_before
+    leftovers = {p.name for p in orphaned()} - orphans_before
     assert not leftovers, f"zenoh shared-memory files left in /dev/shm: {sorted(leftovers)}"
     info = LogReader(log_file).info()
     assert info.complete

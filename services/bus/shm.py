@@ -1,11 +1,15 @@
 """Removing the shared-memory segments zenoh leaves in ``/dev/shm``.
 
-zenoh (1.10) creates ``/dev/shm/<id>.zenoh`` segments for every session (a small one at open, a pool
-when large messages go through shared memory) and does not unlink them when the process exits; it
-only sweeps orphans when the next session starts. Every process holding a segment keeps a shared
-``flock`` on it, and ``/proc/locks`` names the holders' pids. So a segment is safe to unlink when no
-*other* living process holds a lock on it: that is what :func:`cleanup_segments` does, after a
-session is closed (a service at exit, the launcher once its children are gone).
+zenoh (1.10) creates ``/dev/shm/<id>.zenoh`` segments in every process that opens a session (a small
+one at open, a pool when large messages go through shared memory) and does not unlink them when the
+process exits; it only sweeps orphans when the next session starts. The pool belongs to the process,
+not to a session: every session of the process sends through it for as long as the process lives, and
+a process that receives a large message maps the sender's segment by its name at that moment. Every
+process holding a segment keeps a shared ``flock`` on it, and ``/proc/locks`` names the holders' pids.
+So a segment is safe to unlink only when no living process, this one included, holds a lock on it:
+that is what :func:`cleanup_segments` does after a session is closed (a service at exit, the launcher
+once its children are gone). Unlinking this process's own segments while it lives made every large
+message to a service started afterwards vanish (no reply, no error).
 """
 
 from __future__ import annotations
@@ -59,9 +63,8 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def orphaned(shm_dir: Path = SHM_DIR, *, own_pid: int | None = None) -> list[Path]:
-    """Segments that no living process other than ``own_pid`` (default: this one) holds."""
-    own = os.getpid() if own_pid is None else own_pid
+def orphaned(shm_dir: Path = SHM_DIR) -> list[Path]:
+    """Segments that no living process holds (a fresh one nobody locks yet is spared)."""
     holders = lock_holders()
     found = []
     now = time.time()
@@ -71,10 +74,10 @@ def orphaned(shm_dir: Path = SHM_DIR, *, own_pid: int | None = None) -> list[Pat
         except FileNotFoundError:
             continue
         dev = (os.major(st.st_dev), os.minor(st.st_dev), st.st_ino)
-        others = {pid for pid in holders.get(dev, set()) if pid != own and _alive(pid)}
-        if others:
+        pids = holders.get(dev, set())
+        if any(_alive(pid) for pid in pids):
             continue
-        if not holders.get(dev) and now - st.st_mtime < _FRESH_S:
+        if not pids and now - st.st_mtime < _FRESH_S:
             continue
         found.append(path)
     return found
