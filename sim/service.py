@@ -27,7 +27,7 @@ import pinocchio as pin
 from services.bus.schemas import sim as msg
 from services.bus.service import Service, config_with, handles, run_service
 from services.errors import InvalidRequestError
-from services.model import load_robot
+from services.model.options import add_model_argument, with_model
 from sim.config import SimConfig
 from sim.scene import load_scene
 from sim.world import World
@@ -47,21 +47,18 @@ class SimService(Service):
         parser.add_argument(
             "--seed", type=int, help="seed of the start-up layout (default: the nominal layout)"
         )
-        parser.add_argument("--model", help="robot model: hrp2_like (default) or talos")
+        add_model_argument(parser)
         parser.add_argument(
             "--realtime", action="store_true", help="pace at wall-clock speed and step while idle"
         )
 
     @classmethod
     def configure(cls, config: SimConfig, args: argparse.Namespace) -> SimConfig:
-        changes: dict[str, Any] = {
-            k: getattr(args, k) for k in ("scene", "seed", "model") if getattr(args, k) is not None
-        }
+        changes: dict[str, Any] = {k: v for k in ("scene", "seed") if (v := getattr(args, k)) is not None}
         if args.realtime:
             changes["realtime"] = True
-        config = config_with(config, **changes)
-        load_robot(config.model)  # fail at start-up with a message rather than inside the running service
-        load_scene(config.scene)
+        config = with_model(config_with(config, **changes), args.model)
+        load_scene(config.scene)  # fail at start-up with a message rather than inside the running service
         return config
 
     def start(self) -> None:

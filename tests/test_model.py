@@ -74,6 +74,16 @@ def test_unknown_robot_lists_valid_names():
     assert err.value.details["valid"] == robot_names()
 
 
+def test_a_service_model_option_is_checked_at_start_up():
+    from services.model.options import with_model
+    from sim.config import SimConfig
+
+    assert with_model(SimConfig(), None).model == "hrp2_like"
+    assert with_model(SimConfig(), "talos").model == "talos"
+    with pytest.raises(InvalidRequestError, match="valid robots are"):
+        with_model(SimConfig(), "hrp3")
+
+
 def test_hrp2_dimensions():
     robot = load_robot("hrp2_like")
     assert robot.total_mass_kg == pytest.approx(58.0, abs=1e-9)

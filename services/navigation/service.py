@@ -18,9 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from services.bus.schemas import navigation as msg
-from services.bus.service import Service, config_with, handles, run_service
+from services.bus.service import Service, handles, run_service
 from services.errors import InvalidRequestError
 from services.model import load_robot
+from services.model.options import add_model_argument, with_model
 from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle, Pose2D, Scene
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto, start_pose
@@ -170,14 +171,11 @@ class NavigationService(Service):
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--model", help="robot model: hrp2_like (default) or talos")
+        add_model_argument(parser)
 
     @classmethod
     def configure(cls, config: NavigationConfig, args: argparse.Namespace) -> NavigationConfig:
-        if args.model is not None:
-            config = config_with(config, model=args.model)
-        load_robot(config.model)  # fail at start-up with a message rather than at the first request
-        return config
+        return with_model(config, args.model)
 
     def start(self) -> None:
         self.robot = load_robot(self.config.model)

@@ -23,9 +23,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small dense problems: thre
 import numpy as np
 
 from services.bus.schemas import reaching as msg
-from services.bus.service import Service, config_with, handles, run_service
+from services.bus.service import Service, handles, run_service
 from services.errors import InvalidRequestError
 from services.model import load_robot
+from services.model.options import add_model_argument, with_model
 from services.reaching.monitors import MonitorSeries
 from services.reaching.options import ReachingOptions
 from services.reaching.planner import ReachPlanner
@@ -57,14 +58,11 @@ class ReachingService(Service):
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--model", help="robot model: hrp2_like (default) or talos")
+        add_model_argument(parser)
 
     @classmethod
     def configure(cls, config: ReachingConfig, args: argparse.Namespace) -> ReachingConfig:
-        if args.model is not None:
-            config = config_with(config, model=args.model)
-        load_robot(config.model)  # fail at start-up with a message rather than at the first request
-        return config
+        return with_model(config, args.model)
 
     def start(self) -> None:
         self.robot = load_robot(self.config.model)
