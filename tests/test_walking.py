@@ -116,6 +116,24 @@ def test_fast_preview_equals_the_plain_loop():
     np.testing.assert_allclose(np.diff(a.com_acc_m_s2, axis=0), DT * a.jerk_m_s3[:-1], atol=1e-9)
 
 
+@pytest.mark.parametrize("loop", [False, True])
+def test_preview_control_is_the_same_anywhere_on_the_floor(loop):
+    """A walk 2.9 m from the origin is the walk at the origin, translated (the finite-horizon gains alone
+    would kick the CoM: the ZMP swung 0.36 m there)."""
+    run = simulate_loop if loop else simulate
+    g = preview_gains(DT, 0.8, 1.6)
+    ref = np.zeros((400, 2))
+    ref[200:] = (0.05, -0.09)
+    x0 = np.array([[0.01, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    offset = np.array([2.9, -1.7])
+    shifted_x0 = x0.copy()
+    shifted_x0[0] += offset
+    here, there = run(g, ref, x0), run(g, ref + offset, shifted_x0)
+    np.testing.assert_allclose(there.zmp_m - offset, here.zmp_m, atol=1e-9)
+    np.testing.assert_allclose(there.com_m - offset, here.com_m, atol=1e-9)
+    np.testing.assert_allclose(there.jerk_m_s3, here.jerk_m_s3, atol=1e-6)
+
+
 def test_second_stage_moves_the_cart_table_zmp_by_the_multibody_error():
     g = preview_gains(DT, 0.75, 1.6)
     t = np.arange(1200) * DT
@@ -479,6 +497,29 @@ def test_wholebody_multibody_zmp_stays_inside_the_polygon(planners, robot, walk)
         yaw = math.atan2(T.rotation[1, 0], T.rotation[0, 0])
         assert abs(math.remainder(yaw - pose.yaw_rad, 2 * math.pi)) < 1e-3
     assert np.abs(res.q[-1] - res.q[-2]).max() < 1e-6
+
+
+def test_a_walk_far_from_the_origin_is_the_walk_at_the_origin_translated():
+    """Planned from (2.9, 0.8) facing 0.6 rad, the whole-body walk keeps the same ZMP margin as at the
+    origin (it was 70 mm outside the polygon before the preview control worked relative to its start)."""
+    from services.walking.wholebody import plan_walk
+
+    robot = load_robot("hrp2_like")
+    results = []
+    for x, y, yaw in ((0.0, 0.0, 0.0), (2.9, 0.8, 0.6)):
+        q = robot.q_half_sitting.copy()
+        R = pin.utils.rpyToMatrix(0.0, 0.0, yaw)
+        q[:3] = R @ q[:3] + [x, y, 0.0]
+        q[3:7] = pin.Quaternion(R @ pin.Quaternion(q[3:7]).toRotationMatrix()).coeffs()
+        soles = {}
+        for side in ("left", "right"):
+            T = robot.sole_pose(q, side)
+            soles[side] = SolePose(T.translation[0], T.translation[1], yaw)
+        walk = straight_walk(2, 0.1, left_start=soles["left"], right_start=soles["right"])
+        results.append(plan_walk(robot, walk, q))
+    here, there = results
+    assert here.min_zmp_margin_m >= 0.010
+    assert there.min_zmp_margin_m == pytest.approx(here.min_zmp_margin_m, abs=1e-4)
 
 
 def test_second_stage_reduces_the_multibody_zmp_error(planners):

@@ -164,10 +164,33 @@ def _initial_state(x0: np.ndarray | None, ref: np.ndarray) -> np.ndarray:
         X0 = np.zeros((3, d))
         X0[0] = ref[0]
         return X0
-    X0 = np.asarray(x0, dtype=float).reshape(3, -1)
+    X0 = np.array(x0, dtype=float).reshape(3, -1)
     if X0.shape[1] != d:
         raise InvalidRequestError(f"initial state must be (3,) or (3, {d}), got {np.shape(x0)}")
     return X0
+
+
+def _relative_to_start(ref: np.ndarray, X0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ref, X0, origin) expressed relative to the first reference point ``origin`` = ref[0].
+
+    The controller of Kajita 2003 eq. (13) is not translation invariant with a finite preview window:
+    its gains satisfy Gx[0] + sum_j Gd(j) != 0 (about 270 of 72000 for HRP-2's 0.8 m and 1.6 s), so
+    at a constant offset d the integral term sum e must hold -(Gx[0] + sum Gd) d / Gi to stay at rest.
+    Starting it at 0 far from the origin kicks the CoM: the ZMP swung 0.36 m for a walk starting at
+    x = 2.9 m. Working relative to the start makes every walk behave as if it started at the origin,
+    where that state is the rest state.
+    """
+    origin = ref[0].copy()
+    X0 = X0.copy()
+    X0[0] -= origin
+    return ref - origin, X0, origin
+
+
+def _shifted(X: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """States (n, 3, d) of :func:`_relative_to_start` back in the caller's frame (positions only)."""
+    X = X.copy()
+    X[:, 0] += origin
+    return X
 
 
 def preview_term(gains: PreviewGains, ref: np.ndarray) -> np.ndarray:
@@ -195,7 +218,7 @@ def simulate(gains: PreviewGains, zmp_ref_m: np.ndarray, x0: np.ndarray | None =
     """
     ref, squeeze = _as_2d(zmp_ref_m)
     n, d = ref.shape
-    X0 = _initial_state(x0, ref)
+    ref, X0, origin = _relative_to_start(ref, _initial_state(x0, ref))
     f = preview_term(gains, ref)
     # Input of z_{k+1} = M z_k + w_k, per axis: w = [-B f_k ; -C B f_k - p_ref_{k+1}].
     ref_next = np.concatenate([ref[1:], ref[-1:]], axis=0)
@@ -216,14 +239,14 @@ def simulate(gains: PreviewGains, zmp_ref_m: np.ndarray, x0: np.ndarray | None =
     Z = np.einsum("ij,njd->nid", gains.V, Y).real
     X = Z[:, :3]
     U = -gains.Gi * Z[:, 3] - np.einsum("i,nid->nd", gains.Gx, X) - f
-    return _outputs(gains, X, U, squeeze)
+    return _outputs(gains, _shifted(X, origin), U, squeeze)
 
 
 def simulate_loop(gains: PreviewGains, zmp_ref_m: np.ndarray, x0: np.ndarray | None = None) -> PreviewResult:
     """Same as :func:`simulate`, as the plain per-sample loop of Kajita 2003 eq. (13) (slow; reference)."""
     ref, squeeze = _as_2d(zmp_ref_m)
     n, d = ref.shape
-    x = _initial_state(x0, ref).copy()
+    ref, x, origin = _relative_to_start(ref, _initial_state(x0, ref))
     N = gains.n_preview
     ext = np.concatenate([ref, np.repeat(ref[-1:], N, axis=0)], axis=0)
     X = np.empty((n, 3, d))
@@ -235,7 +258,7 @@ def simulate_loop(gains: PreviewGains, zmp_ref_m: np.ndarray, x0: np.ndarray | N
         u = -gains.Gi * e_sum - gains.Gx @ x - gains.Gd @ ext[k + 1 : k + 1 + N]
         U[k] = u
         x = gains.A @ x + np.outer(gains.B, u)
-    return _outputs(gains, X, U, squeeze)
+    return _outputs(gains, _shifted(X, origin), U, squeeze)
 
 
 def settle_at_end(
