@@ -13,13 +13,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import msgspec
 import numpy as np
 
 from services.bus.schemas import navigation as nav_msg
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import walking as walk_msg
-from services.walking.footsteps import FootstepLimits, SolePose, turn_in_place
+from services.walking.footsteps import Footstep, FootstepLimits, SolePose, turn_in_place
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.memory import Memory
@@ -65,41 +64,18 @@ class Planners:
         #: whole-body trajectory: with the latter the simulated robot fell at the end of some walks.
         self.retime_walks = True
 
-    # frames -------------------------------------------------------------------------------------------
-    def _local(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``q`` moved so that the mid-feet point is at the world origin, and the (x, y) offset [m].
-
-        Every plan is requested in this robot-centred frame (translation only) and moved back: the
-        planners are translation invariant in principle, but walking's multibody ZMP check was not
-        (a 2-step walk planned from x = 2.9 m failed with the ZMP 73 mm out at t = 0.005 s, the same
-        walk from the origin passed), which made every walk after the first one fail.
-        """
-        x, y, _yaw = self.body.robot.mid_feet_pose(q)
-        offset = np.array([x, y])
-        local = np.array(q, dtype=float)
-        local[:2] -= offset
-        return local, offset
-
-    @staticmethod
-    def _world(Q: np.ndarray, offset: np.ndarray) -> np.ndarray:
-        """A trajectory planned in the local frame of :meth:`_local`, back in the world frame."""
-        Q = np.array(Q, dtype=float)
-        Q[:, :2] += offset
-        return Q
-
     def _walk(
         self,
         request: walk_msg.PlanRequest,
-        offset: np.ndarray,
         *,
         planner: str = "walking/plan",
         goal: list[float] | None = None,
         plan_s: float = 0.0,
     ) -> Plan:
-        """``walking/plan`` of ``request`` (in the local frame), as a world-frame :class:`Plan`."""
+        """``walking/plan`` of ``request`` as a :class:`Plan`."""
         reply = self.bus.call(walk_msg.PLAN, request, PLAN_TIMEOUT_S)
         return Plan(
-            q=self._world(reply.q, offset),
+            q=np.asarray(reply.q, dtype=float),
             dt_s=float(reply.dt_s),
             n_steps=len(reply.steps),
             planner=planner,
@@ -109,22 +85,17 @@ class Planners:
 
     # navigation -----------------------------------------------------------------------------------------
     def _goto(self, **goal: object) -> Plan:
-        q, offset = self._local(self.body.plan_q())
-        local_obstacles = [
-            msgspec.structs.replace(o, center=[o.center[0] - offset[0], o.center[1] - offset[1], o.center[2]])
-            for o in obstacles(self.memory)
-        ]
-        request = nav_msg.GotoRequest(q_start=q, obstacles=local_obstacles, **goal)  # type: ignore[arg-type]
+        q = self.body.plan_q()
+        request = nav_msg.GotoRequest(q_start=q, obstacles=obstacles(self.memory), **goal)  # type: ignore[arg-type]
         reply = self.bus.call(nav_msg.GOTO, request, PLAN_TIMEOUT_S)
-        x, y, theta = reply.goal
-        goal_world = [x + offset[0], y + offset[1], theta]
+        goal_reached = [float(v) for v in reply.goal]
         if not self.retime_walks:
             return Plan(
-                q=self._world(reply.q, offset),
+                q=np.asarray(reply.q, dtype=float),
                 dt_s=float(reply.dt_s),
                 n_steps=len(reply.step_sides),
                 planner="navigation/goto",
-                goal=goal_world,
+                goal=goal_reached,
                 plan_s=float(reply.timings_s.get("total_s", 0.0)),
             )
         # navigation's path and footsteps, walked by walking/plan with the longer double support that
@@ -144,9 +115,8 @@ class Planners:
         )
         return self._walk(
             walk,
-            offset,
             planner="navigation/goto + walking/plan",
-            goal=goal_world,
+            goal=goal_reached,
             plan_s=float(reply.timings_s.get("total_s", 0.0)),
         )
 
@@ -155,15 +125,15 @@ class Planners:
         return self._goto(goal_object=name, goal_distance_m=distance_m)
 
     def goto_pose(self, x_m: float, y_m: float, yaw_rad: float) -> Plan:
-        _q, offset = self._local(self.body.plan_q())
-        return self._goto(goal_pose=[x_m - offset[0], y_m - offset[1], math.remainder(yaw_rad, 2 * math.pi)])
+        return self._goto(goal_pose=[x_m, y_m, math.remainder(yaw_rad, 2 * math.pi)])
 
     # walking ----------------------------------------------------------------------------------------------
     def turn(self, angle_rad: float) -> Plan:
         """Turn on the spot by ``angle_rad`` (> 0: left): ``turn_in_place`` footsteps from the soles where
-        they are now, planned by ``walking/plan``; a held object is carried (the arm keeps its posture,
-        walking's lowest level)."""
-        q, offset = self._local(self.body.plan_q())
+        they are now (squared up first when one foot is ahead of the other, as after a reaching step),
+        planned by ``walking/plan``; a held object is carried (the arm keeps its posture, walking's
+        lowest level)."""
+        q = self.body.plan_q()
         robot = self.body.robot
         soles = {}
         for side in ("left", "right"):
@@ -173,6 +143,10 @@ class Planners:
                 float(T.translation[1]),
                 math.atan2(T.rotation[1, 0], T.rotation[0, 0]),
             )
+        limits = FootstepLimits.from_robot(robot)
+        first = square_up(soles, limits)
+        if first is not None:
+            soles[first.side] = first.pose
         n_pairs = max(1, math.ceil(abs(angle_rad) / TURN_PER_PAIR_RAD))
         sequence = turn_in_place(
             angle_rad,
@@ -180,18 +154,16 @@ class Planners:
             left_start=soles["left"],
             right_start=soles["right"],
             sole_size_m=tuple(robot.sole_size_m),
-            limits=FootstepLimits.from_robot(robot),
+            limits=limits,
         )
+        steps = [*([first] if first is not None else []), *sequence.steps]
         request = walk_msg.PlanRequest(
-            steps=[
-                walk_msg.Step(pose=[s.pose.x_m, s.pose.y_m, s.pose.yaw_rad], side=s.side)
-                for s in sequence.steps
-            ],
+            steps=[walk_msg.Step(pose=[s.pose.x_m, s.pose.y_m, s.pose.yaw_rad], side=s.side) for s in steps],
             model=robot.name,
             q_start=q,
             double_support_s=TURN_DOUBLE_SUPPORT_S,
         )
-        return self._walk(request, offset)
+        return self._walk(request)
 
     # reaching -------------------------------------------------------------------------------------------
     def reach(
@@ -208,10 +180,10 @@ class Planners:
         orientation = None
         if yaw_rad is not None:
             orientation = [0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)]
-        q, offset = self._local(self.body.plan_q())
+        q = self.body.plan_q()
         request = reach_msg.ReachRequest(
             hand=hand,
-            target=[float(target_m[0] - offset[0]), float(target_m[1] - offset[1]), float(target_m[2])],
+            target=[float(v) for v in target_m],
             q_start=q,
             orientation=orientation,
             gaze=gaze,
@@ -219,7 +191,7 @@ class Planners:
         )
         reply = self.bus.call(reach_msg.REACH, request, PLAN_TIMEOUT_S)
         return Plan(
-            q=self._world(reply.q, offset),
+            q=np.asarray(reply.q, dtype=float),
             dt_s=float(reply.dt_s),
             n_steps=len(reply.footsteps),
             planner="reaching/reach",
@@ -230,7 +202,7 @@ class Planners:
     def step_back(self, distance_m: float, *, step_m: float = 0.15) -> Plan:
         """Walk straight back by ``distance_m`` [m] (pairs of steps of at most ``step_m``): room to turn
         on the spot or to start a path away from an object."""
-        q, offset = self._local(self.body.plan_q())
+        q = self.body.plan_q()
         robot = self.body.robot
         soles = {}
         for side in ("left", "right"):
@@ -258,4 +230,38 @@ class Planners:
             q_start=q,
             double_support_s=TURN_DOUBLE_SUPPORT_S,
         )
-        return self._walk(request, offset)
+        return self._walk(request)
+
+
+#: Feet further apart than this along the heading [m], or turned apart by more [rad], are squared up
+#: before a turn on the spot (whose steps are made for a square stance).
+SQUARE_DX_M = 0.02
+SQUARE_DYAW_RAD = math.radians(3.0)
+
+
+def square_up(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep | None:
+    """The step that brings the rear foot beside the front one (parallel, at their current lateral
+    distance kept within the bounds), or None when the stance is already square.
+
+    After a reaching step one foot is up to 0.22 m ahead: ``turn_in_place`` turns about the mid-feet
+    point of a square stance; from a staggered one a step of a turn landed out of the bounds (dx =
+    -0.28 m relative to the other sole in the fetch benchmark, seed 4)."""
+    yaw = math.atan2(
+        math.sin(soles["left"].yaw_rad) + math.sin(soles["right"].yaw_rad),
+        math.cos(soles["left"].yaw_rad) + math.cos(soles["right"].yaw_rad),
+    )
+    c, s = math.cos(yaw), math.sin(yaw)
+    ahead = {side: c * p.x_m + s * p.y_m for side, p in soles.items()}
+    dyaw = abs(math.remainder(soles["left"].yaw_rad - soles["right"].yaw_rad, 2 * math.pi))
+    if abs(ahead["left"] - ahead["right"]) <= SQUARE_DX_M and dyaw <= SQUARE_DYAW_RAD:
+        return None
+    front = max(soles, key=lambda side: ahead[side])
+    rear = "left" if front == "right" else "right"
+    f = soles[front]
+    cf, sf = math.cos(f.yaw_rad), math.sin(f.yaw_rad)
+    dx, dy = soles[rear].x_m - f.x_m, soles[rear].y_m - f.y_m
+    lateral = abs(-sf * dx + cf * dy)  # the rear foot's distance to the side in the front foot's frame
+    lateral = min(max(lateral, limits.dy_min_m + 0.02), limits.dy_max_m - 0.02)
+    sign = 1.0 if rear == "left" else -1.0  # the left foot is on the +y side
+    pose = SolePose(f.x_m - sign * lateral * sf, f.y_m + sign * lateral * cf, f.yaw_rad)
+    return Footstep(side=rear, pose=pose)  # type: ignore[arg-type]
