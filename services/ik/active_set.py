@@ -50,6 +50,7 @@ class ActiveSetSolution(NamedTuple):
     iterations: int
 
 
+@np.errstate(divide="ignore", invalid="ignore")  # 0/0 and x/0 are handled where they arise
 def solve_dual_active_set(
     H: np.ndarray,
     g: np.ndarray,
@@ -74,22 +75,6 @@ def solve_dual_active_set(
             that cannot all hold (not for the IK's QPs: they are feasible at y = 0), or the iteration
             cap (default 3 (rows + r) + 20).
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return _solve(H, g, D, lo, hi, first_slack_row, tol, max_iter, guess)
-
-
-def _solve(
-    H: np.ndarray,
-    g: np.ndarray,
-    D: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    first_slack_row: int,
-    tol: float,
-    max_iter: int | None = None,
-    guess: tuple[np.ndarray, np.ndarray] | None = None,
-) -> ActiveSetSolution:
-    """:func:`solve_dual_active_set` (with floating-point warnings off)."""
     r = H.shape[0]
     m = D.shape[0]
     chol, info = lapack.dpotrf(H, lower=1, clean=1)
