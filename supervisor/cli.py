@@ -29,7 +29,7 @@ EXAMPLES_CONSOLE = """examples:
 
 EXAMPLES_FETCH = """examples:
   humanoid fetch                                  # the whole ball fetch, headless, with progress
-  humanoid fetch --record out/fetch.mcap --snapshot out/fetch.png --seed 4
+  humanoid fetch --record out/fetch.mcap --snapshot out/fetch.png --seed 3
   humanoid fetch --connect                        # use services already started by `humanoid up`
 """
 
