@@ -39,7 +39,7 @@ from vision.camera import look_at
 from vision.camshift import DetectionConfig, detect_all
 from vision.histogram import DEFAULT_MODELS_DIR, HistogramConfig, ObjectModel, learn_model, save_model, to_hsv
 
-DEMO_OBJECTS = ("orange_ball", "green_box", "yellow_table")
+DEMO_OBJECTS = ("orange_ball", "green_box", "yellow_table", "chair")
 
 
 @dataclass(frozen=True)
