@@ -58,9 +58,7 @@ class ActionOptions:
         until it touches [m];
     put_highest_m, put_lowest_m: bounds of a place's top height: the estimate is capped at the first,
         the object is lowered down to the second at most [m]; put_depth_m: and at most this far [m];
-    put_inside_m: the release point is this far inside the place's near face [m]; put_nearer_m: up to
-        this much nearer the robot when the arm reaches it there standing [m]; put_walk_m, put_walks:
-        otherwise the robot walks this far toward the place [m], this many times at most;
+    put_inside_m: the release point is this far inside the place's near face [m];
     approach_m: the hand first goes this far above a reach or put point, then down [m];
     lift_m: a grasped object (or an emptied hand) is raised by this first [m];
     carry_m: (forward, lateral, height) of the carry point in front of the chest [m];
@@ -80,9 +78,6 @@ class ActionOptions:
     put_lowest_m: float = 0.4
     put_depth_m: float = 0.35
     put_inside_m: float = 0.15
-    put_nearer_m: float = 0.12
-    put_walk_m: float = 0.1
-    put_walks: int = 3
     approach_m: float = 0.12
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
@@ -266,15 +261,7 @@ class Actions:
         u = to / dist
         stop = sighting.position_m[:2] - u * self.options.near_m
         what = f"approach {name}"
-        try:
-            plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
-        except InfeasibleError as exc:
-            if exc.details.get("reason") != "goal_in_collision":
-                raise
-            # Something seen stands there (a chair by the table): walk to the object directly.
-            blocking = ", ".join(exc.details.get("obstacles", []))
-            self.progress(f"{what}: no room {self.options.near_m:.1f} m short of it ({blocking})")
-            return
+        plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
         self.progress(
             f"{what} (seen {dist:.1f} m away: will look again from {self.options.near_m:.1f} m): "
             f"{plan.describe()}"
@@ -483,7 +470,9 @@ class Actions:
         yaw = self._heading()
         allowed = [obj]
         self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
-        point = self._bring_above(hand, point, f"bring {obj} above {place}", allowed=allowed, yaw_rad=yaw)
+        self._move_hand(
+            hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
+        )
         low = point.copy()
         low[2] = max(self.options.put_lowest_m, point[2] - self.options.put_depth_m)
         plan = self.planners.reach(
@@ -523,37 +512,6 @@ class Actions:
             step.args,
             message=f"{obj} put on {place} at ({at[0]:.2f}, {at[1]:.2f}, {at[2]:.2f}) m{note}",
             details={"point": at.tolist(), "on": place, "hand": hand},
-        )
-
-    def _bring_above(
-        self, hand: str, point: np.ndarray, what: str, *, allowed: list[str], yaw_rad: float
-    ) -> np.ndarray:
-        """Move the held object above ``point`` standing: at ``point``, or up to ``put_nearer_m`` nearer
-        the robot (still inside the place's estimated face); when the arm reaches none of them, walk
-        ``put_walk_m`` straight toward the place and try again (``put_walks`` times at most). The point
-        reached. Reaching's own steps are not used: they do not know the place, and walked the legs
-        under a table top (the fetch benchmark's puts)."""
-        for walk in range(self.options.put_walks + 1):
-            if walk:
-                plan = self.planners.walk_straight(self.options.put_walk_m)
-                self.progress(f"{what}: out of the arm's reach, walking closer ({plan.describe()})")
-                self.body.execute(plan.q, what=f"{what}: walk closer", progress=self.progress)
-            x, y, _yaw = self.body.base_xy_yaw()
-            to_point = point[:2] - (x, y)
-            u = to_point / max(float(np.linalg.norm(to_point)), 1e-6)
-            for nearer in np.linspace(0.0, self.options.put_nearer_m, 3):
-                candidate = point.copy()
-                candidate[:2] -= u * nearer
-                try:
-                    self._move_hand(hand, candidate, what, allowed=allowed, stepping=False, yaw_rad=yaw_rad)
-                except InfeasibleError:
-                    continue
-                return candidate
-        raise ActionError(
-            "infeasible",
-            f"{what}: the arm does not reach {point.round(2).tolist()} m standing, even after walking "
-            f"{self.options.put_walks * self.options.put_walk_m:.2f} m closer",
-            {"point": point.tolist()},
         )
 
     def _put_point(self, place: str) -> np.ndarray:

@@ -36,8 +36,6 @@ class Eyes:
         self.bus = bus
         self.body = body
         self.memory = memory
-        self._known: list[str] | None = None  # perception's models, asked once
-        self._last_box = (320.0, 240.0)
 
     def locate(self, name: str, q: np.ndarray | None = None) -> Sighting:
         """Localize ``name`` now (no motion); NotFoundError from perception otherwise."""
@@ -119,35 +117,7 @@ class Eyes:
             self.look_at(found.position_m, f"look at {name}")
             again = attempt()
             found = again if again is not None else found
-        noticed = self.notice(name)
-        if noticed:
-            progress(f"also seen: {', '.join(noticed)}")
         return found, views
-
-    def notice(self, target: str) -> list[str]:
-        """Localize, in the current view, the objects perception knows that the map has not seen yet
-        (other than ``target`` and what the hands hold); the names found.
-
-        The map navigation plans around holds only what was seen: a chair beside the table that nobody
-        looked for was walked into (the fetch benchmark's seeds 11 and 18). A glance costs one
-        ``perception/locate`` per unseen object, without moving.
-        """
-        if self._known is None:
-            reply = self.bus.call(perception_msg.MODELS, perception_msg.ModelsRequest(), LOCATE_TIMEOUT_S)
-            self._known = list(reply.names)
-        held = set(self.memory.holding.values())
-        unseen = [n for n in self._known if n != target and n not in held and n not in self.memory.sightings]
-        last_box = self._last_box
-        q = self.body.q()
-        found = []
-        for other in unseen:
-            try:
-                self.locate(other, q)
-            except NotFoundError:
-                continue
-            found.append(other)
-        self._last_box = last_box  # off_centre() still refers to the target
-        return found
 
     def _scan_order(self) -> list[tuple[float, float]]:
         """The head views of :func:`scan_angles`, nearest pan first and, at one pan, every tilt: what is

@@ -62,7 +62,7 @@ class Planners:
         self.memory = memory
         #: Walk navigation's footsteps with walking/plan (longer double support) instead of its own
         #: whole-body trajectory: with the latter the simulated robot fell at the end of some walks.
-        self.retime_walks = False
+        self.retime_walks = True
 
     def _walk(
         self,
@@ -135,7 +135,14 @@ class Planners:
         lowest level)."""
         q = self.body.plan_q()
         robot = self.body.robot
-        soles = self._soles(q)
+        soles = {}
+        for side in ("left", "right"):
+            T = robot.sole_pose(q, side)
+            soles[side] = SolePose(
+                float(T.translation[0]),
+                float(T.translation[1]),
+                math.atan2(T.rotation[1, 0], T.rotation[0, 0]),
+            )
         limits = FootstepLimits.from_robot(robot)
         first = square_up(soles, limits)
         if first is not None:
@@ -193,48 +200,37 @@ class Planners:
         )
 
     def step_back(self, distance_m: float, *, step_m: float = 0.15) -> Plan:
-        """Walk straight back by ``distance_m`` [m]: room to turn on the spot or to start a path away
-        from an object."""
-        return self.walk_straight(-distance_m, step_m=step_m)
-
-    def walk_straight(self, distance_m: float, *, step_m: float = 0.15) -> Plan:
-        """Walk straight ahead by ``distance_m`` [m] (< 0: back) in pairs of steps of at most ``step_m``,
-        from the feet squared up (see :func:`square_up`), ending side by side; a held object is
-        carried (the arm keeps its posture)."""
+        """Walk straight back by ``distance_m`` [m] (pairs of steps of at most ``step_m``): room to turn
+        on the spot or to start a path away from an object."""
         q = self.body.plan_q()
         robot = self.body.robot
-        soles = self._soles(q)
-        first = square_up(soles, FootstepLimits.from_robot(robot))
-        steps = [] if first is None else [first]
-        if first is not None:
-            soles[first.side] = first.pose
-        left, right = soles["left"], soles["right"]
-        yaw = _mean_yaw(left.yaw_rad, right.yaw_rad)
-        u = (math.cos(yaw), math.sin(yaw))
-        order = ("left", "right") if first is not None and first.side == "right" else ("right", "left")
-        n_pairs = max(1, math.ceil(abs(distance_m) / step_m))
+        soles = {}
+        for side in ("left", "right"):
+            T = robot.sole_pose(q, side)
+            soles[side] = (
+                float(T.translation[0]),
+                float(T.translation[1]),
+                math.atan2(T.rotation[1, 0], T.rotation[0, 0]),
+            )
+        yaw = robot.mid_feet_pose(q)[2]
+        n_pairs = max(1, math.ceil(distance_m / step_m))
+        steps = []
         for k in range(1, n_pairs + 1):
-            ahead = distance_m * k / n_pairs
-            for side in order:
-                p = soles[side]
-                pose = SolePose(p.x_m + ahead * u[0], p.y_m + ahead * u[1], yaw)
-                steps.append(Footstep(side=side, pose=pose))  # type: ignore[arg-type]
+            back = distance_m * k / n_pairs
+            for side in ("right", "left"):
+                x, y, sole_yaw = soles[side]
+                steps.append(
+                    walk_msg.Step(
+                        pose=[x - back * math.cos(yaw), y - back * math.sin(yaw), sole_yaw], side=side
+                    )
+                )
         request = walk_msg.PlanRequest(
-            steps=[walk_msg.Step(pose=[s.pose.x_m, s.pose.y_m, s.pose.yaw_rad], side=s.side) for s in steps],
+            steps=steps,
             model=robot.name,
             q_start=q,
             double_support_s=TURN_DOUBLE_SUPPORT_S,
         )
         return self._walk(request)
-
-    def _soles(self, q: np.ndarray) -> dict[str, SolePose]:
-        """The sole poses (x, y, yaw) on the ground at ``q``."""
-        soles = {}
-        for side in ("left", "right"):
-            T = self.body.robot.sole_pose(q, side)
-            yaw = math.atan2(T.rotation[1, 0], T.rotation[0, 0])
-            soles[side] = SolePose(float(T.translation[0]), float(T.translation[1]), yaw)
-        return soles
 
 
 #: Feet further apart than this along the heading [m], or turned apart by more [rad], are squared up
@@ -250,7 +246,10 @@ def square_up(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep | 
     After a reaching step one foot is up to 0.22 m ahead: ``turn_in_place`` turns about the mid-feet
     point of a square stance; from a staggered one a step of a turn landed out of the bounds (dx =
     -0.28 m relative to the other sole in the fetch benchmark, seed 4)."""
-    yaw = _mean_yaw(soles["left"].yaw_rad, soles["right"].yaw_rad)
+    yaw = math.atan2(
+        math.sin(soles["left"].yaw_rad) + math.sin(soles["right"].yaw_rad),
+        math.cos(soles["left"].yaw_rad) + math.cos(soles["right"].yaw_rad),
+    )
     c, s = math.cos(yaw), math.sin(yaw)
     ahead = {side: c * p.x_m + s * p.y_m for side, p in soles.items()}
     dyaw = abs(math.remainder(soles["left"].yaw_rad - soles["right"].yaw_rad, 2 * math.pi))
@@ -266,8 +265,3 @@ def square_up(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep | 
     sign = 1.0 if rear == "left" else -1.0  # the left foot is on the +y side
     pose = SolePose(f.x_m - sign * lateral * sf, f.y_m + sign * lateral * cf, f.yaw_rad)
     return Footstep(side=rear, pose=pose)  # type: ignore[arg-type]
-
-
-def _mean_yaw(a_rad: float, b_rad: float) -> float:
-    """The heading halfway between two headings [rad]."""
-    return math.atan2(math.sin(a_rad) + math.sin(b_rad), math.cos(a_rad) + math.cos(b_rad))

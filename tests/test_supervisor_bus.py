@@ -63,16 +63,6 @@ def test_detect_and_look_at_publish_events_and_use_perception(stack, sup) -> Non
     assert sup.actions.eyes.off_centre() < 0.2
 
 
-def test_localizing_the_table_also_maps_the_chair_seen_beside_it(stack, sup) -> None:
-    """The map navigation plans around holds what was seen: the chair in the view of the table is
-    localized too (once), near where it stands."""
-    report = sup.run(parse_script("localize yellow_table"))  # the chair is beside it
-    assert report.ok, report.failure
-    gt = {o.name: o for o in stack.client.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 5).objects}
-    chair = sup.actions.memory.get("chair")
-    assert np.linalg.norm(chair.position_m[:2] - np.asarray(gt["chair"].position)[:2]) < 0.4
-
-
 def test_unknown_object_and_unlocalized_target_fail_with_clear_reasons(sup) -> None:
     report = sup.run(parse_script("detect red_ball"))
     assert not report.ok and report.failure.reason == "invalid_request"
