@@ -42,3 +42,13 @@ class LauncherEvent(msgspec.Struct, kw_only=True, frozen=True):
 
 
 LAUNCHER_EVENTS = TopicSpec("launcher", "events", LauncherEvent, "service lifecycle events of `humanoid up`")
+
+
+class Footstep(msgspec.Struct, kw_only=True, frozen=True):
+    """A landing (footsteps/plan, reaching/reach): the ``side`` sole at (x, y) [m] with ``yaw`` [rad],
+    world frame."""
+
+    side: str
+    x: float
+    y: float
+    yaw: float

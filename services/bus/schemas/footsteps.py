@@ -20,6 +20,7 @@ from __future__ import annotations
 import msgspec
 import numpy as np
 
+from services.bus.schemas.common import Footstep
 from services.bus.spec import EndpointSpec
 
 
@@ -80,15 +81,6 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
     time_budget_s: float = 10.0  # wall-clock budget; past it: infeasible with the residuals reached [s]
     options: Options | None = None
     trace: bool = False  # also return the task values at every iteration (Fig. 10)
-
-
-class Footstep(msgspec.Struct, kw_only=True, frozen=True):
-    """A landing: the ``side`` sole at (x, y) [m] with ``yaw`` [rad], world frame."""
-
-    side: str
-    x: float
-    y: float
-    yaw: float
 
 
 class Residual(msgspec.Struct, kw_only=True, frozen=True):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import msgspec
 import numpy as np
 
+from services.bus.schemas.common import Footstep
 from services.bus.spec import EndpointSpec
 
 
@@ -31,15 +32,6 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True):
         None  # weighted pseudo-inverse of eq. (4) (link mass ratios); None: service default
     )
     joint_limit_selection_rad: float | None = None  # selection matrix S_l margin [rad]; None: service default
-
-
-class Footstep(msgspec.Struct, kw_only=True, frozen=True):
-    """A step: the ``side`` sole lands at (x, y) [m] with ``yaw`` [rad], world frame."""
-
-    side: str
-    x: float
-    y: float
-    yaw: float
 
 
 class Monitors(msgspec.Struct, kw_only=True, frozen=True):
