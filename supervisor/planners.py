@@ -60,9 +60,6 @@ class Planners:
         self.bus = bus
         self.body = body
         self.memory = memory
-        #: Walk navigation's footsteps with walking/plan (longer double support) instead of its own
-        #: whole-body trajectory: with the latter the simulated robot fell at the end of some walks.
-        self.retime_walks = True
 
     def _walk(
         self,
@@ -89,19 +86,11 @@ class Planners:
         request = nav_msg.GotoRequest(q_start=q, obstacles=obstacles(self.memory), **goal)  # type: ignore[arg-type]
         reply = self.bus.call(nav_msg.GOTO, request, PLAN_TIMEOUT_S)
         goal_reached = [float(v) for v in reply.goal]
-        if not self.retime_walks:
-            return Plan(
-                q=np.asarray(reply.q, dtype=float),
-                dt_s=float(reply.dt_s),
-                n_steps=len(reply.step_sides),
-                planner="navigation/goto",
-                goal=goal_reached,
-                plan_s=float(reply.timings_s.get("total_s", 0.0)),
-            )
         # navigation's path and footsteps, walked by walking/plan with the longer double support that
-        # keeps the simulated robot up (see TURN_DOUBLE_SUPPORT_S). A held object is carried by the arm
-        # keeping its posture (walking's lowest level): a hand task in the walk frame made the planner
-        # move the arms at up to 1.5x their speed limits.
+        # keeps the simulated robot up (see TURN_DOUBLE_SUPPORT_S), not navigation's own whole-body walk:
+        # with it the fetch benchmark failed more often (one walk failed a joint speed check). A held
+        # object is carried by the arm keeping its posture (walking's lowest level): a hand task in the
+        # walk frame made the planner move the arms at up to 1.5x their speed limits.
         walk = walk_msg.PlanRequest(
             steps=[
                 walk_msg.Step(pose=[float(v) for v in pose], side=side)
@@ -135,14 +124,7 @@ class Planners:
         lowest level)."""
         q = self.body.plan_q()
         robot = self.body.robot
-        soles = {}
-        for side in ("left", "right"):
-            T = robot.sole_pose(q, side)
-            soles[side] = SolePose(
-                float(T.translation[0]),
-                float(T.translation[1]),
-                math.atan2(T.rotation[1, 0], T.rotation[0, 0]),
-            )
+        soles = self._soles(q)
         limits = FootstepLimits.from_robot(robot)
         first = square_up(soles, limits)
         if first is not None:
@@ -204,26 +186,16 @@ class Planners:
         on the spot or to start a path away from an object."""
         q = self.body.plan_q()
         robot = self.body.robot
-        soles = {}
-        for side in ("left", "right"):
-            T = robot.sole_pose(q, side)
-            soles[side] = (
-                float(T.translation[0]),
-                float(T.translation[1]),
-                math.atan2(T.rotation[1, 0], T.rotation[0, 0]),
-            )
+        soles = self._soles(q)
         yaw = robot.mid_feet_pose(q)[2]
         n_pairs = max(1, math.ceil(distance_m / step_m))
         steps = []
         for k in range(1, n_pairs + 1):
             back = distance_m * k / n_pairs
             for side in ("right", "left"):
-                x, y, sole_yaw = soles[side]
-                steps.append(
-                    walk_msg.Step(
-                        pose=[x - back * math.cos(yaw), y - back * math.sin(yaw), sole_yaw], side=side
-                    )
-                )
+                p = soles[side]
+                pose = [p.x_m - back * math.cos(yaw), p.y_m - back * math.sin(yaw), p.yaw_rad]
+                steps.append(walk_msg.Step(pose=pose, side=side))
         request = walk_msg.PlanRequest(
             steps=steps,
             model=robot.name,
@@ -231,6 +203,15 @@ class Planners:
             double_support_s=TURN_DOUBLE_SUPPORT_S,
         )
         return self._walk(request)
+
+    def _soles(self, q: np.ndarray) -> dict[str, SolePose]:
+        """The sole poses (x, y, yaw) on the ground at ``q``."""
+        soles = {}
+        for side in ("left", "right"):
+            T = self.body.robot.sole_pose(q, side)
+            yaw = math.atan2(T.rotation[1, 0], T.rotation[0, 0])
+            soles[side] = SolePose(float(T.translation[0]), float(T.translation[1]), yaw)
+        return soles
 
 
 #: Feet further apart than this along the heading [m], or turned apart by more [rad], are squared up
@@ -243,9 +224,8 @@ def square_up(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep | 
     """The step that brings the rear foot beside the front one (parallel, at their current lateral
     distance kept within the bounds), or None when the stance is already square.
 
-    After a reaching step one foot is up to 0.22 m ahead: ``turn_in_place`` turns about the mid-feet
-    point of a square stance; from a staggered one a step of a turn landed out of the bounds (dx =
-    -0.28 m relative to the other sole in the fetch benchmark, seed 4)."""
+    After a reaching step one foot is up to 0.22 m ahead, while ``turn_in_place`` makes its steps for
+    a square stance, turning about its mid-feet point."""
     yaw = math.atan2(
         math.sin(soles["left"].yaw_rad) + math.sin(soles["right"].yaw_rad),
         math.cos(soles["left"].yaw_rad) + math.cos(soles["right"].yaw_rad),
