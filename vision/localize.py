@@ -23,6 +23,7 @@ from services.errors import InvalidRequestError, NotFoundError
 from vision.backproject import back_project
 from vision.camera import StereoRig
 from vision.camshift import Detection, DetectionConfig, RotatedBox, Window, check_unambiguous, detect_all
+from vision.footprint import Footprint, footprint, outline_points
 from vision.histogram import ObjectModel, to_hsv
 from vision.stereo import (
     StereoConfig,
@@ -55,6 +56,8 @@ class ObjectLocation:
     confidence: min of the left and right detection confidences, in [0, 1].
     disparity_px: disparity used [px]; method: "centroid", "bm", "sgbm" or "edges" (see vision.stereo).
     left, right: the detections in each image (pixel boxes, windows, centroids).
+    footprint: the floor rectangle of a non-spherical object from its outline's stereo points
+      (vision.footprint), None for a ball or when too few outline points match.
     """
 
     name: str
@@ -66,6 +69,7 @@ class ObjectLocation:
     method: str
     left: Detection
     right: Detection
+    footprint: Footprint | None = None
 
     @property
     def box_left(self) -> RotatedBox:
@@ -260,6 +264,17 @@ def locate_in_frame(
     z = float(p_camera[2])
     size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))
     p_world = to_world(p_camera, frame.T_world_left_camera)
+    floor_rectangle = None
+    if model.shape != "sphere":
+        points = outline_points(
+            _silhouette(bp_left, left.window, det_cfg),
+            left.window,
+            _silhouette(bp_right, right.window, det_cfg),
+            right.window,
+            rig,
+            frame.T_world_left_camera,
+        )
+        floor_rectangle = footprint(points, p_world)
     return ObjectLocation(
         model.name,
         tuple(float(v) for v in p_world),
@@ -270,6 +285,7 @@ def locate_in_frame(
         method,
         left,
         right,
+        floor_rectangle,
     )
 
 

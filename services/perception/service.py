@@ -39,6 +39,7 @@ from services.perception.locate import (
     object_model,
     stereo_pair,
 )
+from vision.footprint import Footprint
 from vision.histogram import DEFAULT_MODELS_DIR, load_models
 from vision.localize import ObjectLocation
 from vision.stereo import METHODS
@@ -79,6 +80,13 @@ def to_reply(loc: ObjectLocation, head: HeadStereo, rendered: bool, sim_time_s: 
         T_world_camera=head.T_world_left_camera.tolist(),
         rendered=rendered,
         sim_time_s=sim_time_s,
+        footprint=None if loc.footprint is None else _footprint(loc.footprint),
+    )
+
+
+def _footprint(fp: Footprint) -> msg.FootprintMsg:
+    return msg.FootprintMsg(
+        center=list(fp.center_m), size=list(fp.size_m), yaw=fp.yaw_rad, top_z=fp.top_z_m, n_points=fp.n_points
     )
 
 

@@ -47,6 +47,17 @@ class PixelBox(msgspec.Struct, kw_only=True, frozen=True):
     angle_deg: float
 
 
+class FootprintMsg(msgspec.Struct, kw_only=True, frozen=True):
+    """An object's rectangle on the floor from the stereo points of its silhouette's outline
+    (vision/footprint.py): what navigation needs of a box, a table or a chair."""
+
+    center: list[float]  # (x, y) world [m]
+    size: list[float]  # (length along yaw, width) [m]
+    yaw: float  # [rad], in (-pi/2, pi/2]
+    top_z: float  # height of the highest outline points, world [m]
+    n_points: int  # outline points it was fitted to
+
+
 class LocateReply(msgspec.Struct, kw_only=True, frozen=True):
     """A localized object.
 
@@ -69,6 +80,7 @@ class LocateReply(msgspec.Struct, kw_only=True, frozen=True):
     T_world_camera: list[list[float]]  # 4x4 pose of the left optical frame used (from q)
     rendered: bool  # the images came from sim/render (else from the request)
     sim_time_s: float  # sim time of the rendered images [s] (0 when the images came with the request)
+    footprint: FootprintMsg | None = None  # non-spherical objects whose outline matched in both images
 
 
 LOCATE = EndpointSpec(

@@ -1,0 +1,122 @@
+"""Object footprints from the stereo points of the silhouette's outline (vision/footprint.py): the
+rectangle fit, the occlusion filter, and the footprints of the demo's box, table and chair on simulator
+renders seen from around them (ground truth only scores)."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from services.perception.locate import head_stereo, locate_object
+from services.perception.look_around import head_joints
+from vision.footprint import _consistent, _rectangle, footprint
+from vision.histogram import load_models
+
+ROBOT = "hrp2_like"
+
+
+def _yaw_error(a: float, b: float, period: float) -> float:
+    """|a - b| modulo ``period`` [rad] (a rectangle's yaw is defined modulo pi, a square's modulo pi/2)."""
+    d = (a - b) % period
+    return min(d, period - d)
+
+
+def test_three_sides_of_a_rectangle_give_the_rectangle_not_the_one_along_the_hypotenuse():
+    """The fourth corner hidden behind the object: three corners and the two edges between them fit in
+    two rectangles of the same area; the points lie on the boundary of the true one only."""
+    yaw, length, width = 0.4, 0.45, 0.45
+    c, s = math.cos(yaw), math.sin(yaw)
+    along, across = np.array([c, s]), np.array([-s, c])
+    origin = np.array([1.0, -1.0])
+    t = np.linspace(0.0, 1.0, 40)[:, None]
+    points = np.vstack([origin + t * length * along, origin + t * width * across])
+    (cx, cy), size, fitted_yaw = _rectangle(points)
+    centre = origin + 0.5 * length * along + 0.5 * width * across
+    assert np.allclose((cx, cy), centre, atol=1e-6)
+    assert np.allclose(sorted(size), sorted((length, width)), atol=1e-6)
+    assert _yaw_error(fitted_yaw, yaw, math.pi / 2) < 1e-6
+
+
+def test_a_run_of_rows_occluded_in_one_image_is_dropped_and_border_edges_never_kept():
+    disparity = np.full(80, 30.0) + np.linspace(0.0, 4.0, 80)  # a slanted edge: slowly varying
+    disparity[30:40] += 6.0  # a ball in front of the edge in one image only
+    disparity[:3] = 0.0  # edges on the image border
+    keep = _consistent(disparity)
+    assert not keep[30:40].any() and not keep[:3].any()
+    assert keep[3:30].all() and keep[40:].all()
+
+
+def test_too_few_or_far_points_give_no_footprint():
+    assert footprint(np.zeros((3, 3)), np.zeros(3)) is None
+    far = np.column_stack([np.full(20, 5.0), np.linspace(0, 1, 20), np.full(20, 0.5)])
+    assert footprint(far, np.zeros(3)) is None  # all farther than max_extent_m from the centre
+
+
+@pytest.fixture(scope="module")
+def world():
+    from sim.world import World
+
+    with World(ROBOT, "ball_fetch", seed=3) as w:
+        yield w
+
+
+@pytest.fixture(scope="module")
+def models():
+    return load_models()
+
+
+def _look_from(world, obj, bearing_rad: float, distance_m: float):
+    """Stand ``distance_m`` from the object's centre in direction ``bearing_rad``, facing it, the head
+    tilted down toward it; render the wide pair."""
+    robot = world.robot
+    head = head_joints(robot, "wide")
+    centre = np.asarray(obj.position[:2])
+    base = centre + distance_m * np.array([math.cos(bearing_rad), math.sin(bearing_rad)])
+    yaw = bearing_rad + math.pi
+    q = world.state().q.copy()
+    q[0:2] = base
+    q[3:7] = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+    q[robot.joint_index(head.pan).idx_q] = 0.0
+    tilt = head.tilt_sign * math.atan2(1.0, distance_m)
+    q[robot.joint_index(head.tilt).idx_q] = float(np.clip(tilt, *head.tilt_limits))
+    world.pyrobot.reset(q)
+    left, right = world.render("wide", 640, 480)
+    stereo = head_stereo(robot, world.state().q, "wide", 640, 480)
+    return stereo, *(cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in (left, right))
+
+
+@pytest.mark.parametrize(
+    ("name", "bearing_deg", "distance_m"),
+    [
+        ("yellow_table", 90.0, 1.4),  # facing its long side
+        ("yellow_table", 45.0, 1.8),  # a corner ahead
+        ("yellow_table", 180.0, 1.3),  # its short side
+        ("green_box", 30.0, 1.5),
+        ("green_box", 200.0, 1.2),
+        ("chair", -60.0, 1.6),
+    ],
+)
+def test_footprints_of_the_demo_objects_match_the_truth(world, models, name, bearing_deg, distance_m):
+    """Centre within 3 cm, sides within 8 cm (the outline is seen from outside: never smaller by more
+    than 2 cm), yaw within 3 deg; the top within 8 cm (the chair's back is its top)."""
+    obj = world.layout.object(name)
+    bearing = obj.yaw_rad + math.radians(bearing_deg)
+    stereo, left, right = _look_from(world, obj, bearing, distance_m)
+    try:
+        location = locate_object(models, name, stereo, left, right)
+    finally:
+        world.pyrobot.reset(world.robot.q_half_sitting)
+    fp = location.footprint
+    assert fp is not None
+    sx, sy = obj.spec.size_m[:2]
+    true_yaw = obj.yaw_rad if sx >= sy else obj.yaw_rad + math.pi / 2
+    length, width = max(sx, sy), min(sx, sy)
+    assert np.linalg.norm(np.subtract(fp.center_m, obj.position[:2])) < 0.03
+    assert -0.02 < fp.size_m[0] - length < 0.08 and -0.02 < fp.size_m[1] - width < 0.08
+    square = abs(sx - sy) < 0.05
+    assert math.degrees(_yaw_error(fp.yaw_rad, true_yaw, math.pi / 2 if square else math.pi)) < 3.0
+    top = obj.top_z_m + (obj.spec.back_height_m if name == "chair" else 0.0)
+    assert abs(fp.top_z_m - top) < 0.08

@@ -1,0 +1,180 @@
+"""An object's footprint on the floor from the 3D points of its silhouette's outline (stereo).
+
+Yoshida et al. (``001_771c0ce3779b0683.txt``, "Object Recognition and Localization"): stereo "produces a
+dense 3D image of the current scene [...] precise enough 3D points can be obtained in the vicinity of
+the objects", and navigation avoids the objects so located ("Coupling the Motion Planner with
+Perception"). Our renders are uniformly coloured (correlation finds nothing to match inside a face), so
+the 3D points are those of the silhouette's outline: on each image row both silhouettes cover, the
+leftmost object pixel of the left image and that of the right image see the same point of the object's
+occluding contour (as in vision.stereo's ``"edges"`` estimator), and so do the rightmost ones. Each
+matched edge is triangulated. For a box-like object (a box, a table, a chair) these contour points lie
+on its outline: the far edges of its top, its vertical edges or legs, the bottom edges in front. Their
+horizontal projection, wrapped in the minimum-area rectangle, is the object's footprint: its size and
+its yaw, which the silhouette's width alone cannot give.
+
+Edges on the image's left or right border are skipped (the object is cut there); points farther than
+``max_extent_m`` from the object's located centre are outliers (a mismatched row) and are dropped.
+
+Frames: world (z up) [m]; pixels in vision's convention (pixel centres at integer coordinates).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from vision.camera import StereoRig
+from vision.camshift import Window
+from vision.stereo import to_world
+
+#: Fewer matched outline points than this give no footprint.
+MIN_POINTS = 8
+#: Running-median window [rows] and tolerance (the larger of [px] and a fraction of the disparity) of
+#: the edge disparities along one side of the silhouette.
+CONSISTENCY_WINDOW_ROWS = 31
+CONSISTENCY_TOLERANCE_PX = 1.0
+CONSISTENCY_FRACTION = 0.04
+#: Rectangles within this fraction of the least area compete on how well the points fit their boundary.
+AREA_SLACK = 0.1
+#: The top is this percentile of the points' heights (a few stray rows overshoot) [%].
+TOP_PERCENTILE = 95.0
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """A horizontal rectangle on the floor: centre (x, y) [m], size (along its yaw, across) [m], yaw [rad]
+    in (-pi/2, pi/2], the highest outline point ``top_z_m`` [m] (world), ``n_points`` used."""
+
+    center_m: tuple[float, float]
+    size_m: tuple[float, float]
+    yaw_rad: float
+    top_z_m: float
+    n_points: int
+
+
+def silhouette_rows(silhouette: np.ndarray, window: Window) -> dict[int, tuple[int, int]]:
+    """Image row [px] -> (first, last) object column [px] of a boolean window mask ``(x, y, w, h)``."""
+    x, y = window[0], window[1]
+    rows = np.flatnonzero(silhouette.any(axis=1))
+    first = silhouette[rows].argmax(axis=1)
+    last = silhouette.shape[1] - 1 - silhouette[rows][:, ::-1].argmax(axis=1)
+    return {int(y + r): (int(x + a), int(x + b)) for r, a, b in zip(rows, first, last, strict=True)}
+
+
+def outline_points(
+    silhouette_left: np.ndarray,
+    window_left: Window,
+    silhouette_right: np.ndarray,
+    window_right: Window,
+    rig: StereoRig,
+    T_world_left_camera: np.ndarray,
+) -> np.ndarray:
+    """World points (n, 3) [m] of the silhouettes' matched left and right edges, row by row.
+
+    An edge lies between its object pixel and the background pixel next to it (half a pixel outward);
+    the disparity is the same in both images, so only the column used for the ray moves.
+    """
+    left = silhouette_rows(silhouette_left, window_left)
+    right = silhouette_rows(silhouette_right, window_right)
+    last_col = rig.intrinsics.width - 1
+    rows = sorted(left.keys() & right.keys())
+    sides = (  # (columns, disparities) of the left edges, then of the right edges
+        (
+            [left[r][0] - 0.5 for r in rows],
+            [left[r][0] - right[r][0] if left[r][0] > 0 and right[r][0] > 0 else 0 for r in rows],
+        ),
+        (
+            [left[r][1] + 0.5 for r in rows],
+            [left[r][1] - right[r][1] if max(left[r][1], right[r][1]) < last_col else 0 for r in rows],
+        ),
+    )
+    u, v, d = [], [], []
+    for columns, disparities in sides:
+        keep = _consistent(np.asarray(disparities, dtype=float))
+        u.extend(np.asarray(columns)[keep])
+        v.extend(np.asarray(rows)[keep])
+        d.extend(np.asarray(disparities, dtype=float)[keep])
+    if not u:
+        return np.zeros((0, 3))
+    k = rig.intrinsics
+    u_px, v_px, d_px = (np.asarray(a, dtype=float) for a in (u, v, d))
+    z = k.fx * rig.baseline_m / d_px
+    p_camera = np.stack([(u_px - k.cx) * z / k.fx, (v_px - k.cy) * z / k.fy, z], axis=1)
+    return to_world(p_camera, T_world_left_camera)
+
+
+def _consistent(disparity_px: np.ndarray) -> np.ndarray:
+    """Mask of the edges (one side, row by row) whose disparity agrees with the running median of the
+    rows around it: an edge occluded in one image only (an object in front of it) gives a run of wrong
+    disparities shorter than the window; a disparity <= 0 (edge on the border) is never kept."""
+    n = len(disparity_px)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
+    half = CONSISTENCY_WINDOW_ROWS // 2
+    padded = np.pad(disparity_px, half, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
+    valid = windows > 0
+    median = np.array([np.median(w[m]) if m.any() else 0.0 for w, m in zip(windows, valid, strict=True)])
+    tolerance = np.maximum(CONSISTENCY_TOLERANCE_PX, CONSISTENCY_FRACTION * median)
+    return (disparity_px > 0) & (np.abs(disparity_px - median) <= tolerance)
+
+
+def _rectangle(xy: np.ndarray) -> tuple[tuple[float, float], tuple[float, float], float]:
+    """The rectangle of the points: among the minimum-area ones (rotating calipers over the convex
+    hull's edges, within ``AREA_SLACK`` of the least area), the one its points lie closest to the
+    boundary of. Three corners of a rectangle and the edges between them (the fourth corner hidden
+    behind the object) fit equally well in the rectangle along the hypotenuse: the outline points lie
+    on the true rectangle's boundary, not across it. Returns (centre, (length along yaw, width), yaw)."""
+    hull = cv2.convexHull(xy.astype(np.float32)).reshape(-1, 2).astype(float)
+    if len(hull) < 3:
+        raise ValueError("degenerate outline")
+    edges = np.roll(hull, -1, axis=0) - hull
+    angles = np.unique(np.round(np.arctan2(edges[:, 1], edges[:, 0]) % (math.pi / 2.0), 9))
+    candidates = []
+    for angle in angles:
+        c, s = math.cos(angle), math.sin(angle)
+        local = xy @ np.array([[c, -s], [s, c]])  # coordinates along (c, s) and (-s, c)
+        lo, hi = local.min(axis=0), local.max(axis=0)
+        area = float(np.prod(hi - lo))
+        to_boundary = np.minimum(np.abs(local - lo), np.abs(hi - local)).min(axis=1)
+        centre_local = 0.5 * (lo + hi)
+        centre = (c * centre_local[0] - s * centre_local[1], s * centre_local[0] + c * centre_local[1])
+        candidates.append((area, float(np.mean(to_boundary)), centre, tuple(hi - lo), float(angle)))
+    least = min(candidate[0] for candidate in candidates)
+    _area, _fit, centre, size, yaw = min(
+        (candidate for candidate in candidates if candidate[0] <= least * (1.0 + AREA_SLACK)),
+        key=lambda candidate: candidate[1],
+    )
+    return centre, size, yaw
+
+
+def footprint(
+    points_world: np.ndarray, centre_world: np.ndarray, max_extent_m: float = 1.0
+) -> Footprint | None:
+    """The minimum-area rectangle of the points' horizontal projection (see the module docstring).
+
+    points_world: (n, 3) [m]; centre_world: the object's located centre [m] (points farther than
+    ``max_extent_m`` from it horizontally are dropped). None with fewer than :data:`MIN_POINTS` points.
+    """
+    p = np.asarray(points_world, dtype=float).reshape(-1, 3)
+    near = np.linalg.norm(p[:, :2] - np.asarray(centre_world, dtype=float)[:2], axis=1) <= max_extent_m
+    p = p[near & (p[:, 2] > -0.05)]
+    if len(p) < MIN_POINTS:
+        return None
+    try:
+        (cx, cy), (w, h), yaw = _rectangle(p[:, :2])
+    except ValueError:
+        return None
+    if w < h:  # the first side along the yaw is the longer one
+        w, h, yaw = h, w, yaw + math.pi / 2.0
+    yaw = (yaw + math.pi / 2.0) % math.pi - math.pi / 2.0  # a rectangle's yaw is defined modulo pi
+    return Footprint(
+        (float(cx), float(cy)),
+        (float(w), float(h)),
+        float(yaw),
+        float(np.percentile(p[:, 2], TOP_PERCENTILE)),
+        len(p),
+    )
