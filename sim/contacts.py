@@ -6,7 +6,9 @@ Planned contacts:
 * a hand (gripper links) on an object it holds, or on an object named in ``allowed`` (the grasp target,
   a table the hand puts something on);
 * an object held by the robot touching a hand, an ``allowed`` object, or an object it already touched
-  when the motion started (lifting it off its support).
+  when the motion started (lifting it off its support);
+* any link on an object the motion is ``leaving`` (backing out of a collision), until that contact
+  first breaks: touching it again later is a collision.
 
 Every other contact between the robot (or an object it holds) and the scene is a collision. Contacts
 among scene objects (a ball resting on a box) are never reported. Self-contacts of the robot are not
@@ -50,6 +52,7 @@ class ContactRules:
     allowed: frozenset[str] = frozenset()
     already_touching: frozenset[tuple[str, str]] = frozenset()  # (held object, other) at motion start
     min_force_n: float = 0.05
+    leaving: set[str] = field(default_factory=set)  # objects still touched since the start (shrinks)
 
     def other_name(self, body: int) -> str:
         return "floor" if body == self.floor_id else self.names.get(body, f"body{body}")
@@ -83,9 +86,13 @@ class ContactRules:
         """Unplanned contacts now, one per (robot link or held object, other) pair (strongest point)."""
         found: dict[tuple[str, str], Contact] = {}
         held_names = {body: name for name, body in self.held.items()}
-        for link, other, pos, force in self.robot_contacts():
+        contacts = self.robot_contacts()
+        self.leaving &= {self.other_name(other) for _, other, _, _ in contacts}  # broken: no longer
+        for link, other, pos, force in contacts:
             other_name = self.other_name(other)
             if other == self.floor_id and link in self.foot_links:
+                continue
+            if other_name in self.leaving:
                 continue
             if link in self.hand_links and (other in held_names or other_name in self.allowed):
                 continue

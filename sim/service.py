@@ -165,6 +165,7 @@ class SimService(Service):
                 tuple(request.allowed_contacts),
                 request.stop_on_collision,
                 request.hold_s,
+                tuple(request.leaving),
             )
         return msg.ExecuteReply(
             outcome=r.outcome,

@@ -284,9 +284,9 @@ class World:
         prm = self.robot.params
         return T.translation[2] < prm.fall_base_height_m or self.tilt_rad(T) > prm.fall_tilt_rad
 
-    def contact_rules(self, allowed: tuple[str, ...] = ()) -> ContactRules:
+    def contact_rules(self, allowed: tuple[str, ...] = (), leaving: tuple[str, ...] = ()) -> ContactRules:
         """The planned-contact rules for the current held objects and ``allowed`` object names."""
-        unknown = sorted(set(allowed) - set(self.bodies) - {"floor"})
+        unknown = sorted((set(allowed) | set(leaving)) - set(self.bodies) - {"floor"})
         if unknown:
             raise NotFoundError(
                 f"allowed_contacts names unknown objects {unknown}; objects in scene "
@@ -304,6 +304,7 @@ class World:
             held={name: self.bodies[name] for name in self.held.values()},
             allowed=frozenset(allowed),
             min_force_n=self.config.contact_force_n,
+            leaving=set(leaving) - {"floor"},
         )
 
     def collisions(self, allowed: tuple[str, ...] = ()) -> list[Contact]:
@@ -318,6 +319,7 @@ class World:
         allowed_contacts: tuple[str, ...] = (),
         stop_on_collision: bool = True,
         hold_s: float = 0.0,
+        leaving: tuple[str, ...] = (),
     ) -> ExecutionResult:
         """Play a joint trajectory through position control.
 
@@ -329,6 +331,8 @@ class World:
             allowed_contacts: objects the hands (and held objects) may touch.
             stop_on_collision: stop at the first unplanned contact (the robot then holds its last command).
             hold_s: keep the last sample commanded this long after the end [s] (still monitored).
+            leaving: objects the robot touches now and moves away from: their contacts with any link
+                are allowed until they first break (:attr:`sim.contacts.ContactRules.leaving`).
         """
         cfg = self.config
         q_traj = self._check_trajectory(q_trajectory)
@@ -340,7 +344,7 @@ class World:
             )
         if hold_s < 0:
             raise InvalidRequestError(f"hold_s must be >= 0, got {hold_s}")
-        rules = self.contact_rules(tuple(allowed_contacts))
+        rules = self.contact_rules(tuple(allowed_contacts), tuple(leaving))
         rules.already_touching = rules.touching_pairs()
         n_hold = round(hold_s / dt)
         monitor = _Monitor(self)

@@ -238,6 +238,29 @@ def test_arm_hitting_a_box_is_a_collision_naming_the_links():
         assert result.samples_executed < len(swing)
 
 
+def test_backing_out_of_a_collision_may_touch_what_it_leaves_until_the_contact_breaks():
+    """The arm stopped on the crate and pressing on it: holding there is a collision; the executed part
+    played backward with the crate ``leaving`` completes; swinging back into it after leaving it is a
+    collision again."""
+    scene = with_object(
+        load_scene("empty"),
+        ObjectSpec(name="crate", kind="box", colour=COLOURS["blue"], xy=(0.45, -0.3), size_m=(0.3, 0.3, 1.0)),
+    )
+    with World("hrp2_like", scene) as world:
+        swing = motions.joint_motion(world.robot, world.state().q, {"RARM_JOINT0": -1.2}, 1.0)
+        stopped = world.execute(swing)
+        assert stopped.outcome == "collision"
+        back = swing[: stopped.samples_executed][::-1]
+        assert (
+            world.execute(np.repeat(back[:1], 3, axis=0)).outcome == "collision"
+        )  # holding still in contact: a collision
+        result = world.execute(back, leaving=("crate",))
+        assert result.outcome == "completed", result.message
+        assert not world.collisions()
+        there_and_back = np.vstack([back[::-1], back])
+        assert world.execute(there_and_back, leaving=("crate",)).outcome == "collision"
+
+
 def test_trajectory_validation_messages():
     with World("hrp2_like", "empty") as world:
         q0 = world.state().q

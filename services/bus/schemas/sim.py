@@ -76,6 +76,9 @@ class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True):
     allowed_contacts: list[str] = []  # objects the hands / held objects may touch (grasp target, table)
     stop_on_collision: bool = True  # stop at the first unplanned contact (else report at the end)
     hold_s: float = 0.0  # keep commanding the last sample this long after the end [s]
+    # Objects the robot touches at the start and moves away from (backing out of a collision): any link
+    # may keep touching one of them until that contact first breaks; touching it again is a collision.
+    leaving: list[str] = []
 
 
 class Contact(msgspec.Struct, kw_only=True, frozen=True):
