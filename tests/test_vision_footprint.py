@@ -12,7 +12,7 @@ import pytest
 
 from services.perception.locate import head_stereo, locate_object
 from services.perception.look_around import head_joints
-from vision.footprint import _consistent, _rectangle, footprint
+from vision.footprint import _consistent, _rectangle, _top, footprint
 from vision.histogram import load_models
 
 ROBOT = "hrp2_like"
@@ -47,6 +47,14 @@ def test_a_run_of_rows_occluded_in_one_image_is_dropped_and_border_edges_never_k
     keep = _consistent(disparity)
     assert not keep[30:40].any() and not keep[:3].any()
     assert keep[3:30].all() and keep[40:].all()
+
+
+def test_the_top_is_the_highest_height_many_points_share_not_a_few_stray_ones():
+    rng = np.random.default_rng(0)
+    top_edge = 0.72 + rng.normal(0.0, 0.003, 300)
+    legs = np.linspace(0.0, 0.7, 400)
+    stray = np.linspace(0.8, 1.3, 40)  # mismatched edges behind an occluder: nearer, hence higher
+    assert abs(_top(np.concatenate([top_edge, legs, stray])) - 0.72) < 0.015
 
 
 def test_too_few_or_far_points_give_no_footprint():

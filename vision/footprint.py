@@ -39,8 +39,11 @@ CONSISTENCY_TOLERANCE_PX = 1.0
 CONSISTENCY_FRACTION = 0.04
 #: Rectangles within this fraction of the least area compete on how well the points fit their boundary.
 AREA_SLACK = 0.1
-#: The top is this percentile of the points' heights (a few stray rows overshoot) [%].
-TOP_PERCENTILE = 95.0
+#: The top is the highest height [m] with at least ``TOP_SUPPORT_FRACTION`` of the points (and
+#: ``MIN_POINTS``) within ``TOP_BAND_M`` below it: edges mismatched behind an occluder (an arm in front
+#: of the table in one image) triangulate nearer, hence higher, but few of them at any one height.
+TOP_BAND_M = 0.03
+TOP_SUPPORT_FRACTION = 0.03
 
 
 @dataclass(frozen=True)
@@ -151,6 +154,15 @@ def _rectangle(xy: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]
     return centre, size, yaw
 
 
+def _top(z_m: np.ndarray) -> float:
+    """The highest well-supported height of the points [m] (see ``TOP_BAND_M``)."""
+    z = np.sort(z_m)[::-1]
+    support = max(MIN_POINTS, int(math.ceil(TOP_SUPPORT_FRACTION * len(z))))
+    below = np.searchsorted(-z, -(z - TOP_BAND_M), side="right") - np.arange(len(z))  # points in [z - band, z]
+    supported = np.flatnonzero(below >= support)
+    return float(z[supported[0]] if len(supported) else np.median(z))
+
+
 def footprint(
     points_world: np.ndarray, centre_world: np.ndarray, max_extent_m: float = 1.0
 ) -> Footprint | None:
@@ -175,6 +187,6 @@ def footprint(
         (float(cx), float(cy)),
         (float(w), float(h)),
         float(yaw),
-        float(np.percentile(p[:, 2], TOP_PERCENTILE)),
+        _top(p[:, 2]),
         len(p),
     )
