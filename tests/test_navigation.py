@@ -182,6 +182,7 @@ def test_forward_preferred_falls_back_to_reeds_shepp() -> None:
             PlannerConfig(curve="dubins", time_budget_s=0.3),
         )
     assert info.value.details["reason"] == "no_path_within_budget"
+    assert info.value.details["goals"] == [[2.0, 0.0, math.pi]]  # what was tried, for a fallback
 
 
 def test_enclosed_goal_is_infeasible_and_names_the_enclosure() -> None:

@@ -416,7 +416,11 @@ def plan_path(
             f"found within {config.time_budget_s:.2f} s from ({start.x_m:.2f}, {start.y_m:.2f}) to {target}: "
             f"the passages may be too narrow or too tight to turn in; try a smaller turning radius, a larger "
             f"budget or another goal",
-            {"reason": "no_path_within_budget", "time_budget_s": config.time_budget_s},
+            {
+                "reason": "no_path_within_budget",
+                "time_budget_s": config.time_budget_s,
+                "goals": [[p.x_m, p.y_m, p.theta_rad] for p in goals],
+            },
         )
     vertices, stats = result
     xy, theta, s, forward = densify(vertices, used, config.turning_radius_m, config.sample_step_m)
