@@ -37,7 +37,7 @@ from supervisor.perceive import Eyes
 from supervisor.planners import Planners
 from supervisor.report import ActionError, ActionReport
 from supervisor.runner import Action, Remedy
-from supervisor.scene_map import box_estimate, distance_to_box, is_obstacle
+from supervisor.scene_map import box_estimate, distance_to_box, is_obstacle, ray_entry
 from supervisor.script import Step
 
 #: Bodies of the robot stand this far from an object's face after ``goto OBJECT`` by default [m].
@@ -53,7 +53,8 @@ class ActionOptions:
     clearance_m: before turning or walking away, the robot steps back until the objects seen are this
         far from its mid-feet point [m];
     back_off_m: after a collision, the touching hand moves this far back and up [m];
-    far_m, near_m: an object farther than far_m is first approached to near_m and localized again [m];
+    far_m, near_m: an object farther than far_m is first approached to near_m and localized again [m]
+        (near_face_m from a free face of it when the pose near_m short of it is taken);
     put_height_m: the object is brought this high above the estimated top of the place, then lowered
         until it touches [m];
     put_highest_m, put_lowest_m: bounds of a place's top height: the estimate is capped at the first,
@@ -73,6 +74,7 @@ class ActionOptions:
     clearance_m: float = 0.6
     far_m: float = 2.2
     near_m: float = 1.4
+    near_face_m: float = 1.0
     put_height_m: float = 0.12
     put_highest_m: float = 0.95
     put_lowest_m: float = 0.4
@@ -98,6 +100,12 @@ def _parse_point(text: str, n: int, what: str) -> tuple[float, ...] | None:
     if len(values) != n:
         raise InvalidRequestError(f"{what} {text!r}: expected {n} numbers, got {len(values)}")
     return values
+
+
+def _arm_link(link: str) -> bool:
+    """Whether a robot link (or ``held:<object>``) of a collision report is an arm, a hand or held."""
+    upper = link.upper()
+    return link.startswith("held:") or any(part in upper for part in ("ARM", "HAND", "GRIPPER", "WRIST"))
 
 
 class Actions:
@@ -194,6 +202,7 @@ class Actions:
         distance = float(step.kwargs.get("distance", DEFAULT_GOTO_DISTANCE_M))
         pose = _parse_point(target, 3, "goto target")
         self.body.straighten()
+        self._survey(exclude={target})
         self._make_room(f"room to walk to {target}")
         if pose is None:
             sighting = self.memory.get(target)
@@ -261,7 +270,13 @@ class Actions:
         u = to / dist
         stop = sighting.position_m[:2] - u * self.options.near_m
         what = f"approach {name}"
-        plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
+        try:
+            plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
+        except InfeasibleError as exc:
+            if exc.details.get("reason") != "goal_in_collision":
+                raise
+            self.progress(f"{what}: the pose {self.options.near_m:.1f} m short of it is taken: {exc.message}")
+            plan = self.planners.goto_object(name, self.options.near_face_m)
         self.progress(
             f"{what} (seen {dist:.1f} m away: will look again from {self.options.near_m:.1f} m): "
             f"{plan.describe()}"
@@ -271,6 +286,11 @@ class Actions:
         self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
         self.eyes.look_at(self.memory.get(name).position_m, f"look at {name}")
         self.eyes.locate(name)
+        self._survey(exclude={name})
+
+    def _survey(self, exclude: set[str]) -> None:
+        """Put the big objects in view on the map (not ``exclude``, not what the hands hold)."""
+        self.eyes.survey(self.progress, exclude={*exclude, *self.memory.holding.values()})
 
     def do_turn(self, step: Step) -> ActionReport:
         """Turn on the spot by ``angle_deg`` (positive = left)."""
@@ -523,7 +543,7 @@ class Actions:
         to_centre = centre - (x, y)
         dist = float(np.linalg.norm(to_centre))
         u = to_centre / max(dist, 1e-6)
-        face = dist - box.size_m[0] / 2.0
+        face = min(dist, ray_entry(box, np.array([x, y]), u))
         ahead = min(dist, max(0.0, face) + self.options.put_inside_m)
         xy = np.array([x, y]) + u * ahead
         top = min(box.top_z_m, self.options.put_highest_m)
@@ -549,14 +569,17 @@ class Actions:
             self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
 
     def replan(self, step: Step, report: ActionReport) -> None:
-        """After a collision: free the robot (move the touching hand back and up, the touched objects
-        allowed), refresh the goal's position; the retry then plans again from the state the robot is in
-        now (planners are stateless and the actions plan from ``sim/state``)."""
+        """After a collision: free the robot (a leg or the body: play the end of the stopped motion
+        backward, :meth:`Body.back_out`; a hand: move it back and up, the touched objects allowed),
+        refresh the goal's position; the retry then plans again from the state the robot is in now
+        (planners are stateless and the actions plan from ``sim/state``)."""
         if self.body.state().fallen:
             raise ActionError("fell", "the robot fell: it cannot replan from the ground")
         collisions = report.details.get("collisions") or []
         touched = sorted({str(c["other"]) for c in collisions})
         links = " ".join(str(c["robot_link"]).upper() for c in collisions)
+        if self.body.interrupted is not None and any(not _arm_link(str(c["robot_link"])) for c in collisions):
+            self.body.back_out(self.progress)  # a leg or the body hit it: undo the end of the motion
         for hand, tag in (("right", "RARM"), ("left", "LARM")):
             if tag in links or ("held:" in links.lower() and hand in self.body.held()):
                 self._back_off(hand, touched)

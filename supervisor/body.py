@@ -31,6 +31,10 @@ HEAD_SPEED_RAD_S = 1.5
 EXECUTE_TIMEOUT_S = 60.0
 #: Plan from the last commanded configuration when every joint is within this of it [rad].
 PLAN_FROM_COMMAND_RAD = 0.05
+#: Backing out of a stopped motion goes back at least this far [s], then on to an instant both soles
+#: were on the floor (within ``FLAT_SOLE_M`` [m]).
+BACK_OUT_MIN_S = 0.5
+FLAT_SOLE_M = 0.002
 
 Progress = Callable[[str], None]
 
@@ -46,6 +50,18 @@ class Executed:
     touched: bool = False
 
 
+@dataclass(frozen=True)
+class Interrupted:
+    """The part of a trajectory played before a collision stopped it: ``q`` (M, nq) every ``dt_s``,
+    with the contacts it was allowed, ``what`` it was for and the objects it touched."""
+
+    q: np.ndarray
+    dt_s: float
+    allowed_contacts: tuple[str, ...]
+    what: str
+    touched: tuple[str, ...]
+
+
 class Body:
     """Proprioception and motion of the simulated robot through ``sim``."""
 
@@ -54,6 +70,7 @@ class Body:
         self.stop = stop or threading.Event()
         self._robot: RobotModel | None = None
         self._commanded: np.ndarray | None = None  # last sample of the last completed trajectory
+        self.interrupted: Interrupted | None = None  # the last motion a collision stopped, until backed out
 
     # State -----------------------------------------------------------------------------------------
     def state(self) -> sim_msg.StateReply:
@@ -115,17 +132,21 @@ class Body:
         progress: Progress | None = None,
         hold_s: float = 0.0,
         touch: str = "",
+        leaving: Sequence[str] = (),
     ) -> Executed:
         """Play the (N, nq) trajectory ``Q`` in chunks; ActionError(fell | collision | stopped).
 
         ``touch``: an object the motion is expected to bump into (a guarded move: lowering a held object
         onto a table of uncertain height); stopping on contacts with it only is a success with
-        ``touched`` set, as a force sensor in the wrist would tell.
+        ``touched`` set, as a force sensor in the wrist would tell. ``leaving``: objects touched at the
+        start that the motion moves away from (``sim/execute``'s ``leaving``). A collision stop keeps
+        the executed part in :attr:`interrupted` (see :meth:`back_out`).
         """
         Q = np.asarray(Q, dtype=float)
         if Q.ndim != 2 or Q.shape[0] < 2:
             raise ActionError("internal", f"{what}: a trajectory needs (N >= 2, nq) samples, got {Q.shape}")
         total = (Q.shape[0] - 1) * dt_s
+        self.interrupted = None  # a new motion: the last stopped one is not undone any more
         spent = 0.0
         start = 0
         reply: sim_msg.ExecuteReply | None = None
@@ -140,12 +161,21 @@ class Body:
                 dt_s=dt_s,
                 allowed_contacts=list(allowed_contacts),
                 hold_s=hold_s if last else 0.0,
+                leaving=list(leaving),
             )
             reply = self.bus.call(sim_msg.EXECUTE, request, EXECUTE_TIMEOUT_S)
             spent += reply.duration_s
             if reply.outcome == "collision" and touch and all(c.other == touch for c in reply.collisions):
                 return Executed(spent, np.asarray(reply.q, dtype=float), reply, touched=True)
             if reply.outcome != "completed":
+                if reply.outcome == "collision":
+                    self.interrupted = Interrupted(
+                        Q[: start + max(1, reply.samples_executed)].copy(),
+                        dt_s,
+                        tuple(allowed_contacts),
+                        what,
+                        tuple(sorted({c.other for c in reply.collisions})),
+                    )
                 raise self._failure(what, reply, spent, total)
             if progress is not None and not last:
                 progress(f"{what}: {spent:.1f} of {total:.1f} s")
@@ -153,6 +183,35 @@ class Body:
         assert reply is not None
         self._commanded = Q[-1].copy()
         return Executed(spent, np.asarray(reply.q, dtype=float), reply)
+
+    def back_out(self, progress: Progress | None = None) -> float:
+        """Undo the end of the motion a collision stopped: play its executed part backward (the same
+        path, time reversed: the CoM accelerations, hence the ZMP, are those of the planned motion) for at
+        least ``BACK_OUT_MIN_S``, on to the last instant both soles were on the floor. A robot stopped
+        mid-step holds a foot in the air, where no planner can start from. Returns the time played [s]
+        (0 when nothing was interrupted)."""
+        interrupted, self.interrupted = self.interrupted, None
+        if interrupted is None or interrupted.q.shape[0] < 2:
+            return 0.0
+        Q = interrupted.q
+        robot = self.robot
+        last = Q.shape[0] - 1
+        k = max(0, last - round(BACK_OUT_MIN_S / interrupted.dt_s))
+        while k > 0 and not all(
+            abs(float(robot.sole_pose(Q[k], side).translation[2])) < FLAT_SOLE_M for side in ("left", "right")
+        ):
+            k -= 1
+        what = f"back out of {interrupted.what} ({', '.join(interrupted.touched)})"
+        if progress is not None:
+            progress(f"{what}: {(last - k) * interrupted.dt_s:.1f} s of it backward")
+        done = self.execute(
+            Q[k:][::-1],
+            what=what,
+            dt_s=interrupted.dt_s,
+            allowed_contacts=interrupted.allowed_contacts,
+            leaving=interrupted.touched,
+        )
+        return done.duration_s
 
     @staticmethod
     def _failure(what: str, reply: sim_msg.ExecuteReply, spent: float, total: float) -> ActionError:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from services.errors import NotFoundError
+from vision.footprint import Footprint
 
 
 @dataclass(frozen=True)
@@ -21,7 +22,8 @@ class Sighting:
     position_m: world position of its reference point (centre of a ball, middle of the visible
     silhouette of a box or table) [m]; size_m: (width, height) of its image box at its depth [m];
     distance_m: from the camera [m]; confidence in [0, 1]; sim_time_s: when [s]; camera_m: world
-    position of the camera that saw it [m].
+    position of the camera that saw it [m]; footprint: its floor rectangle from stereo (perception's
+    ``footprint``; None for a ball or when its outline did not match).
     """
 
     name: str
@@ -31,6 +33,7 @@ class Sighting:
     confidence: float
     sim_time_s: float
     camera_m: np.ndarray
+    footprint: Footprint | None = None
 
     def describe(self) -> str:
         x, y, z = self.position_m

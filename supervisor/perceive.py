@@ -20,6 +20,7 @@ from services.perception.look_around import scan_angles, turn_offsets
 from supervisor.body import Body, Progress
 from supervisor.calls import ServiceCaller
 from supervisor.memory import Memory, Sighting
+from vision.footprint import Footprint
 
 #: NotFoundError reasons of perception/locate that another viewpoint may fix.
 LOOK_AROUND_REASONS = ("not_in_view", "not_in_right_view", "no_disparity", "stereo_mismatch", "ambiguous", "")
@@ -36,6 +37,8 @@ class Eyes:
         self.bus = bus
         self.body = body
         self.memory = memory
+        self._blob_models: list[str] | None = None  # perception's non-ball models, asked once
+        self._last_box = (320.0, 240.0)  # image centre [px] of the last sighting (off_centre)
 
     def locate(self, name: str, q: np.ndarray | None = None) -> Sighting:
         """Localize ``name`` now (no motion); NotFoundError from perception otherwise."""
@@ -54,10 +57,43 @@ class Eyes:
             confidence=float(reply.confidence),
             sim_time_s=float(reply.sim_time_s),
             camera_m=T[:3, 3].copy(),
+            footprint=None
+            if reply.footprint is None
+            else Footprint(
+                (reply.footprint.center[0], reply.footprint.center[1]),
+                (reply.footprint.size[0], reply.footprint.size[1]),
+                reply.footprint.yaw,
+                reply.footprint.top_z,
+                reply.footprint.n_points,
+            ),
         )
         self.memory.remember(sighting)
         self._last_box = (reply.box_left.u_px, reply.box_left.v_px)
         return sighting
+
+    def survey(self, progress: Progress, exclude: set[str]) -> list[str]:
+        """Localize, in the current view, every learned object that is not a ball (models of shape
+        "blob": boxes, tables, chairs) except ``exclude``: navigation avoids the obstacles it knows of
+        ("avoiding known obstacles", Fig. 10 of the motion-autonomy paper), so whatever big object is in
+        view goes on the map before a walk is planned. Returns the names seen (not seen: skipped)."""
+        if self._blob_models is None:
+            reply = self.bus.call(perception_msg.MODELS, perception_msg.ModelsRequest(), LOCATE_TIMEOUT_S)
+            self._blob_models = [o.name for o in reply.objects if o.shape != "sphere"]
+        q = self.body.q()
+        seen = []
+        last_box = self._last_box
+        for name in self._blob_models:
+            if name in exclude:
+                continue
+            try:
+                self.locate(name, q)
+            except NotFoundError:
+                continue
+            seen.append(name)
+        self._last_box = last_box
+        if seen:
+            progress(f"in view: {', '.join(seen)} (on the map for navigation)")
+        return seen
 
     def off_centre(self) -> float:
         """How far the last sighting's image box is from the image centre (fraction of the half-width)."""

@@ -13,16 +13,25 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import msgspec
 import numpy as np
 
 from services.bus.schemas import navigation as nav_msg
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import walking as walk_msg
-from services.walking.footsteps import Footstep, FootstepLimits, SolePose, turn_in_place
+from services.errors import InfeasibleError
+from services.walking.footsteps import (
+    Footstep,
+    FootstepLimits,
+    SolePose,
+    fit_to_bounds,
+    footsteps_along_mid_poses,
+    turn_in_place,
+)
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.memory import Memory
-from supervisor.scene_map import obstacles
+from supervisor.scene_map import box_estimate, distance_to_box, is_obstacle, obstacles
 
 PLAN_TIMEOUT_S = 120.0
 #: Largest yaw of one pair of turning steps [rad]: the opening foot's bound is pi/4 (footstep paper §5).
@@ -30,6 +39,18 @@ TURN_PER_PAIR_RAD = 0.98 * math.pi / 4
 #: Double support between turning steps [s]: with walking's default 0.1 s the simulated robot fell in
 #: about half of the 60-90 deg turns (tilting over during a weight transfer); 0.3 s turned every time.
 TURN_DOUBLE_SUPPORT_S = 0.3
+#: A goal nearer than this [m] whose car-like path is longer than ``DETOUR_FACTOR`` times the straight
+#: line plus ``DETOUR_SLACK_M`` is walked straight (sideways and turning as needed): navigation's
+#: forward-preferring Dubins curves loop around to shift the robot sideways by half a metre.
+SHORT_WALK_M = 1.5
+DETOUR_FACTOR = 1.5
+DETOUR_SLACK_M = 0.5
+#: When navigation finds no path in its default budget: the second search's budget [s] and turning
+#: radius [m] (the first one's is navigation's default, 0.5 m).
+RETRY_BUDGET_S = 4.0
+RETRY_TURNING_RADIUS_M = 0.3
+#: The straight walk keeps the base this far from every mapped obstacle [m] (or as far as the goal is).
+SHORT_WALK_CLEARANCE_M = 0.35
 
 
 @dataclass(frozen=True)
@@ -84,8 +105,26 @@ class Planners:
     def _goto(self, **goal: object) -> Plan:
         q = self.body.plan_q()
         request = nav_msg.GotoRequest(q_start=q, obstacles=obstacles(self.memory), **goal)  # type: ignore[arg-type]
-        reply = self.bus.call(nav_msg.GOTO, request, PLAN_TIMEOUT_S)
+        try:
+            reply = self.bus.call(nav_msg.GOTO, request, PLAN_TIMEOUT_S)
+        except InfeasibleError as exc:
+            if exc.details.get("reason") != "no_path_within_budget":
+                raise
+            # No car-like path in the budget: a near goal is walked straight to if the line is clear,
+            # else navigation searches again, longer and with the tighter turns a humanoid can make.
+            for tried in exc.details.get("goals", []):
+                straight = self._short_walk(q, [float(v) for v in tried], math.inf)
+                if straight is not None:
+                    return straight
+            request = msgspec.structs.replace(
+                request, time_budget_s=RETRY_BUDGET_S, turning_radius_m=RETRY_TURNING_RADIUS_M
+            )
+            reply = self.bus.call(nav_msg.GOTO, request, PLAN_TIMEOUT_S)
         goal_reached = [float(v) for v in reply.goal]
+        path_m = float(np.asarray(reply.path_s_m)[-1]) if len(reply.path_s_m) else 0.0
+        straight = self._short_walk(q, goal_reached, path_m)
+        if straight is not None:
+            return straight
         # navigation's path and footsteps, walked by walking/plan with the longer double support that
         # keeps the simulated robot up (see TURN_DOUBLE_SUPPORT_S), not navigation's own whole-body walk:
         # with it the fetch benchmark failed more often (one walk failed a joint speed check). A held
@@ -108,6 +147,61 @@ class Planners:
             goal=goal_reached,
             plan_s=float(reply.timings_s.get("total_s", 0.0)),
         )
+
+    def _short_walk(self, q: np.ndarray, goal: list[float], path_m: float) -> Plan | None:
+        """The straight walk to a near ``goal`` (x, y, yaw) when navigation's path of ``path_m`` [m] is a
+        detour (see ``SHORT_WALK_M``) and the straight line keeps clear of the mapped obstacles; None
+        otherwise (navigation's path is walked)."""
+        x0, y0, _yaw = self.body.robot.mid_feet_pose(q)
+        straight_m = math.hypot(goal[0] - x0, goal[1] - y0)
+        if straight_m > SHORT_WALK_M or path_m <= DETOUR_FACTOR * straight_m + DETOUR_SLACK_M:
+            return None
+        held = set(self.memory.holding.values())
+        boxes = [
+            box_estimate(s) for s in self.memory.sightings.values() if is_obstacle(s) and s.name not in held
+        ]
+        for box in boxes:
+            need = min(SHORT_WALK_CLEARANCE_M, distance_to_box(box, goal[0], goal[1])) - 0.02
+            for t in np.linspace(0.0, 1.0, max(2, math.ceil(straight_m / 0.05) + 1)):
+                x, y = x0 + t * (goal[0] - x0), y0 + t * (goal[1] - y0)
+                if distance_to_box(box, x, y) < need:
+                    return None
+        return self.walk_to(
+            goal[0], goal[1], goal[2], planner=f"walking/plan, straight ({path_m:.1f} m path)"
+        )
+
+    def walk_to(self, x_m: float, y_m: float, yaw_rad: float, *, planner: str = "walking/plan") -> Plan:
+        """Walk straight to the base pose (x, y [m], yaw [rad]) of the mid-feet frame, stepping forward,
+        sideways and turning together (steps as long as the robot's footstep bounds allow), the feet side
+        by side at the end. No obstacle check: for short walks on free floor."""
+        q = self.body.plan_q()
+        robot = self.body.robot
+        soles = self._soles(q)
+        x0, y0, yaw0 = robot.mid_feet_pose(q)
+        c, s = math.cos(yaw0), math.sin(yaw0)
+        dx, dy = c * (x_m - x0) + s * (y_m - y0), -s * (x_m - x0) + c * (y_m - y0)
+        dyaw = math.remainder(yaw_rad - yaw0, 2.0 * math.pi)
+        first = "left" if (dy if abs(dy) > 0.02 else dyaw) > 0 else "right"  # lead with the foot on the way
+
+        def make(n: int):
+            return footsteps_along_mid_poses(
+                [(f * dx, f * dy, f * dyaw) for f in (min(k, n - 1) / (n - 1) for k in range(1, n + 1))],
+                first,
+                left_start=soles["left"],
+                right_start=soles["right"],
+            )
+
+        sequence = fit_to_bounds(make, 2, FootstepLimits.from_robot(robot), "a straight walk")
+        request = walk_msg.PlanRequest(
+            steps=[
+                walk_msg.Step(pose=[st.pose.x_m, st.pose.y_m, st.pose.yaw_rad], side=st.side)
+                for st in sequence.steps
+            ],
+            model=robot.name,
+            q_start=q,
+            double_support_s=TURN_DOUBLE_SUPPORT_S,
+        )
+        return self._walk(request, planner=planner, goal=[x_m, y_m, yaw_rad])
 
     def goto_object(self, name: str, distance_m: float) -> Plan:
         """Stand ``distance_m`` in front of ``name``'s face (as the map estimates it), facing it."""

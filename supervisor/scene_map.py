@@ -1,11 +1,14 @@
 """The supervisor's map for navigation: obstacles built from perception's sightings (never ground truth).
 
-Perception gives, per object, the triangulated middle of its coloured silhouette and the width and
-height of its image box at that depth (services/bus/schemas/perception.py). Navigation wants boxes
-on the floor (services/bus/schemas/navigation.py). The depth of an object is not seen: the footprint
-is taken square (depth = seen width), facing the camera that saw it, and pushed back from the seen
-point by a quarter of its depth (the silhouette of a box or table seen from above the top mixes its
-front face and its top). Small objects (balls) and held objects are not obstacles.
+Perception gives, per object, the triangulated middle of its coloured silhouette, the width and
+height of its image box at that depth and, for a box, a table or a chair, its floor rectangle from the
+stereo points of its outline (``footprint``, vision/footprint.py); navigation wants boxes on the floor
+(services/bus/schemas/navigation.py). The map's box is that rectangle up to the highest outline point.
+What the outline cannot show stays an assumption: a rectangle thinner than ``MIN_DEPTH_FRACTION`` of its
+length (a chair seen from behind: only its back) hides its depth, which is taken as long as the
+rectangle, behind what was seen. Without a footprint (the outline matched in too few rows) the box is
+taken square (depth = seen width), facing the camera that saw it, pushed back from the seen point by a
+quarter of its depth. Small objects (balls) and held objects are not obstacles.
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from supervisor.memory import Memory, Sighting
 SMALL_OBJECT_M = 0.25
 DEPTH_RANGE_M = (0.3, 1.2)
 PUSH_BACK_FRACTION = 0.25
+#: A footprint thinner than this fraction of its length hides its depth (see the module docstring).
+MIN_DEPTH_FRACTION = 0.4
 
 
 @dataclass(frozen=True)
@@ -45,6 +50,8 @@ class BoxEstimate:
 
 def box_estimate(sighting: Sighting) -> BoxEstimate:
     """The footprint box of an object seen by perception (see the module docstring)."""
+    if sighting.footprint is not None:
+        return _from_footprint(sighting)
     p = np.asarray(sighting.position_m, dtype=float)
     view = p[:2] - np.asarray(sighting.camera_m, dtype=float)[:2]
     norm = float(np.linalg.norm(view))
@@ -61,6 +68,27 @@ def box_estimate(sighting: Sighting) -> BoxEstimate:
     )
 
 
+def _from_footprint(sighting: Sighting) -> BoxEstimate:
+    fp = sighting.footprint
+    assert fp is not None
+    length, width = fp.size_m
+    centre = np.asarray(fp.center_m, dtype=float)
+    depth = max(width, min(length, DEPTH_RANGE_M[1]))
+    if width < MIN_DEPTH_FRACTION * length:  # extend away from the camera that saw it
+        across = np.array([-math.sin(fp.yaw_rad), math.cos(fp.yaw_rad)])
+        if float(np.dot(across, centre - np.asarray(sighting.camera_m, dtype=float)[:2])) < 0.0:
+            across = -across
+        centre = centre + across * (depth - width) / 2.0
+        width = depth
+    top = max(0.05, fp.top_z_m)
+    return BoxEstimate(
+        name=sighting.name,
+        center_m=(float(centre[0]), float(centre[1]), top / 2.0),
+        size_m=(float(length), float(width), top),
+        yaw_rad=fp.yaw_rad,
+    )
+
+
 def is_obstacle(sighting: Sighting) -> bool:
     return max(sighting.size_m) >= SMALL_OBJECT_M
 
@@ -71,6 +99,27 @@ def obstacles(memory: Memory) -> list[nav_msg.ObstacleMsg]:
     return [
         box_estimate(s).to_msg() for s in memory.sightings.values() if s.name not in held and is_obstacle(s)
     ]
+
+
+def ray_entry(box: BoxEstimate, origin_xy: np.ndarray, direction_xy: np.ndarray) -> float:
+    """Distance [m] along the unit ``direction_xy`` from ``origin_xy`` to where the ray enters the box's
+    footprint rectangle (0 if the origin is inside; inf if the ray misses it) — slab method."""
+    c, s = math.cos(box.yaw_rad), math.sin(box.yaw_rad)
+    rotate = np.array([[c, s], [-s, c]])  # world -> box frame
+    o = rotate @ (np.asarray(origin_xy, dtype=float) - np.asarray(box.center_m[:2]))
+    d = rotate @ np.asarray(direction_xy, dtype=float)
+    half = np.asarray(box.size_m[:2]) / 2.0
+    enter, leave = -math.inf, math.inf
+    for k in range(2):
+        if abs(d[k]) < 1e-12:
+            if abs(o[k]) > half[k]:
+                return math.inf
+            continue
+        t0, t1 = sorted(((-half[k] - o[k]) / d[k], (half[k] - o[k]) / d[k]))
+        enter, leave = max(enter, t0), min(leave, t1)
+    if enter > leave or leave < 0.0:
+        return math.inf
+    return max(0.0, enter)
 
 
 def distance_to_box(box: BoxEstimate, x_m: float, y_m: float) -> float:

@@ -1,0 +1,55 @@
+"""The supervisor's map (supervisor/scene_map.py): navigation boxes from perception's sightings."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from supervisor.memory import Sighting
+from supervisor.scene_map import box_estimate, distance_to_box, ray_entry
+from vision.footprint import Footprint
+
+
+def _sighting(footprint: Footprint | None, camera_xy=(0.0, 0.0), name: str = "yellow_table") -> Sighting:
+    return Sighting(
+        name=name,
+        position_m=np.array([2.0, 0.0, 0.5]),
+        size_m=(0.9, 0.5),
+        distance_m=2.0,
+        confidence=0.9,
+        sim_time_s=0.0,
+        camera_m=np.array([*camera_xy, 1.4]),
+        footprint=footprint,
+    )
+
+
+def test_a_footprint_becomes_the_box_up_to_its_top():
+    box = box_estimate(_sighting(Footprint((2.1, 0.2), (1.0, 0.6), 0.3, 0.72, 500)))
+    assert box.center_m == pytest.approx((2.1, 0.2, 0.36))
+    assert box.size_m == pytest.approx((1.0, 0.6, 0.72))
+    assert box.yaw_rad == pytest.approx(0.3)
+
+
+def test_a_thin_footprint_hides_its_depth_behind_what_was_seen():
+    """A chair seen from behind shows its back only: the box extends away from the camera to a square."""
+    box = box_estimate(_sighting(Footprint((2.0, 0.0), (0.46, 0.06), math.pi / 2, 0.9, 300), name="chair"))
+    assert box.size_m[:2] == pytest.approx((0.46, 0.46))
+    assert box.center_m[:2] == pytest.approx((2.2, 0.0))  # pushed back, away from the camera at x = 0
+    assert distance_to_box(box, 1.96, 0.0) == pytest.approx(0.01)  # the seen back stays the near face
+
+
+def test_without_a_footprint_the_box_faces_the_camera():
+    box = box_estimate(_sighting(None))
+    assert box.yaw_rad == pytest.approx(0.0)
+    assert box.center_m[0] > 2.0  # pushed back from the seen middle of the silhouette
+
+
+def test_a_ray_enters_a_yawed_box_at_its_face():
+    box = box_estimate(_sighting(Footprint((2.0, 0.0), (1.0, 0.6), math.pi / 2, 0.72, 500)))
+    # Yawed by 90 deg: 0.6 m deep along x, its near face at x = 1.7.
+    assert ray_entry(box, np.array([0.0, 0.0]), np.array([1.0, 0.0])) == pytest.approx(1.7)
+    assert ray_entry(box, np.array([2.0, 0.1]), np.array([1.0, 0.0])) == 0.0  # from inside
+    assert ray_entry(box, np.array([0.0, 0.0]), np.array([0.0, 1.0])) == math.inf  # misses
+    assert ray_entry(box, np.array([0.0, 0.0]), np.array([-1.0, 0.0])) == math.inf  # behind the origin
