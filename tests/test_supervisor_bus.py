@@ -142,3 +142,31 @@ def test_console_stop_aborts_the_running_command(stack, sup) -> None:
     assert code == 1, text
     assert "stopping" in text and "stopped by the operator" in text
     assert sup.events[-1].kind == "run_finished" and not sup.events[-1].ok
+
+
+def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, tmp_path) -> None:
+    """The right arm swings into a crate and stops pressing on it; backing out plays the executed part
+    backward (the crate may be touched until the contact breaks), after which the robot can hold still
+    without touching anything."""
+    from sim import motions
+    from supervisor.report import ActionError
+
+    scene = tmp_path / "crate.yaml"
+    scene.write_text(
+        "name: crate\ndescription: a crate beside the right arm\nrobot: {x: 0.0, y: 0.0, yaw: 0.0}\n"
+        "floor: {colour: light_grey, friction: 1.0}\nobjects:\n"
+        "  - {name: crate, kind: box, size: [0.3, 0.3, 1.0], colour: blue, xy: [0.45, -0.3], yaw: 0.0}\n"
+    )
+    stack.client.call(sim_msg.RESET, sim_msg.ResetRequest(scene=str(scene)), 30)
+    body = sup.actions.body
+    swing = motions.joint_motion(body.robot, body.q(), {"RARM_JOINT0": -1.2}, 1.0)
+    with pytest.raises(ActionError) as stopped:
+        body.execute(swing, what="swing")
+    assert stopped.value.reason == "collision" and body.interrupted is not None
+    assert body.interrupted.touched == ("crate",)
+    executed_s = (body.interrupted.q.shape[0] - 1) * body.interrupted.dt_s
+    assert executed_s < 0.5  # stopped early: backing out undoes all of it (at least 0.5 s otherwise)
+    assert body.back_out() == pytest.approx(executed_s, abs=0.006) and body.interrupted is None
+    q = body.q()
+    body.execute(np.repeat(q[None, :], 20, axis=0), what="hold still")  # completes: no contact left
+    assert body.back_out() == 0.0  # nothing left to undo
