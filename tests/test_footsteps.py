@@ -27,9 +27,11 @@ from services.footsteps.geometry import (
     sole_pose_of,
 )
 from services.footsteps.planner import initial_stance, plan_footsteps
+from services.footsteps.problem import self_collision_task
 from services.footsteps.request import DiskObstacle, FootstepPlanRequest, FootstepTask, PlannerOptions
 from services.ik.kinematics import compute_kinematics
 from services.ik.tasks.foot_outside_disk import FootOutsideDiskTask
+from services.ik.tasks.self_collision import SelfCollisionTask
 from services.model import load_robot
 from services.model.geometry import polygon_signed_margin
 from services.walking.footsteps import FootstepLimits, SolePose, validate_footsteps
@@ -139,6 +141,25 @@ def test_footstep_constraint_jacobians_match_finite_differences(robot, stance, s
         # central differences: error O(h^2 |F'''|) + rounding O(eps / h)
         np.testing.assert_allclose(J, J_num, atol=1e-6, err_msg=task.name)
         assert F.shape[0] == J.shape[0]
+
+
+def test_self_collision_task_is_shared_per_chain_model(robot, stance):
+    """The self-collision task holds no state between evaluations: one per chain model, margin and
+    gain, and a task built anew gives the same rows."""
+    chain, q = grown_chain(robot, stance, "left", 2)
+    task = self_collision_task(chain, 0.01, 1.0)
+    assert self_collision_task(VirtualChain(robot, "left", 2, stance), 0.01, 1.0) is task
+    assert self_collision_task(chain, 0.02, 1.0) is not task
+    data = chain.model.createData()
+    q = q.copy()
+    q[chain.robot_slice()][7:] += 0.6  # every joint turned: capsules come close, some overlap
+    compute_kinematics(chain.model, data, q, False)
+    fresh = SelfCollisionTask(chain.model, task.capsules, list(zip(task.pair_a, task.pair_b, strict=True)))
+    G, J = task.compute(q, data)
+    assert G.shape[0] >= 3 and task.value_of(G) > 0.0  # rows, some violated
+    G_fresh, J_fresh = fresh.compute(q, data)
+    np.testing.assert_array_equal(G, G_fresh)
+    np.testing.assert_array_equal(J, J_fresh)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -26,6 +26,7 @@ from services.ik import (
     SelfCollisionTask,
     compute_kinematics,
 )
+from services.ik.geometry import closest_points_segments, unit_clip
 from services.model import load_robot
 
 ROBOTS = ("hrp2_like", "talos")
@@ -255,6 +256,9 @@ def test_inequality_value_function_is_zero_when_satisfied() -> None:
     assert task.kind == "inequality"
     assert task.value_of(np.array([0.05, -0.05, 0.0])) == 0.0
     assert task.value_of(np.array([0.13, -0.14, 0.0])) == pytest.approx(math.hypot(0.03, 0.04))
+    upper_only = FramePositionTask(model, robot.frames.right_grasp, (0.0, 0.0, 0.0), upper=0.1)
+    assert upper_only.value_of(np.array([-5.0, 0.05, 0.0])) == 0.0  # eq. (6): no lower bound
+    assert upper_only.value_of(np.array([0.13, -0.14, 0.5])) == pytest.approx(math.hypot(0.03, 0.4))
     equality = FramePositionTask(model, robot.frames.right_grasp, (0.0, 0.0, 0.0))
     assert equality.kind == "equality"
     assert equality.value_of(np.array([3.0, 4.0, 0.0])) == pytest.approx(5.0)
@@ -278,3 +282,40 @@ def test_task_arguments_are_checked() -> None:
         PostureTask(model, pin.neutral(model), joint_names=["elbow"])
     with pytest.raises(InvalidRequestError, match="unknown capsules"):
         SelfCollisionTask(model, load_robot("talos").capsules, pairs=[("l_hand", "tail")])
+
+
+def test_unit_clip_is_np_clip_bit_for_bit() -> None:
+    """The two-ufunc clamp used in the hot paths gives np.clip's values, signed zeros and NaN."""
+    special = np.array([-0.0, 0.0, 0.5, 1.0, 1.5, -1.0, np.nan, np.inf, -np.inf, 1e-300, -1e-300])
+    rng = np.random.default_rng(3)
+    for n in (1, 5, 8, 17, 64):  # short arrays and SIMD-sized ones
+        x = rng.choice(special, n)
+        expected, got = np.clip(x, 0.0, 1.0), unit_clip(x)
+        np.testing.assert_array_equal(got, expected)
+        assert np.array_equal(np.signbit(got), np.signbit(expected))
+
+
+def test_closest_points_of_segments_against_dense_sampling() -> None:
+    """Closest points of random, parallel and point segments: parameters in [0, 1] and a distance
+    no larger than the best of a dense grid over both segments (to the grid's resolution)."""
+    rng = np.random.default_rng(5)
+    p0, p1 = rng.normal(size=(40, 3)), rng.normal(size=(40, 3))
+    q0, q1 = rng.normal(size=(40, 3)), rng.normal(size=(40, 3))
+    q1[:10] = q0[:10] + 2.0 * (p1[:10] - p0[:10])  # parallel pairs
+    p1[10:15] = p0[10:15]  # point first segment
+    q1[15:20] = q0[15:20]  # point second segment
+    p1[20:23], q1[20:23] = p0[20:23], q0[20:23]  # two points
+    for lo, hi in ((0, 40), (0, 10), (10, 20), (20, 23)):  # mixed, then each kind on its own
+        sl = slice(lo, hi)
+        s, t = closest_points_segments(p0[sl], p1[sl], q0[sl], q1[sl])
+        assert np.all((s >= 0.0) & (s <= 1.0) & (t >= 0.0) & (t <= 1.0))
+        A = p0[sl] + s[:, None] * (p1[sl] - p0[sl])
+        B = q0[sl] + t[:, None] * (q1[sl] - q0[sl])
+        found = np.linalg.norm(B - A, axis=1)
+        grid = np.linspace(0.0, 1.0, 201)
+        P = p0[sl, None] + grid[None, :, None] * (p1[sl] - p0[sl])[:, None]
+        Q = q0[sl, None] + grid[None, :, None] * (q1[sl] - q0[sl])[:, None]
+        best = np.linalg.norm(P[:, :, None] - Q[:, None], axis=-1).min(axis=(1, 2))
+        step = (np.linalg.norm(p1[sl] - p0[sl], axis=1) + np.linalg.norm(q1[sl] - q0[sl], axis=1)) / 200
+        assert np.all(found <= best + 1e-12)
+        assert np.all(found >= best - step)

@@ -52,15 +52,22 @@ def relative_planar_pose(
     x_B = T_B.rotation[:, 0]
     x_rel = R_At @ x_B
     # v_B - v_A - w_A x d = v_B - v_A + [d]x w_A
-    d_x = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
-    J_p = R_At @ (J_B[:3] - J_A[:3] + d_x @ J_A[3:])
+    J_p = R_At @ (J_B[:3] - J_A[:3] + _skew(d) @ J_A[3:])
     # (w_B - w_A) x x_B = -[x_B]x (w_B - w_A)
-    xb_x = np.array([[0.0, -x_B[2], x_B[1]], [x_B[2], 0.0, -x_B[0]], [-x_B[1], x_B[0], 0.0]])
-    J_x = -R_At @ xb_x @ (J_B[3:] - J_A[3:])
+    J_x = -R_At @ _skew(x_B) @ (J_B[3:] - J_A[3:])
     n2 = x_rel[0] ** 2 + x_rel[1] ** 2
     J_yaw = (x_rel[0] * J_x[1] - x_rel[1] * J_x[0]) / n2
     r = np.array([p_rel[0], p_rel[1], np.arctan2(x_rel[1], x_rel[0])])
-    return r, np.vstack([J_p[:2], J_yaw[None, :]])
+    J = np.empty((3, J_p.shape[1]))
+    J[:2] = J_p[:2]
+    J[2] = J_yaw
+    return r, J
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix [v]x (3 x 3, C order) of a 3-vector: [v]x w = v x w."""
+    x, y, z = v.tolist()
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 class FrontRelativePose:
@@ -74,16 +81,18 @@ class FrontRelativePose:
         self.parent_fid = chain.footprint_frame_ids[-1]
         self.child_fid = chain.front_sole_fid
         self._data: pin.Data | None = None
-        self._q = np.zeros(0)
+        self._q = b""
         self._value: tuple[np.ndarray, np.ndarray] | None = None
 
     def get(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
         """(r, dr/dq~) at q (``data`` holding the kinematics of q)."""
-        if self._value is None or data is not self._data or not np.array_equal(q, self._q):
+        # q by its bytes: the same bytes are the same configuration (a cheaper test than the values')
+        key = np.ascontiguousarray(q, dtype=float).tobytes()
+        if self._value is None or data is not self._data or key != self._q:
             r, J = relative_planar_pose(self.model, data, self.parent_fid, self.child_fid)
             r.flags.writeable = False
             J.flags.writeable = False
-            self._value, self._data, self._q = (r, J), data, np.array(q)
+            self._value, self._data, self._q = (r, J), data, key
         return self._value
 
 
@@ -212,6 +221,7 @@ class NonOverlapTask(Task):
         self.child_is_left = np.array([side == "left" for side in chain.sides[1:]], dtype=bool)
         self.front_is_left = np.array([chain.front_side == "left"])
         self.n_chain = len(self.child_is_left)
+        self._is_left = np.append(self.child_is_left, self.front_is_left)
         self.front = front or FrontRelativePose(chain)
         # Q_i: q and v indices coincide for the chain (vector-space joints at the start of q~); the
         # rows of support polygon i only involve Q_i.
@@ -227,19 +237,17 @@ class NonOverlapTask(Task):
 
     def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
         n = self.n_chain
-        G = np.empty(4 * (n + 1))
+        # every support polygon's r in one array: Q_1 .. Q_{p-1}, then the front sole's pose
+        r = np.empty((n + 1, 3))
+        r[:n] = q[: 3 * n].reshape(n, 3)
+        r_front, J_front = self.front.get(q, data)
+        r[n] = r_front
+        g, dg = non_overlap_rows_many(r, self._is_left, self.length_m, self.width_m, self.margin_m)
         J = np.zeros((4 * (n + 1), self.model.nv))
         if n:
-            g, dg = non_overlap_rows_many(
-                q[: 3 * n].reshape(n, 3), self.child_is_left, self.length_m, self.width_m, self.margin_m
-            )
-            G[: 4 * n] = g.ravel()
-            J[self._rows, self._cols] = dg
-        r, J_r = self.front.get(q, data)
-        g, dg = non_overlap_rows_many(r[None], self.front_is_left, self.length_m, self.width_m, self.margin_m)
-        G[-4:] = g[0]
-        J[-4:] = dg[0] @ J_r
-        return G, J
+            J[self._rows, self._cols] = dg[:n]
+        J[-4:] = dg[n] @ J_front
+        return g.ravel(), J
 
 
 class FootprintDisksTask(Task):
@@ -287,27 +295,36 @@ class FootprintDisksTask(Task):
         n, k = self.n_chain, self.centers.shape[0]
         # F_0 .. F_{p-1}: yaws and origins by composing the Q_i from the model's origin
         Q = q[: 3 * n].reshape(n, 3)
-        yaw = np.concatenate(([0.0], np.cumsum(Q[:, 2])))
+        yaw = np.empty(n + 1)
+        yaw[0] = 0.0
+        np.cumsum(Q[:, 2], out=yaw[1:])
         cos, sin = np.cos(yaw), np.sin(yaw)
         moves = _rotate(cos[:-1], sin[:-1], Q[:, :2])
-        origins = np.concatenate((np.zeros((1, 2)), np.cumsum(moves, axis=0)))
+        origins = np.empty((n + 1, 2))
+        origins[0] = 0.0
+        np.cumsum(moves, axis=0, out=origins[1:])
         T_front = data.oMf[self.front_fid]
         R_front = T_front.rotation
         yaw_front = math.atan2(R_front[1, 0], R_front[0, 0])
         # the movable footprints F_1 .. F_{p-1}, then the front sole
-        fp_origin = np.concatenate((origins[1:], T_front.translation[None, :2]))
-        fp_cos = np.append(cos[1:], math.cos(yaw_front))
-        fp_sin = np.append(sin[1:], math.sin(yaw_front))
+        fp_origin = np.empty((n + 1, 2))
+        fp_origin[:n] = origins[1:]
+        fp_origin[n] = T_front.translation[:2]
+        fp_cos, fp_sin = np.empty(n + 1), np.empty(n + 1)
+        fp_cos[:n], fp_sin[:n] = cos[1:], sin[1:]
+        fp_cos[n], fp_sin[n] = math.cos(yaw_front), math.sin(yaw_front)
         d = self.centers[:, None, :] - fp_origin[None]  # (k, n + 1, 2)
         local = _rotate(fp_cos, -fp_sin, d)  # in each footprint's frame
         h = self.half
-        B_local = np.clip(local, -h, h)
+        # the outward normal and the closest point B in each footprint's frame, rotated together below
+        normal_and_B = np.empty((2, *local.shape))
+        B_local = np.minimum(np.maximum(local, -h), h, out=normal_and_B[1])  # (np.clip(local, -h, h))
         offset = local - B_local
         outside = np.sqrt(np.einsum("...i,...i->...", offset, offset))
         is_out = outside > 1e-9
-        n_local = offset / np.where(is_out, outside, 1.0)[..., None]
+        n_local = np.divide(offset, np.where(is_out, outside, 1.0)[..., None], out=normal_and_B[0])
         signed = outside
-        if not is_out.all():
+        if np.count_nonzero(is_out) != is_out.size:
             # the centre under a sole: the nearest edge, negative distance
             x, y = local[..., 0], local[..., 1]
             gaps = np.stack((h[0] - x, x + h[0], h[1] - y, y + h[1]), -1)
@@ -315,13 +332,12 @@ class FootprintDisksTask(Task):
             gap = np.take_along_axis(gaps, edge[..., None], -1)[..., 0]
             inner_n = _EDGE_NORMALS[edge]
             inside = ~is_out
-            n_local = np.where(inside[..., None], inner_n, n_local)
-            B_local = np.where(inside[..., None], local + gap[..., None] * inner_n, B_local)
+            normal_and_B[0] = np.where(inside[..., None], inner_n, n_local)
+            normal_and_B[1] = np.where(inside[..., None], local + gap[..., None] * inner_n, B_local)
             signed = np.where(inside, -gap, outside)
         G = self.clearance[:, None] - signed
         # outward normal and lever of B in the model frame
-        normal = _rotate(fp_cos, fp_sin, n_local)
-        lever = _rotate(fp_cos, fp_sin, B_local)
+        normal, lever = _rotate(fp_cos, fp_sin, normal_and_B)
         J = np.zeros((k, n + 1, self.model.nv))
         if n:
             nx, ny = normal[:, :n, 0:1], normal[:, :n, 1:2]  # (k, n, 1): footprint i, joints j below
@@ -348,4 +364,9 @@ _EDGE_NORMALS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 
 def _rotate(cos: np.ndarray, sin: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Planar vectors ``v`` (..., 2) rotated by the angles of (cos, sin) (broadcast against v[..., 0])."""
-    return np.stack((cos * v[..., 0] - sin * v[..., 1], sin * v[..., 0] + cos * v[..., 1]), -1)
+    x, y = v[..., 0], v[..., 1]
+    first = cos * x - sin * y
+    out = np.empty((*first.shape, 2))
+    out[..., 0] = first
+    np.add(sin * x, cos * y, out=out[..., 1])
+    return out

@@ -46,6 +46,18 @@ SOLVER_CACHE_SIZE = 24
 _local = threading.local()
 
 
+def _robot_data(robot: RobotModel) -> pin.Data:
+    """This thread's pinocchio data of ``robot`` (kept: allocating one costs a fraction of a millisecond;
+    every use recomputes the kinematics it reads)."""
+    cache: dict[int, tuple[RobotModel, pin.Data]] | None = getattr(_local, "robot_data", None)
+    if cache is None:
+        cache = _local.robot_data = {}
+    hit = cache.get(id(robot))
+    if hit is None or hit[0] is not robot:
+        hit = cache[id(robot)] = (robot, robot.new_data())  # (the robot is kept: its id stays unique)
+    return hit[1]
+
+
 def _solver_for(chain: VirtualChain, request: FootstepPlanRequest, dq_max: float) -> HierarchicalSolver:
     """The hierarchical solver of ``chain`` with the request's joint limits and per-iteration bound
     (cached; the solver holds no state between solves that changes its results)."""
@@ -93,7 +105,7 @@ class _Budget:
 
 def initial_stance(robot: RobotModel, q_start: np.ndarray) -> Stance:
     """Both soles of ``q_start`` as footprints; InvalidRequestError if they are not flat on the ground."""
-    data = robot.new_data()
+    data = _robot_data(robot)
     poses = {}
     for side in ("left", "right"):
         T = robot.sole_pose(q_start, side, data)
@@ -321,7 +333,7 @@ def _footsteps(chain: VirtualChain, q_tilde: np.ndarray) -> list[PlannedFootstep
     if chain.n_steps == 0:
         return []
     robot = chain.robot
-    front = sole_pose_of(robot.sole_pose(chain.robot_q_world(q_tilde), chain.front_side, robot.new_data()))
+    front = sole_pose_of(robot.sole_pose(chain.robot_q_world(q_tilde), chain.front_side, _robot_data(robot)))
     poses = [*chain.footprint_poses(q_tilde)[1:], front]
     sides = [*chain.sides[1:], chain.front_side]
     current = {"left": chain.start.left, "right": chain.start.right}

@@ -5,7 +5,11 @@ of steps) the footprints held at their initial place with decreasing priority (s
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+
 import numpy as np
+import pinocchio as pin
 
 from services.footsteps.chain import VirtualChain, footprint_frame
 from services.footsteps.constraints import (
@@ -30,6 +34,9 @@ from services.ik.tasks.self_collision import SelfCollisionTask
 from services.model import RobotModel
 
 GAZE_AXIS_IN_FRAME = (1.0, 0.0, 0.0)  # the robot's ``gaze`` frame looks along its x axis
+SELF_COLLISION_CACHE_SIZE = 64  # self-collision tasks kept (see self_collision_task)
+_self_collision: OrderedDict[tuple, tuple[RobotModel, pin.Model, SelfCollisionTask]] = OrderedDict()
+_self_collision_lock = threading.Lock()
 
 
 def chain_q_rest(chain: VirtualChain, q_rest_robot: np.ndarray) -> np.ndarray:
@@ -95,11 +102,31 @@ def constraint_tasks(
                 )
             )
     if opts.self_collision and robot.collision_pairs:
-        capsules = list(robot.capsules)  # services.model.Capsule is an IK capsule (CapsuleLike)
-        index = {c.name: i for i, c in enumerate(robot.capsules)}
-        pairs = [(index[a], index[b]) for a, b in robot.collision_pairs]
-        tasks.append(SelfCollisionTask(model, capsules, pairs, margin_m=opts.collision_margin_m, gain=gain))
+        tasks.append(self_collision_task(chain, opts.collision_margin_m, gain))
     return tasks
+
+
+def self_collision_task(chain: VirtualChain, margin_m: float, gain: float) -> SelfCollisionTask:
+    """Self-collision (eqs. 12-13) of the robot's checked capsule pairs on the chain model, with a
+    surface margin ``margin_m`` [m]. The task holds no state between evaluations, so one is built
+    per chain model, margin and gain and shared by the problems on that model (cached, thread-safe)."""
+    robot, model = chain.robot, chain.model
+    key = (id(robot), id(model), float(margin_m), float(gain))
+    with _self_collision_lock:
+        hit = _self_collision.get(key)
+        if hit is not None and hit[0] is robot and hit[1] is model:
+            _self_collision.move_to_end(key)
+            return hit[2]
+    capsules = list(robot.capsules)  # services.model.Capsule is an IK capsule (CapsuleLike)
+    index = {c.name: i for i, c in enumerate(robot.capsules)}
+    pairs = [(index[a], index[b]) for a, b in robot.collision_pairs]
+    task = SelfCollisionTask(model, capsules, pairs, margin_m=margin_m, gain=gain)
+    with _self_collision_lock:
+        # (robot and model are kept with the task: their ids stay unique while the entry lives)
+        _self_collision[key] = (robot, model, task)
+        while len(_self_collision) > SELF_COLLISION_CACHE_SIZE:
+            _self_collision.popitem(last=False)
+    return task
 
 
 def joint_limits(chain: VirtualChain, request: FootstepPlanRequest) -> tuple[np.ndarray, np.ndarray]:

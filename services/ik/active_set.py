@@ -207,10 +207,9 @@ def solve_dual_active_set(
             # drop inequality k and retry p from the new point
             masked[rows[k]] = 0.0
             n_slack_active -= bool(slack_a[k])
-            keep = np.r_[0:k, k + 1 : q]
             q -= 1
-            V[:q] = V[keep]
-            rows[:q], signs[:q], slack_a[:q], u[:q] = rows[keep], signs[keep], slack_a[keep], u[keep]
+            for array in (V, rows, signs, slack_a, u):
+                array[k:q] = array[k + 1 : q + 1]  # (numpy copies overlapping slices correctly)
             if q:
                 S = V[:q].dot(V[:q].T)
                 S.flat[:: q + 1] += slack_a[:q]

@@ -39,35 +39,51 @@ def closest_points_segments(
     """
     d1 = p1 - p0
     d2 = q1 - q0
-    r = p0 - q0
+    return closest_parameters(d1, d2, p0 - q0, eps)
+
+
+def closest_parameters(
+    d1: np.ndarray, d2: np.ndarray, r: np.ndarray, eps: float = 1e-12
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`closest_points_segments` from the segment directions ``d1 = p1 - p0``,
+    ``d2 = q1 - q0`` and ``r = p0 - q0`` [m] (k x 3 each, e.g. already at hand)."""
     a = np.einsum("ij,ij->i", d1, d1)
     e = np.einsum("ij,ij->i", d2, d2)
     f = np.einsum("ij,ij->i", d2, r)
     c = np.einsum("ij,ij->i", d1, r)
     b = np.einsum("ij,ij->i", d1, d2)
-    denom = a * e - b * b
-    safe_a = np.where(a > eps, a, 1.0)
-    safe_e = np.where(e > eps, e, 1.0)
+    ae = a * e
+    denom = ae - b * b
+    long1, long2 = a > eps, e > eps
+    degenerate = np.count_nonzero(long1 & long2) != a.shape[0]
+    if degenerate:
+        safe_a = np.where(long1, a, 1.0)
+        safe_e = np.where(long2, e, 1.0)
+    else:  # the common case (no point segment): every test on them below is false
+        safe_a, safe_e = a, e
     # Non-parallel: closest point of the infinite lines, clamped to segment 1.
     s = np.where(
-        denom > eps * np.maximum(a * e, eps),
-        np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1),
+        denom > eps * np.maximum(ae, eps),
+        unit_clip((b * f - c * e) / np.where(denom > 0, denom, 1.0)),
         0.0,
     )
     t = (b * s + f) / safe_e
     # t outside [0, 1]: clamp it and recompute s for the clamped t.
-    s = np.where(
-        t < 0.0, np.clip(-c / safe_a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / safe_a, 0.0, 1.0), s)
-    )
-    t = np.clip(t, 0.0, 1.0)
-    # Degenerate segments.
-    point1 = a <= eps
-    point2 = e <= eps
-    s = np.where(point1, 0.0, s)
-    t = np.where(point1 & ~point2, np.clip(f / safe_e, 0.0, 1.0), t)
-    s = np.where(point2 & ~point1, np.clip(-c / safe_a, 0.0, 1.0), s)
-    t = np.where(point2, 0.0, t)
+    s = np.where(t < 0.0, unit_clip(-c / safe_a), np.where(t > 1.0, unit_clip((b - c) / safe_a), s))
+    t = unit_clip(t)
+    if degenerate:
+        point1, point2 = a <= eps, e <= eps
+        s = np.where(point1, 0.0, s)
+        t = np.where(point1 & ~point2, unit_clip(f / safe_e), t)
+        s = np.where(point2 & ~point1, unit_clip(-c / safe_a), s)
+        t = np.where(point2, 0.0, t)
     return s, t
+
+
+def unit_clip(x: np.ndarray) -> np.ndarray:
+    """``np.clip(x, 0, 1)`` by two ufuncs (without ``np.clip``'s Python overhead; the same values,
+    signed zeros and NaN included)."""
+    return np.minimum(np.maximum(0.0, x), 1.0)
 
 
 def closest_point_on_segment(p: np.ndarray, q0: np.ndarray, q1: np.ndarray, eps: float = 1e-12) -> np.ndarray:
@@ -75,4 +91,4 @@ def closest_point_on_segment(p: np.ndarray, q0: np.ndarray, q1: np.ndarray, eps:
     d = q1 - q0
     dd = np.einsum("ij,ij->i", d, d)
     t = np.einsum("ij,ij->i", p - q0, d) / np.where(dd > eps, dd, 1.0)
-    return np.clip(np.where(dd > eps, t, 0.0), 0.0, 1.0)
+    return unit_clip(np.where(dd > eps, t, 0.0))

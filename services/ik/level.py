@@ -3,6 +3,7 @@ paper (weighted pseudo-inverse, selection matrix)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -54,9 +55,9 @@ class Level:
         object.__setattr__(self, "tasks", tasks)
         if not self.name:
             object.__setattr__(self, "name", "+".join(t.name for t in tasks))
-        if not np.isfinite(self.damping) or self.damping < 0.0:
+        if not math.isfinite(self.damping) or self.damping < 0.0:
             raise InvalidRequestError(f"level {self.name!r}: damping must be >= 0, got {self.damping}")
-        if not np.isfinite(self.error_damping) or self.error_damping < 0.0:
+        if not math.isfinite(self.error_damping) or self.error_damping < 0.0:
             raise InvalidRequestError(
                 f"level {self.name!r}: error_damping must be >= 0, got {self.error_damping}"
             )

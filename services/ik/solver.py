@@ -183,6 +183,10 @@ class HierarchicalSolver:
         self._q_lower_bound = np.clip(self.q_lower[self.bound_q_idx], -BIG, BIG)
         self._q_upper_bound = np.clip(self.q_upper[self.bound_q_idx], -BIG, BIG)
         self._box_v_max = np.minimum(self.dq_max[self.box_v_idx], BIG)
+        self._box_v_min = -self._box_v_max
+        # dq bounds of the box before the position limits are applied (copied at each step)
+        n_box = self.box_v_idx.shape[0]
+        self._box_unbounded = (np.full(n_box, -BIG), np.full(n_box, BIG))
         self._only_position_box = finite_velocity.shape[0] == 0
         self._empty = (np.zeros((0, model.nv)), np.zeros(0))
         cfg = self.config
@@ -250,12 +254,12 @@ class HierarchicalSolver:
         ub_pos = gain * (self._q_upper_bound - q_b)
         if self._only_position_box:
             return lb_pos, ub_pos
-        n = self.box_v_idx.shape[0]
-        lb, ub = np.full(n, -BIG), np.full(n, BIG)
+        lb, ub = self._box_unbounded[0].copy(), self._box_unbounded[1].copy()
         lb[self._box_pos_of_bound] = lb_pos
         ub[self._box_pos_of_bound] = ub_pos
-        v_max = self._box_v_max
-        return np.clip(lb, -v_max, v_max), np.clip(ub, -v_max, v_max)
+        # np.clip(., -v_max, v_max) by two ufuncs (the same values: the bounds are nonzero)
+        v_min, v_max = self._box_v_min, self._box_v_max
+        return np.minimum(np.maximum(lb, v_min), v_max), np.minimum(np.maximum(ub, v_min), v_max)
 
     def solve_systems(
         self, levels: Sequence[Level], systems: Sequence[_System], q: np.ndarray, alpha: float
@@ -358,20 +362,23 @@ class HierarchicalSolver:
             blocks.append(system.C if Z_level is None else system.C.dot(Z_level))
             lows.append(system.lo - base)
             highs.append(system.hi - base)
-        H = np.eye(r) * damping
-        g = np.zeros(r)
         if M is not None:
-            H += M.T.dot(M)
+            # H = damping I + M^T M, the damping added on the diagonal in place (the same sums)
+            H = M.T.dot(M)
+            H.flat[:: r + 1] += damping
             g = -M.T.dot(e)
+        else:
+            H = np.eye(r) * damping
+            g = np.zeros(r)
         if y_free is None:
             y_free = np.zeros(r)
-        D = np.vstack(blocks)
+        D = np.concatenate(blocks)
         lows_all = np.maximum(np.concatenate(lows), -BIG)
         highs_all = np.minimum(np.concatenate(highs), BIG)
         # Rows this level cannot move (coordinates held by the levels above) are met at y = 0 by
         # construction; left in, they make a degenerate QP that proxsuite may call infeasible.
         movable = np.einsum("ij,ij->i", D, D) > 1e-24
-        if not movable.all():
+        if np.count_nonzero(movable) != movable.shape[0]:
             first_slack_row = int(np.count_nonzero(movable[:first_slack_row]))
             D, lows_all, highs_all = D[movable], lows_all[movable], highs_all[movable]
         return self._qp.solve(H, g, D, lows_all, highs_all, first_slack_row, y_free, key=k)

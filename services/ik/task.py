@@ -56,7 +56,7 @@ class Task(ABC):
         upper: float | np.ndarray | None = None,
         max_step: float | None = None,
     ) -> None:
-        if not np.isfinite(gain) or gain <= 0.0:
+        if not math.isfinite(gain) or gain <= 0.0:
             raise InvalidRequestError(f"task {name!r}: gain must be a positive finite number, got {gain}")
         if max_step is not None and not max_step > 0.0:
             raise InvalidRequestError(f"task {name!r}: max_step must be positive, got {max_step}")
@@ -69,7 +69,11 @@ class Task(ABC):
         else:
             self.lower = -np.inf if lower is None else _as_bound(lower)
             self.upper = np.inf if upper is None else _as_bound(upper)
-            if np.any(np.asarray(self.lower) > np.asarray(self.upper)):
+            if (
+                self.lower > self.upper
+                if isinstance(self.lower, float) and isinstance(self.upper, float)
+                else np.any(np.asarray(self.lower) > np.asarray(self.upper))
+            ):
                 raise InvalidRequestError(f"task {name!r}: lower bound above upper bound")
 
     @property
@@ -107,7 +111,11 @@ class Task(ABC):
         if self.lower is None:
             return math.sqrt(error.dot(error))
         # scalar or per-row bounds broadcast against the error
-        violation = np.maximum(np.maximum(error - self.upper, self.lower - error), 0.0)
+        if isinstance(self.lower, float) and self.lower == -math.inf:
+            # G <= upper only (eq. 4 as written): lower - error = -inf never counts (finite errors)
+            violation = np.maximum(error - self.upper, 0.0)
+        else:
+            violation = np.maximum(np.maximum(error - self.upper, self.lower - error), 0.0)
         return math.sqrt(violation.dot(violation))
 
     def __repr__(self) -> str:

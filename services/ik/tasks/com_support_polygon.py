@@ -96,21 +96,29 @@ class ComSupportPolygonTask(Task):
 
     def _sole_corners(self, data: pin.Data) -> np.ndarray:
         """World corners of every sole (4 per sole frame, 3-D) [m]."""
-        return np.concatenate(
-            [
-                data.oMf[fid].translation + self.sole_corners_m.dot(data.oMf[fid].rotation.T)
-                for fid in self.sole_frame_ids
-            ]
-        )
+        return self._sole_corners_and_origins(data)[0]
 
-    def _sole_corner_jacobians(self, data: pin.Data, points: np.ndarray) -> np.ndarray:
-        """(4 n_soles, 2, nv) Jacobians of the corners' ground projections: v_p = v_o + w x (p - o)."""
-        out = np.empty((points.shape[0], 2, self.model.nv))
-        for k, fid in enumerate(self.sole_frame_ids):
-            J = frame_jacobian(self.model, data, fid)
-            r = points[4 * k : 4 * k + 4] - data.oMf[fid].translation
-            out[4 * k : 4 * k + 4, 0] = J[0] + r[:, 2:3] * J[4] - r[:, 1:2] * J[5]
-            out[4 * k : 4 * k + 4, 1] = J[1] - r[:, 2:3] * J[3] + r[:, 0:1] * J[5]
+    def _sole_corners_and_origins(self, data: pin.Data) -> tuple[np.ndarray, list[np.ndarray]]:
+        """World corners of every sole (4 per sole frame, 3-D) [m], and the sole frames' origins."""
+        oMf = data.oMf
+        placements = [oMf[fid] for fid in self.sole_frame_ids]
+        origins = [T.translation for T in placements]
+        corners = self.sole_corners_m
+        return np.concatenate(
+            [o + corners.dot(T.rotation.T) for o, T in zip(origins, placements, strict=True)]
+        ), origins
+
+    def _vertex_jacobians(
+        self, data: pin.Data, points: np.ndarray, origins: list[np.ndarray], vertices: np.ndarray
+    ) -> np.ndarray:
+        """(len(vertices), 2, nv) Jacobians of the ground projections of the sole corners
+        ``points[vertices]`` (corner k on sole k // 4): v_p = v_o + w x (p - o)."""
+        sole = vertices // 4
+        J = np.array([frame_jacobian(self.model, data, fid) for fid in self.sole_frame_ids])[sole]
+        r = points[vertices] - np.array(origins)[sole]
+        out = np.empty((vertices.shape[0], 2, self.model.nv))
+        out[:, 0] = J[:, 0] + r[:, 2:3] * J[:, 4] - r[:, 1:2] * J[:, 5]
+        out[:, 1] = J[:, 1] - r[:, 2:3] * J[:, 3] + r[:, 0:1] * J[:, 5]
         return out
 
     def compute_error(self, q: np.ndarray, data: pin.Data) -> np.ndarray:
@@ -131,7 +139,7 @@ class ComSupportPolygonTask(Task):
             if self.all_edges:
                 return G, -normals.dot(data.Jcom[:2])
             return G[keep], -normals[keep].dot(data.Jcom[:2])
-        points = self._sole_corners(data)
+        points, origins = self._sole_corners_and_origins(data)
         hull = convex_hull_2d(points[:, :2])
         polygon = points[hull, :2]
         normals, offsets, tangents, starts, lengths = _edges(polygon)
@@ -140,7 +148,7 @@ class ComSupportPolygonTask(Task):
         rows = np.flatnonzero(self.all_edges | ((along >= 0.0) & (along <= lengths)) | (G > 0.0))
         # The vertices move with the soles:
         # d<PC|n> = n^T (dC - dP1) + (C - P1)^T Rot90 (I - t t^T) / L (dP2 - dP1).
-        J_vertices = self._sole_corner_jacobians(data, points)[hull]
+        J_vertices = self._vertex_jacobians(data, points, origins, hull)
         i, j = rows, (rows + 1) % hull.shape[0]
         n, t = normals[i], tangents[i]
         a = (c - polygon[i]).dot(_ROT90)

@@ -34,16 +34,17 @@ class PostureTask(Task):
     ) -> None:
         super().__init__(name, gain, lower, upper, max_step)
         self.model = model
+        # (the model's per-joint index vectors: cheaper to read than the joint models)
+        idx_qs, nqs, idx_vs, nvs = model.idx_qs, model.nqs, model.idx_vs, model.nvs
         if joint_names is None:
-            ids = [j for j in range(1, model.njoints) if model.joints[j].nq == model.joints[j].nv]
+            ids = [j for j in range(1, model.njoints) if nqs[j] == nvs[j]]
         else:
             ids = [joint_id(model, n) for n in joint_names]
         if not ids:
             raise InvalidRequestError(f"task {name!r}: no joint selected")
-        joints = [model.joints[j] for j in ids]
-        self.vector_space = all(j.nq == j.nv for j in joints)
-        self.q_idx = np.concatenate([np.arange(j.idx_q, j.idx_q + j.nq) for j in joints])
-        self.v_idx = np.concatenate([np.arange(j.idx_v, j.idx_v + j.nv) for j in joints])
+        self.vector_space = all(nqs[j] == nvs[j] for j in ids)
+        self.q_idx = np.array([i for j in ids for i in range(idx_qs[j], idx_qs[j] + nqs[j])], dtype=int)
+        self.v_idx = np.array([i for j in ids for i in range(idx_vs[j], idx_vs[j] + nvs[j])], dtype=int)
         self.jacobian = np.zeros((self.v_idx.shape[0], model.nv))
         self.jacobian[np.arange(self.v_idx.shape[0]), self.v_idx] = 1.0
         self.set_rest(q_rest)

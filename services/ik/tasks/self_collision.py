@@ -9,7 +9,7 @@ import pinocchio as pin
 
 from services.errors import InvalidRequestError
 from services.ik.capsule import CapsuleLike
-from services.ik.geometry import closest_point_on_segment, closest_points_segments
+from services.ik.geometry import closest_parameters, closest_points_segments, unit_clip
 from services.ik.kinematics import LWA, frame_id
 from services.ik.task import Task
 
@@ -66,8 +66,12 @@ class SelfCollisionTask(Task):
         # distinct frames: their placements and Jacobians are read once per evaluation
         self._frames, self._frame_of = np.unique(self.frame_ids, return_inverse=True)
         self._frames = [int(f) for f in self._frames]
-        self._n_frames = len(self._frames)
         self._axis_local = self.p1_local - self.p0_local
+        self._ends_local = np.stack((self.p0_local, self.p1_local), 1)  # (k, p0/p1, xyz)
+        self._pairs = pair_array
+        # per pair: the clearance r_a + r_b + margin of eq. (12) [m], and the gap below which it has rows
+        self._clearance = self.radii[self.pair_a] + self.radii[self.pair_b] + self.margin_m
+        self._activation_gap = self._clearance + self.activation_m
 
     def _pairs_by_name(self, pairs: Sequence[tuple[str, str]]) -> list[tuple[int, int]]:
         index = {c.name: i for i, c in enumerate(self.capsules)}
@@ -78,23 +82,20 @@ class SelfCollisionTask(Task):
             )
         return [(index[a], index[b]) for a, b in pairs]
 
-    def _frame_placements(self, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
-        """Rotations (f, 3, 3) and translations (f, 3) of the capsules' distinct frames."""
-        rotations = np.empty((self._n_frames, 3, 3))
-        translations = np.empty((self._n_frames, 3))
-        for k, fid in enumerate(self._frames):
-            T = data.oMf[fid]
-            rotations[k] = T.rotation
-            translations[k] = T.translation
-        return rotations, translations
+    def _capsule_placements(self, data: pin.Data) -> np.ndarray:
+        """(k, 4, 4) homogeneous world placement of each capsule's frame (the distinct frames read
+        once, in one pass)."""
+        oMf = data.oMf
+        return np.array([oMf[fid].homogeneous for fid in self._frames])[self._frame_of]
 
     def segments_world(self, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
         """World endpoints (k x 3 each) of every capsule segment."""
-        return self._segments(*self._frame_placements(data))
+        ends = self._ends(self._capsule_placements(data))
+        return ends[:, 0], ends[:, 1]
 
-    def _segments(self, rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        R, t = rotations[self._frame_of], translations[self._frame_of]
-        return np.einsum("kij,kj->ki", R, self.p0_local) + t, np.einsum("kij,kj->ki", R, self.p1_local) + t
+    def _ends(self, H: np.ndarray) -> np.ndarray:
+        """(k, 2, 3) world endpoints p0, p1 of every capsule segment, from its frame's placement."""
+        return np.einsum("kij,kcj->kci", H[:, :3, :3], self._ends_local) + H[:, None, :3, 3]
 
     def distances(self, data: pin.Data) -> np.ndarray:
         """Surface distance [m] of every checked pair (negative when the capsules overlap)."""
@@ -112,108 +113,113 @@ class SelfCollisionTask(Task):
         return self.compute(q, data)[1]
 
     def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
-        rotations, translations = self._frame_placements(data)
-        p0, p1 = self._segments(rotations, translations)
-        a, b = self.pair_a, self.pair_b
-        s, t = closest_points_segments(p0[a], p1[a], p0[b], p1[b])
-        A = p0[a] + s[:, None] * (p1[a] - p0[a])
-        B = p0[b] + t[:, None] * (p1[b] - p0[b])
-        clearance = self.radii[a] + self.radii[b] + self.margin_m
-        gap = np.sqrt(np.einsum("ij,ij->i", B - A, B - A))
-        active = np.flatnonzero(gap < clearance + self.activation_m)
+        H = self._capsule_placements(data)
+        # ends[pair, 0 or 1 (capsule a or b), 0 or 1 (p0 or p1)], world frame [m]
+        ends = self._ends(H)[self._pairs]
+        p0a, p0b = ends[:, 0, 0], ends[:, 1, 0]
+        dirs = ends[:, :, 1] - ends[:, :, 0]  # d = p1 - p0 of a and b
+        d1, d2 = dirs[:, 0], dirs[:, 1]
+        s, t = closest_parameters(d1, d2, p0a - p0b)
+        AB = (p0b + t[:, None] * d2) - (p0a + s[:, None] * d1)
+        gap = np.sqrt(np.einsum("ij,ij->i", AB, AB))
+        active = np.flatnonzero(gap < self._activation_gap)
         if not active.shape[0]:
             return np.zeros(0), np.zeros((0, self.model.nv))
-        rows_i, rows_j, rows_s, rows_t, rows_clear = self._point_pairs(
-            p0, p1, a[active], b[active], s[active], t[active], clearance[active]
-        )
-        # rows: G = clearance - |AB|, dG = -n^T (J_B - J_A) with the points fixed in their frames
-        fa, fb = self._frame_of[rows_i], self._frame_of[rows_j]
-        A_off = np.einsum(
-            "rij,rj->ri", rotations[fa], self.p0_local[rows_i] + rows_s[:, None] * self._axis_local[rows_i]
-        )
-        B_off = np.einsum(
-            "rij,rj->ri", rotations[fb], self.p0_local[rows_j] + rows_t[:, None] * self._axis_local[rows_j]
-        )
-        AB = (translations[fb] + B_off) - (translations[fa] + A_off)
+        capsules, params, clearance = self._point_pairs(active, ends, dirs, s, t)
+        # rows: G = clearance - |AB|, dG = -n^T (J_B - J_A) with the points fixed in their frames;
+        # the row's two points in one array, those of the a sides first: A = [:r], B = [r:]
+        r = clearance.shape[0]
+        H_rows = H[capsules]
+        local = self.p0_local[capsules] + params[:, None] * self._axis_local[capsules]
+        offsets = np.einsum("rij,rj->ri", H_rows[:, :3, :3], local)
+        A_off, B_off = offsets[:r], offsets[r:]
+        points = H_rows[:, :3, 3]
+        AB = (points[r:] + B_off) - (points[:r] + A_off)
         distance = np.sqrt(np.einsum("ij,ij->i", AB, AB))
         far = distance > 1e-9
-        n = np.where(far[:, None], AB / np.where(far, distance, 1.0)[:, None], np.array([0.0, 0.0, 1.0]))
-        used = np.zeros(self._n_frames, dtype=bool)
-        used[fa] = True
-        used[fb] = True
-        J = np.empty((self._n_frames, 6, self.model.nv))
-        for k in np.flatnonzero(used).tolist():
-            J[k] = pin.getFrameJacobian(self.model, data, self._frames[k], LWA)
+        n = np.where(far[:, None], AB / np.where(far, distance, 1.0)[:, None], _UP)
+        # the frame Jacobians of the points (a frame once)
+        frames = self._frame_of[capsules].tolist()
+        J_of: dict[int, np.ndarray] = {}
+        for k in frames:
+            if k not in J_of:
+                J_of[k] = pin.getFrameJacobian(self.model, data, self._frames[k], LWA)
+        J = np.array([J_of[k] for k in frames])
+        J_angular = np.ascontiguousarray(J[:, 3:])
+        r_x_n = _cross(offsets, np.concatenate((n, n)))
         # point velocity v + w x r: n^T (v + w x r) = n^T v + (r x n)^T w
-        rows = np.einsum("ri,riv->rv", n, J[fb, :3] - J[fa, :3])
-        rows += np.einsum("ri,riv->rv", _cross(B_off, n), J[fb, 3:])
-        rows -= np.einsum("ri,riv->rv", _cross(A_off, n), J[fa, 3:])
-        return rows_clear - distance, -rows
+        rows = np.einsum("ri,riv->rv", n, J[r:, :3] - J[:r, :3])
+        rows += np.einsum("ri,riv->rv", r_x_n[r:], J_angular[r:])
+        rows -= np.einsum("ri,riv->rv", r_x_n[:r], J_angular[:r])
+        return clearance - distance, -rows
 
     def _point_pairs(
-        self,
-        p0: np.ndarray,
-        p1: np.ndarray,
-        ai: np.ndarray,
-        bj: np.ndarray,
-        s: np.ndarray,
-        t: np.ndarray,
-        clearance: np.ndarray,
-    ) -> tuple[np.ndarray, ...]:
-        """Segment parameters of the rows of the active pairs (i, j): the closest points, then up to
-        ``max_rows_per_pair - 1`` endpoint-to-segment pairs within the activation distance, closest
-        first, each more than 1 cm (along either segment) from the pairs already chosen."""
+        self, active: np.ndarray, ends: np.ndarray, dirs: np.ndarray, s: np.ndarray, t: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The rows of the ``active`` pairs (indices into the checked pairs, with their segments'
+        ``ends`` (pair, a/b, p0/p1, xyz) and ``dirs`` (pair, a/b, xyz) [m], closest points at (s, t)):
+        the closest points, then up to ``max_rows_per_pair - 1`` endpoint-to-segment pairs within
+        the activation distance, closest first, each more than 1 cm (along either segment) from the
+        pairs already chosen.
+
+        Returns (capsules, params, clearance): for r rows, the capsules of sides a then of sides b
+        (2r), their segment parameters (2r, s then t) and the rows' clearances [m] (r).
+        """
         if self.max_rows_per_pair == 1:
-            return ai, bj, s, t, clearance
-        # Endpoint-to-segment candidates: each endpoint of one segment against the other segment.
-        k = ai.shape[0]
-        ends_i = np.stack((p0[ai], p1[ai]), 1).reshape(2 * k, 3)
-        ends_j = np.stack((p0[bj], p1[bj]), 1).reshape(2 * k, 3)
-        t_of_i = closest_point_on_segment(ends_i, np.repeat(p0[bj], 2, 0), np.repeat(p1[bj], 2, 0)).reshape(
-            k, 2
-        )
-        s_of_j = closest_point_on_segment(ends_j, np.repeat(p0[ai], 2, 0), np.repeat(p1[ai], 2, 0)).reshape(
-            k, 2
-        )
-        cand_s = np.concatenate((np.zeros((k, 1)), np.ones((k, 1)), s_of_j), 1)
-        cand_t = np.concatenate((t_of_i, np.zeros((k, 1)), np.ones((k, 1))), 1)
-        d_i, d_j = p1[ai] - p0[ai], p1[bj] - p0[bj]
-        A = p0[ai][:, None] + cand_s[..., None] * d_i[:, None]
-        B = p0[bj][:, None] + cand_t[..., None] * d_j[:, None]
-        cand_d = np.sqrt(np.einsum("kci,kci->kc", B - A, B - A))
-        len_i = np.sqrt(np.einsum("ij,ij->i", d_i, d_i)).tolist()
-        len_j = np.sqrt(np.einsum("ij,ij->i", d_j, d_j)).tolist()
-        within = (cand_d < (clearance + self.activation_m)[:, None]).tolist()
-        cand_d, cand_s, cand_t = cand_d.tolist(), cand_s.tolist(), cand_t.tolist()
-        out_i, out_j, out_s, out_t, out_c = [], [], [], [], []
-        for r, (i, j, s_r, t_r) in enumerate(
-            zip(ai.tolist(), bj.tolist(), s.tolist(), t.tolist(), strict=True)
-        ):
+            capsules = self._pairs[active].T.ravel()
+            return capsules, np.concatenate((s[active], t[active])), self._clearance[active]
+        k = active.shape[0]
+        seg = ends[active].reshape(k, 4, 3)  # p0_i, p1_i, p0_j, p1_j
+        d = dirs[active]  # d_i, d_j
+        # Endpoint-to-segment candidates, the closest point of the other segment to each endpoint
+        # (parameter <p - q0 | d> / |d|^2 clamped to [0, 1]): i's endpoints on j, j's on i.
+        to_other = seg - seg[:, _OTHER_P0]
+        other_d = d[:, _OTHER_D]
+        len2 = np.einsum("kci,kci->kc", other_d, other_d)  # |d_j|^2, |d_j|^2, |d_i|^2, |d_i|^2
+        along = np.einsum("kci,kci->kc", to_other, other_d)
+        if np.count_nonzero(len2 > _EPS) == 4 * k:
+            params = unit_clip(along / len2)
+        else:  # a point segment: parameter 0 on it
+            long = len2 > _EPS
+            params = unit_clip(np.where(long, along / np.where(long, len2, 1.0), 0.0))
+        # (s, t) of the four candidates: (0, t(p0_i)), (1, t(p1_i)), (s(p0_j), 0), (s(p1_j), 1)
+        cand = np.empty((k, 2, 4))
+        cand[:, 0, :2] = _ZERO_ONE
+        cand[:, 0, 2:] = params[:, 2:]
+        cand[:, 1, :2] = params[:, :2]
+        cand[:, 1, 2:] = _ZERO_ONE
+        pts = seg[:, 0::2, None] + cand[..., None] * d[:, :, None]  # (k, a/b, candidate, xyz)
+        diff = pts[:, 1] - pts[:, 0]
+        cand_d = np.sqrt(np.einsum("kci,kci->kc", diff, diff)).tolist()
+        lengths = np.sqrt(len2).tolist()  # |d_j|, |d_j|, |d_i|, |d_i|
+        within = (cand_d < self._activation_gap[active][:, None]).tolist()
+        cand = cand.tolist()
+        out_r, out_s, out_t = [], [], []
+        for r, (s_r, t_r) in enumerate(zip(s[active].tolist(), t[active].tolist(), strict=True)):
             pairs = [(s_r, t_r)]
-            scored = sorted((cand_d[r][c], cand_s[r][c], cand_t[r][c]) for c in range(4) if within[r][c])
+            len_i, len_j = lengths[r][2], lengths[r][0]
+            cand_s, cand_t = cand[r]
+            scored = sorted((cand_d[r][c], cand_s[c], cand_t[c]) for c in range(4) if within[r][c])
             for _, s_c, t_c in scored:
                 if len(pairs) == self.max_rows_per_pair:
                     break
                 # A candidate within 1 cm of a chosen pair on both segments adds no information.
-                if all(
-                    abs(s_c - s_p) * len_i[r] > 0.01 or abs(t_c - t_p) * len_j[r] > 0.01 for s_p, t_p in pairs
-                ):
+                if all(abs(s_c - s_p) * len_i > 0.01 or abs(t_c - t_p) * len_j > 0.01 for s_p, t_p in pairs):
                     pairs.append((s_c, t_c))
             for s_p, t_p in pairs:
-                out_i.append(i)
-                out_j.append(j)
+                out_r.append(r)
                 out_s.append(s_p)
                 out_t.append(t_p)
-                out_c.append(clearance[r])
-        return (
-            np.array(out_i, dtype=int),
-            np.array(out_j, dtype=int),
-            np.array(out_s),
-            np.array(out_t),
-            np.array(out_c),
-        )
+        rows = active[out_r]
+        return self._pairs[rows].T.ravel(), np.array(out_s + out_t), self._clearance[rows]
 
 
+_EPS = 1e-12  # a squared segment length [m^2] below which the segment is a point
+_UP = np.array([0.0, 0.0, 1.0])
+_ZERO_ONE = np.array([0.0, 1.0])
+# for the endpoints p0_i, p1_i, p0_j, p1_j of a pair: the other segment's p0 and direction
+_OTHER_P0 = np.array([2, 2, 0, 0])
+_OTHER_D = np.array([1, 1, 0, 0])
 _NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 
