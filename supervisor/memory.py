@@ -7,12 +7,26 @@ reply, with the sim time it was made at. The robot's own pose comes from its pro
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from services.errors import NotFoundError
 from vision.footprint import Footprint
+
+#: A sighting without a footprint inherits the last one when it lies this close to it [m].
+KEEP_FOOTPRINT_MARGIN_M = 0.25
+
+
+def _inside(footprint: Footprint, xy: np.ndarray, margin_m: float) -> bool:
+    """Whether the point ``xy`` [m] lies in the footprint rectangle grown by ``margin_m`` [m]."""
+    c, s = math.cos(footprint.yaw_rad), math.sin(footprint.yaw_rad)
+    dx, dy = float(xy[0]) - footprint.center_m[0], float(xy[1]) - footprint.center_m[1]
+    along, across = c * dx + s * dy, -s * dx + c * dy
+    return (
+        abs(along) <= footprint.size_m[0] / 2 + margin_m and abs(across) <= footprint.size_m[1] / 2 + margin_m
+    )
 
 
 @dataclass(frozen=True)
@@ -48,6 +62,18 @@ class Memory:
     holding: dict[str, str] = field(default_factory=dict)  # side -> object
 
     def remember(self, sighting: Sighting) -> None:
+        """Keep ``sighting`` as the latest of its object. Seen without a footprint (cut by the image
+        border: close up, or half out of view), it keeps the last footprint of the object when its
+        position lies within that rectangle grown by ``KEEP_FOOTPRINT_MARGIN_M``: objects stay where
+        they are unless seen elsewhere."""
+        last = self.sightings.get(sighting.name)
+        if (
+            sighting.footprint is None
+            and last is not None
+            and last.footprint is not None
+            and _inside(last.footprint, sighting.position_m[:2], KEEP_FOOTPRINT_MARGIN_M)
+        ):
+            sighting = replace(sighting, footprint=last.footprint)
         self.sightings[sighting.name] = sighting
 
     def forget(self, name: str) -> None:

@@ -53,3 +53,20 @@ def test_a_ray_enters_a_yawed_box_at_its_face():
     assert ray_entry(box, np.array([2.0, 0.1]), np.array([1.0, 0.0])) == 0.0  # from inside
     assert ray_entry(box, np.array([0.0, 0.0]), np.array([0.0, 1.0])) == math.inf  # misses
     assert ray_entry(box, np.array([0.0, 0.0]), np.array([-1.0, 0.0])) == math.inf  # behind the origin
+
+
+def test_a_sighting_without_footprint_keeps_the_last_one_where_it_still_fits():
+    from dataclasses import replace
+
+    from supervisor.memory import Memory
+
+    memory = Memory()
+    table = Footprint((2.0, 0.0), (1.0, 0.6), 0.0, 0.72, 500)
+    memory.remember(_sighting(table))
+    close_up = replace(_sighting(None), position_m=np.array([2.3, 0.2, 0.6]))  # cut by the image border
+    memory.remember(close_up)
+    assert memory.get("yellow_table").footprint == table
+    assert memory.get("yellow_table").position_m[0] == pytest.approx(2.3)  # the rest is the new sighting
+    moved = replace(_sighting(None), position_m=np.array([4.0, 1.0, 0.5]))  # seen elsewhere: moved
+    memory.remember(moved)
+    assert memory.get("yellow_table").footprint is None

@@ -101,7 +101,7 @@ def _look_from(world, obj, bearing_rad: float, distance_m: float):
     [
         ("yellow_table", 90.0, 1.4),  # facing its long side
         ("yellow_table", 45.0, 1.8),  # a corner ahead
-        ("yellow_table", 180.0, 1.3),  # its short side
+        ("yellow_table", 180.0, 1.6),  # its short side
         ("green_box", 30.0, 1.5),
         ("green_box", 200.0, 1.2),
         ("chair", -60.0, 1.6),
@@ -128,3 +128,14 @@ def test_footprints_of_the_demo_objects_match_the_truth(world, models, name, bea
     assert math.degrees(_yaw_error(fp.yaw_rad, true_yaw, math.pi / 2 if square else math.pi)) < 3.0
     top = obj.top_z_m + (obj.spec.back_height_m if name == "chair" else 0.0)
     assert abs(fp.top_z_m - top) < 0.08
+
+
+def test_an_object_cut_by_the_image_border_has_no_footprint(world, models):
+    """1 m from the table's long side it overflows the image: the outline seen is a part of it."""
+    obj = world.layout.object("yellow_table")
+    stereo, left, right = _look_from(world, obj, obj.yaw_rad + math.pi / 2, 1.0)
+    try:
+        location = locate_object(models, "yellow_table", stereo, left, right)
+    finally:
+        world.pyrobot.reset(world.robot.q_half_sitting)
+    assert location.left.border_sides and location.footprint is None

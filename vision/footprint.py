@@ -157,8 +157,9 @@ def _rectangle(xy: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]
 def _top(z_m: np.ndarray) -> float:
     """The highest well-supported height of the points [m] (see ``TOP_BAND_M``)."""
     z = np.sort(z_m)[::-1]
-    support = max(MIN_POINTS, int(math.ceil(TOP_SUPPORT_FRACTION * len(z))))
-    below = np.searchsorted(-z, -(z - TOP_BAND_M), side="right") - np.arange(len(z))  # points in [z - band, z]
+    support = max(MIN_POINTS, math.ceil(TOP_SUPPORT_FRACTION * len(z)))
+    # points in [z_i - band, z_i]: those at or above z_i - band, less the i ones above z_i
+    below = np.searchsorted(-z, -(z - TOP_BAND_M), side="right") - np.arange(len(z))
     supported = np.flatnonzero(below >= support)
     return float(z[supported[0]] if len(supported) else np.median(z))
 

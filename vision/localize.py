@@ -57,7 +57,8 @@ class ObjectLocation:
     disparity_px: disparity used [px]; method: "centroid", "bm", "sgbm" or "edges" (see vision.stereo).
     left, right: the detections in each image (pixel boxes, windows, centroids).
     footprint: the floor rectangle of a non-spherical object from its outline's stereo points
-      (vision.footprint), None for a ball or when too few outline points match.
+      (vision.footprint); None for a ball, for an object cut by an image border in either image (part
+      of its outline unseen: the rectangle would be too small) or when too few outline points match.
     """
 
     name: str
@@ -265,7 +266,7 @@ def locate_in_frame(
     size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))
     p_world = to_world(p_camera, frame.T_world_left_camera)
     floor_rectangle = None
-    if model.shape != "sphere":
+    if model.shape != "sphere" and not left.border_sides and not right.border_sides:
         points = outline_points(
             _silhouette(bp_left, left.window, det_cfg),
             left.window,
