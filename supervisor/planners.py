@@ -49,7 +49,8 @@ DETOUR_SLACK_M = 0.5
 #: radius [m] (the first one's is navigation's default, 0.5 m).
 RETRY_BUDGET_S = 4.0
 RETRY_TURNING_RADIUS_M = 0.3
-#: The straight walk keeps the base this far from every mapped obstacle [m] (or as far as the goal is).
+#: The straight walk keeps the base this far from every mapped obstacle [m] (or as far as its start or
+#: its goal is).
 SHORT_WALK_CLEARANCE_M = 0.35
 
 
@@ -161,7 +162,8 @@ class Planners:
             box_estimate(s) for s in self.memory.sightings.values() if is_obstacle(s) and s.name not in held
         ]
         for box in boxes:
-            need = min(SHORT_WALK_CLEARANCE_M, distance_to_box(box, goal[0], goal[1])) - 0.02
+            ends = (distance_to_box(box, goal[0], goal[1]), distance_to_box(box, x0, y0))
+            need = min(SHORT_WALK_CLEARANCE_M, *ends) - 0.02
             for t in np.linspace(0.0, 1.0, max(2, math.ceil(straight_m / 0.05) + 1)):
                 x, y = x0 + t * (goal[0] - x0), y0 + t * (goal[1] - y0)
                 if distance_to_box(box, x, y) < need:
