@@ -88,6 +88,10 @@ def test_goto_over_the_bus(module_bus_harness) -> None:
     assert info.value.details["reason"] == "goal_enclosed"
     assert "pen_north" in info.value.details["enclosing_obstacles"]
 
+    # on free floor there is no clearance to report (infinite): null, not a reply that cannot be decoded
+    free = client.call(msg.GOTO, msg.GotoRequest(q_start=q, goal_pose=[-1.5, -2.3, 0.0]), timeout_s=60.0)
+    assert free.reshaping.min_clearance_m is None and free.reshaping.iterations == 1
+
     # a malformed request names the field
     with pytest.raises(InvalidRequestError, match="exactly one goal"):
         client.call(msg.GOTO, msg.GotoRequest(q_start=q, goal_pose=[1.0, 0.0, 0.0], goal_object="crate"))

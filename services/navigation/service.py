@@ -118,6 +118,11 @@ def goal_from_request(request: msg.GotoRequest) -> Pose2D | ObjectGoal:
     return Pose2D(*(float(v) for v in request.goal_pose))
 
 
+def _finite_or_none(value: float) -> float | None:
+    """JSON has no infinity (msgspec writes null): an unbounded value travels as None."""
+    return value if math.isfinite(value) else None
+
+
 def _empty() -> np.ndarray:
     return np.zeros(0)
 
@@ -149,7 +154,7 @@ def reply_from_result(model: str, result: GotoResult) -> msg.GotoReply:
         reshaping=msg.ReshapingReport(
             iterations=report["iterations"],
             segments=[msg.LiftSegment(**s) for s in report["segments_lifted"]],
-            min_clearance_m=float(report["min_clearance_m"]),
+            min_clearance_m=_finite_or_none(float(report["min_clearance_m"])),
             zmp_margin_m=float(report["zmp_margin_m"]),
             hand_error_m=float(report["hand_error_m"]),
             collisions_per_iteration=[len(it.events) for it in motion.iterations],

@@ -82,7 +82,9 @@ class ReshapingReport(msgspec.Struct, kw_only=True, frozen=True):
 
     iterations: int
     segments: list[LiftSegment]
-    min_clearance_m: float  # smallest distance of any part (robot, bar) to any obstacle [m]
+    min_clearance_m: (
+        float | None
+    )  # smallest distance of any part (robot, bar) to any obstacle [m]; None: none
     zmp_margin_m: float  # smallest distance of the multibody ZMP inside the support polygon [m]
     hand_error_m: float  # largest distance between the bar's planned and realised pose [m]
     collisions_per_iteration: list[int]  # collision events found by each whole-body solution's check
