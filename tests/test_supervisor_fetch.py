@@ -128,3 +128,23 @@ def test_without_the_ball_the_robot_looks_around_and_reports_not_found(stack, tm
     progress = [e.message for e in sup.events if e.kind == "progress"]
     assert any("head pan" in m for m in progress) and any("turning" in m for m in progress)
     assert sup.events[-1].kind == "run_finished" and not sup.events[-1].ok
+
+
+def test_a_near_goal_beside_the_robot_is_walked_to_straight(stack) -> None:
+    """Half a metre to the left and 0.3 m ahead, turned by 20 deg: navigation's forward-only car-like
+    path would loop around; the supervisor walks there directly (sideways, forward and turning in the
+    same steps) and the robot stands at the goal."""
+    import math
+
+    _launcher, sup = stack
+    reset_scene(sup, "ball_fetch", None)
+    sup.actions.memory.sightings.clear()
+    body, planners = sup.actions.body, sup.actions.planners
+    x, y, yaw = body.base_xy_yaw()
+    goal = (x + 0.3, y + 0.5, yaw + math.radians(20.0))
+    plan = planners.goto_pose(*goal)
+    assert plan.planner.startswith("walking/plan, straight"), plan.describe()
+    executed = body.execute(plan.q, what="walk")
+    ex, ey, eyaw = body.base_xy_yaw(executed.q)
+    assert math.hypot(ex - goal[0], ey - goal[1]) < 0.03
+    assert abs(math.remainder(eyaw - goal[2], 2 * math.pi)) < math.radians(3.0)
