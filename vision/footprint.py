@@ -28,7 +28,7 @@ import numpy as np
 
 from vision.camera import StereoRig
 from vision.camshift import Window
-from vision.stereo import to_world
+from vision.stereo import silhouette_rows, to_world
 
 #: Fewer matched outline points than this give no footprint.
 MIN_POINTS = 8
@@ -56,15 +56,6 @@ class Footprint:
     yaw_rad: float
     top_z_m: float
     n_points: int
-
-
-def silhouette_rows(silhouette: np.ndarray, window: Window) -> dict[int, tuple[int, int]]:
-    """Image row [px] -> (first, last) object column [px] of a boolean window mask ``(x, y, w, h)``."""
-    x, y = window[0], window[1]
-    rows = np.flatnonzero(silhouette.any(axis=1))
-    first = silhouette[rows].argmax(axis=1)
-    last = silhouette.shape[1] - 1 - silhouette[rows][:, ::-1].argmax(axis=1)
-    return {int(y + r): (int(x + a), int(x + b)) for r, a, b in zip(rows, first, last, strict=True)}
 
 
 def outline_points(

@@ -202,6 +202,15 @@ def dense_disparity_median(
     return float(np.median(disp[valid])), n_valid
 
 
+def silhouette_rows(silhouette: np.ndarray, window: Window) -> dict[int, tuple[int, int]]:
+    """Image row [px] -> (first, last) object column [px] of a boolean window mask ``(x, y, w, h)``."""
+    x, y = window[0], window[1]
+    rows = np.flatnonzero(silhouette.any(axis=1))
+    first = silhouette[rows].argmax(axis=1)
+    last = silhouette.shape[1] - 1 - silhouette[rows][:, ::-1].argmax(axis=1)
+    return {int(y + r): (int(x + a), int(x + b)) for r, a, b in zip(rows, first, last, strict=True)}
+
+
 def edge_disparity_median(
     silhouette_left: np.ndarray,
     window_left: Window,
@@ -219,14 +228,8 @@ def edge_disparity_median(
     than ``min_rows`` edges remain.
     """
 
-    def extents(sil: np.ndarray, window: Window) -> dict[int, tuple[int, int]]:
-        x, y = window[0], window[1]
-        rows = np.flatnonzero(sil.any(axis=1))
-        first = sil[rows].argmax(axis=1)
-        last = sil.shape[1] - 1 - sil[rows][:, ::-1].argmax(axis=1)
-        return {int(y + r): (int(x + a), int(x + b)) for r, a, b in zip(rows, first, last, strict=True)}
-
-    left, right = extents(silhouette_left, window_left), extents(silhouette_right, window_right)
+    left = silhouette_rows(silhouette_left, window_left)
+    right = silhouette_rows(silhouette_right, window_right)
     last_col = image_width_px - 1
     disparities = []
     for row in left.keys() & right.keys():
