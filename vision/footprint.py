@@ -49,7 +49,7 @@ TOP_SUPPORT_FRACTION = 0.03
 @dataclass(frozen=True)
 class Footprint:
     """A horizontal rectangle on the floor: centre (x, y) [m], size (along its yaw, across) [m], yaw [rad]
-    in (-pi/2, pi/2], the highest outline point ``top_z_m`` [m] (world), ``n_points`` used."""
+    in (-pi/2, pi/2], its top ``top_z_m`` [m] (world; see ``TOP_BAND_M``), ``n_points`` used."""
 
     center_m: tuple[float, float]
     size_m: tuple[float, float]

@@ -54,7 +54,7 @@ class FootprintMsg(msgspec.Struct, kw_only=True, frozen=True):
     center: list[float]  # (x, y) world [m]
     size: list[float]  # (length along yaw, width) [m]
     yaw: float  # [rad], in (-pi/2, pi/2]
-    top_z: float  # height of the highest outline points, world [m]
+    top_z: float  # its top: the highest height many outline points share, world [m]
     n_points: int  # outline points it was fitted to
 
 
