@@ -287,6 +287,7 @@ class Actions:
         self.eyes.look_at(self.memory.get(name).position_m, f"look at {name}")
         self.eyes.locate(name)
         self._survey(exclude={name})
+        self._make_room(f"room to walk to {name}")  # seen nearer now than from afar
 
     def _survey(self, exclude: set[str]) -> None:
         """Put the big objects in view on the map (not ``exclude``, not what the hands hold)."""
