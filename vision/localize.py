@@ -57,8 +57,10 @@ class ObjectLocation:
     disparity_px: disparity used [px]; method: "centroid", "bm", "sgbm" or "edges" (see vision.stereo).
     left, right: the detections in each image (pixel boxes, windows, centroids).
     footprint: the floor rectangle of a non-spherical object from its outline's stereo points
-      (vision.footprint); None for a ball, for an object cut by an image border in either image (part
-      of its outline unseen: the rectangle would be too small) or when too few outline points match.
+      (vision.footprint); None for a ball, for an object cut by the left, right or top border in
+      either image (part of its top's outline unseen: the rectangle would be too small) or when too few
+      outline points match. A cut by the bottom border (the legs of a table close by, the near bottom
+      corner of a box) leaves the top's outline whole: the footprint stays.
     """
 
     name: str
@@ -266,7 +268,7 @@ def locate_in_frame(
     size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))
     p_world = to_world(p_camera, frame.T_world_left_camera)
     floor_rectangle = None
-    if model.shape != "sphere" and not left.border_sides and not right.border_sides:
+    if model.shape != "sphere" and not {"left", "right", "top"} & {*left.border_sides, *right.border_sides}:
         points = outline_points(
             _silhouette(bp_left, left.window, det_cfg),
             left.window,

@@ -80,7 +80,7 @@ class LocateReply(msgspec.Struct, kw_only=True, frozen=True):
     T_world_camera: list[list[float]]  # 4x4 pose of the left optical frame used (from q)
     rendered: bool  # the images came from sim/render (else from the request)
     sim_time_s: float  # sim time of the rendered images [s] (0 when the images came with the request)
-    footprint: FootprintMsg | None = None  # non-spherical objects wholly in view in both images
+    footprint: FootprintMsg | None = None  # non-spherical objects not cut by a side or top border
 
 
 LOCATE = EndpointSpec(
