@@ -54,7 +54,8 @@ class ActionOptions:
         far from its mid-feet point [m];
     back_off_m: after a collision, the touching hand moves this far back and up [m];
     far_m, near_m: an object farther than far_m is first approached to near_m and localized again [m]
-        (near_face_m from a free face of it when the pose near_m short of it is taken);
+        (near_face_m from a free face of it when there is no walk to the pose near_m short of it, and
+        not at all when there is none to a face either);
     put_height_m: the object is brought this high above the estimated top of the place, then lowered
         until it touches [m];
     put_highest_m, put_lowest_m: bounds of a place's top height: the estimate is capped at the first,
@@ -73,7 +74,7 @@ class ActionOptions:
     back_off_m: float = 0.08
     clearance_m: float = 0.6
     far_m: float = 2.2
-    near_m: float = 1.4
+    near_m: float = 1.8
     near_face_m: float = 1.0
     put_height_m: float = 0.12
     put_highest_m: float = 0.95
@@ -260,23 +261,27 @@ class Actions:
 
     def _approach(self, name: str) -> None:
         """Far objects are seen roughly (a table 3 m away: its silhouette is a thin top on thin legs):
-        walk to ``near_m`` short of it first, facing it, and localize it again from there."""
-        sighting = self.memory.get(name)
+        walk to ``near_m`` short of the middle of its map box first (the middle of its silhouette can be
+        a leg), facing it, and localize it again from there."""
+        centre = np.asarray(box_estimate(self.memory.get(name)).center_m[:2])
         x, y, _yaw = self.body.base_xy_yaw()
-        to = sighting.position_m[:2] - (x, y)
+        to = centre - (x, y)
         dist = float(np.linalg.norm(to))
         if dist <= self.options.far_m:
             return
         u = to / dist
-        stop = sighting.position_m[:2] - u * self.options.near_m
+        stop = centre - u * self.options.near_m
         what = f"approach {name}"
         try:
             plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
         except InfeasibleError as exc:
-            if exc.details.get("reason") != "goal_in_collision":
-                raise
-            self.progress(f"{what}: the pose {self.options.near_m:.1f} m short of it is taken: {exc.message}")
-            plan = self.planners.goto_object(name, self.options.near_face_m)
+            self.progress(f"{what}: no walk to {self.options.near_m:.1f} m short of it: {exc.message}")
+            try:
+                plan = self.planners.goto_object(name, self.options.near_face_m)
+            except InfeasibleError as again:
+                # Only a closer look is lost: the walk to the object itself plans with what is known.
+                self.progress(f"{what}: none to a free face of it either ({again.message}): going on")
+                return
         self.progress(
             f"{what} (seen {dist:.1f} m away: will look again from {self.options.near_m:.1f} m): "
             f"{plan.describe()}"

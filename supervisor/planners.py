@@ -277,28 +277,12 @@ class Planners:
             plan_s=float(reply.planning_time_s),
         )
 
-    def step_back(self, distance_m: float, *, step_m: float = 0.15) -> Plan:
-        """Walk straight back by ``distance_m`` [m] (pairs of steps of at most ``step_m``): room to turn
-        on the spot or to start a path away from an object."""
-        q = self.body.plan_q()
-        robot = self.body.robot
-        soles = self._soles(q)
-        yaw = robot.mid_feet_pose(q)[2]
-        n_pairs = max(1, math.ceil(distance_m / step_m))
-        steps = []
-        for k in range(1, n_pairs + 1):
-            back = distance_m * k / n_pairs
-            for side in ("right", "left"):
-                p = soles[side]
-                pose = [p.x_m - back * math.cos(yaw), p.y_m - back * math.sin(yaw), p.yaw_rad]
-                steps.append(walk_msg.Step(pose=pose, side=side))
-        request = walk_msg.PlanRequest(
-            steps=steps,
-            model=robot.name,
-            q_start=q,
-            double_support_s=TURN_DOUBLE_SUPPORT_S,
-        )
-        return self._walk(request)
+    def step_back(self, distance_m: float) -> Plan:
+        """Walk straight back by ``distance_m`` [m] (:meth:`walk_to`: a staggered stance is evened out on
+        the way, steps within the bounds): room to turn on the spot or to start a path away from an
+        object."""
+        x, y, yaw = self.body.robot.mid_feet_pose(self.body.plan_q())
+        return self.walk_to(x - distance_m * math.cos(yaw), y - distance_m * math.sin(yaw), yaw)
 
     def _soles(self, q: np.ndarray) -> dict[str, SolePose]:
         """The sole poses (x, y, yaw) on the ground at ``q``."""
