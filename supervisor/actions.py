@@ -40,6 +40,8 @@ from supervisor.runner import Action, Remedy
 from supervisor.scene_map import box_estimate, distance_to_box, is_obstacle, ray_entry
 from supervisor.script import Step
 
+#: A contact farther than this from every mapped box [m] hit something the map lacks.
+MAPPED_MARGIN_M = 0.1
 #: Bodies of the robot stand this far from an object's face after ``goto OBJECT`` by default [m].
 DEFAULT_GOTO_DISTANCE_M = 0.4
 #: How long ``wait_service`` waits for a restarted service's liveliness token [s].
@@ -575,21 +577,35 @@ class Actions:
             self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
 
     def replan(self, step: Step, report: ActionReport) -> None:
-        """After a collision: free the robot (a leg or the body: play the end of the stopped motion
-        backward, :meth:`Body.back_out`; a hand: move it back and up, the touched objects allowed),
-        refresh the goal's position; the retry then plans again from the state the robot is in now
-        (planners are stateless and the actions plan from ``sim/state``)."""
+        """After a collision: free the robot (a leg or the body touched, or the robot stopped with a foot
+        up: play the end of the stopped motion backward, :meth:`Body.back_out`; a hand: move it back and
+        up, the touched objects allowed), map what was hit if the map lacks it, refresh the goal's
+        position; the retry then plans again from the state the robot is in now (planners are stateless
+        and the actions plan from ``sim/state``)."""
         if self.body.state().fallen:
             raise ActionError("fell", "the robot fell: it cannot replan from the ground")
         collisions = report.details.get("collisions") or []
         touched = sorted({str(c["other"]) for c in collisions})
         links = " ".join(str(c["robot_link"]).upper() for c in collisions)
-        if self.body.interrupted is not None and any(not _arm_link(str(c["robot_link"])) for c in collisions):
-            self.body.back_out(self.progress)  # a leg or the body hit it: undo the end of the motion
+        if self.body.interrupted is not None and (
+            any(not _arm_link(str(c["robot_link"])) for c in collisions) or not self.body.standing()
+        ):
+            self.body.back_out(self.progress)  # a leg or the body hit it, or a foot is up: undo the end
         for hand, tag in (("right", "RARM"), ("left", "LARM")):
             if tag in links or ("held:" in links.lower() and hand in self.body.held()):
                 self._back_off(hand, touched)
+        self._map_what_was_hit([c["position"] for c in collisions])
         self.relocalize(step, report)
+
+    def _map_what_was_hit(self, contacts: list[list[float]]) -> None:
+        """A contact off every mapped box (by more than ``MAPPED_MARGIN_M``) hit something the map
+        lacks: look at the first such contact point and put what is in view on the map."""
+        boxes = [box_estimate(s) for s in self.memory.sightings.values() if is_obstacle(s)]
+        for point in contacts:
+            if all(distance_to_box(box, point[0], point[1]) > MAPPED_MARGIN_M for box in boxes):
+                self.eyes.look_at(np.asarray(point, dtype=float), "look at what was hit")
+                self._survey(exclude=set())
+                return
 
     def _back_off(self, hand: str, touched: list[str]) -> None:
         """Move ``hand`` back and up out of contact with ``touched`` (no stepping)."""

@@ -32,9 +32,9 @@ EXECUTE_TIMEOUT_S = 60.0
 #: Plan from the last commanded configuration when every joint is within this of it [rad].
 PLAN_FROM_COMMAND_RAD = 0.05
 #: Backing out of a stopped motion goes back at least this far [s], then on to an instant both soles
-#: were on the floor (within ``FLAT_SOLE_M`` [m]).
+#: were on the floor (within ``FLAT_SOLE_M`` [m]: the planners want them within 5 mm).
 BACK_OUT_MIN_S = 0.5
-FLAT_SOLE_M = 0.002
+FLAT_SOLE_M = 0.004
 
 Progress = Callable[[str], None]
 
@@ -184,6 +184,14 @@ class Body:
         self._commanded = Q[-1].copy()
         return Executed(spent, np.asarray(reply.q, dtype=float), reply)
 
+    def standing(self, q: np.ndarray | None = None) -> bool:
+        """Whether both soles are on the floor (within ``FLAT_SOLE_M``) at ``q`` (default: now)."""
+        q = self.q() if q is None else q
+        return all(
+            abs(float(self.robot.sole_pose(q, side).translation[2])) < FLAT_SOLE_M
+            for side in ("left", "right")
+        )
+
     def back_out(self, progress: Progress | None = None) -> float:
         """Undo the end of the motion a collision stopped: play its executed part backward (the same
         path, time reversed: the CoM accelerations, hence the ZMP, are those of the planned motion) for at
@@ -194,12 +202,9 @@ class Body:
         if interrupted is None or interrupted.q.shape[0] < 2:
             return 0.0
         Q = interrupted.q
-        robot = self.robot
         last = Q.shape[0] - 1
         k = max(0, last - round(BACK_OUT_MIN_S / interrupted.dt_s))
-        while k > 0 and not all(
-            abs(float(robot.sole_pose(Q[k], side).translation[2])) < FLAT_SOLE_M for side in ("left", "right")
-        ):
+        while k > 0 and not self.standing(Q[k]):
             k -= 1
         what = f"back out of {interrupted.what} ({', '.join(interrupted.touched)})"
         if progress is not None:

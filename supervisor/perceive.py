@@ -40,12 +40,13 @@ class Eyes:
         self._blob_models: list[str] | None = None  # perception's non-ball models, asked once
         self._last_box = (320.0, 240.0)  # image centre [px] of the last sighting (off_centre)
 
-    def locate(self, name: str, q: np.ndarray | None = None) -> Sighting:
-        """Localize ``name`` now (no motion); NotFoundError from perception otherwise."""
+    def locate(self, name: str, q: np.ndarray | None = None, camera: str = "wide") -> Sighting:
+        """Localize ``name`` now (no motion) with the head's ``camera`` pair; NotFoundError from
+        perception otherwise."""
         q = self.body.q() if q is None else q
         reply = self.bus.call(
             perception_msg.LOCATE,
-            perception_msg.LocateRequest(object=name, model=self.body.robot.name, q=q),
+            perception_msg.LocateRequest(object=name, model=self.body.robot.name, q=q, camera=camera),
             LOCATE_TIMEOUT_S,
         )
         T = np.asarray(reply.T_world_camera, dtype=float)
@@ -75,7 +76,8 @@ class Eyes:
         """Localize, in the current view, every learned object that is not a ball (models of shape
         "blob": boxes, tables, chairs) except ``exclude``: navigation avoids the obstacles it knows of
         ("avoiding known obstacles", Fig. 10 of the motion-autonomy paper), so whatever big object is in
-        view goes on the map before a walk is planned. Returns the names seen (not seen: skipped)."""
+        view goes on the map before a walk is planned. One seen but not localized by the wide pair (too
+        close: out of one camera's view) is tried with the narrow, 90 deg one. Returns the names seen."""
         if self._blob_models is None:
             reply = self.bus.call(perception_msg.MODELS, perception_msg.ModelsRequest(), LOCATE_TIMEOUT_S)
             self._blob_models = [o.name for o in reply.objects if o.shape != "sphere"]
@@ -87,8 +89,13 @@ class Eyes:
                 continue
             try:
                 self.locate(name, q)
-            except NotFoundError:
-                continue
+            except NotFoundError as exc:
+                if exc.details.get("reason") == "not_in_view":
+                    continue
+                try:  # close by (out of one wide camera's view, cut by the borders): the near pair
+                    self.locate(name, q, camera="narrow")
+                except NotFoundError:
+                    continue
             seen.append(name)
         self._last_box = last_box
         if seen:

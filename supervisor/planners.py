@@ -168,9 +168,12 @@ class Planners:
                 x, y = x0 + t * (goal[0] - x0), y0 + t * (goal[1] - y0)
                 if distance_to_box(box, x, y) < need:
                     return None
-        return self.walk_to(
-            goal[0], goal[1], goal[2], planner=f"walking/plan, straight ({path_m:.1f} m path)"
-        )
+        try:
+            return self.walk_to(
+                goal[0], goal[1], goal[2], planner=f"walking/plan, straight ({path_m:.1f} m path)"
+            )
+        except InfeasibleError:  # e.g. turning much while side-stepping crosses the feet: navigation's way
+            return None
 
     def walk_to(self, x_m: float, y_m: float, yaw_rad: float, *, planner: str = "walking/plan") -> Plan:
         """Walk straight to the base pose (x, y [m], yaw [rad]) of the mid-feet frame, stepping forward,

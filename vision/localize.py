@@ -45,6 +45,9 @@ class LocalizeConfig:
     detection: DetectionConfig = field(default_factory=DetectionConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
     max_size_ratio: float = 2.0  # left/right blob sizes of one object differ by less than this factor
+    # No footprint nearer than this [m] (depth of the located point): a table 0.8 m away fills the wide
+    # pair's view, the robot's own arm and what it holds hide parts of its outline in one image only.
+    footprint_min_depth_m: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -59,8 +62,9 @@ class ObjectLocation:
     footprint: the floor rectangle of a non-spherical object from its outline's stereo points
       (vision.footprint); None for a ball, for an object cut by the left, right or top border in
       either image (part of its top's outline unseen: the rectangle would be too small) or when too few
-      outline points match. A cut by the bottom border (the legs of a table close by, the near bottom
-      corner of a box) leaves the top's outline whole: the footprint stays.
+      outline points match, or nearer than ``LocalizeConfig.footprint_min_depth_m``. A cut by the
+      bottom border (the legs of a table close by, the near bottom corner of a box) leaves the top's
+      outline whole: the footprint stays.
     """
 
     name: str
@@ -268,7 +272,8 @@ def locate_in_frame(
     size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))
     p_world = to_world(p_camera, frame.T_world_left_camera)
     floor_rectangle = None
-    if model.shape != "sphere" and not {"left", "right", "top"} & {*left.border_sides, *right.border_sides}:
+    cut = {"left", "right", "top"} & {*left.border_sides, *right.border_sides}
+    if model.shape != "sphere" and not cut and z >= config.footprint_min_depth_m:
         points = outline_points(
             _silhouette(bp_left, left.window, det_cfg),
             left.window,
