@@ -177,8 +177,9 @@ class Planners:
 
     def walk_to(self, x_m: float, y_m: float, yaw_rad: float, *, planner: str = "walking/plan") -> Plan:
         """Walk straight to the base pose (x, y [m], yaw [rad]) of the mid-feet frame, stepping forward,
-        sideways and turning together (steps as long as the robot's footstep bounds allow), the feet side
-        by side at the end. No obstacle check: for short walks on free floor."""
+        sideways and turning together (or, when that crosses the feet, walking there and then turning on
+        the spot), steps as long as the robot's footstep bounds allow, the feet side by side at the end.
+        No obstacle check: for short walks on free floor."""
         q = self.body.plan_q()
         robot = self.body.robot
         soles = self._soles(q)
@@ -188,15 +189,26 @@ class Planners:
         dyaw = math.remainder(yaw_rad - yaw0, 2.0 * math.pi)
         first = "left" if (dy if abs(dy) > 0.02 else dyaw) > 0 else "right"  # lead with the foot on the way
 
-        def make(n: int):
-            return footsteps_along_mid_poses(
-                [(f * dx, f * dy, f * dyaw) for f in (min(k, n - 1) / (n - 1) for k in range(1, n + 1))],
-                first,
-                left_start=soles["left"],
-                right_start=soles["right"],
-            )
+        def fractions(n: int) -> list[float]:  # n steps, the last one bringing the feet side by side
+            return [min(k, n - 1) / (n - 1) for k in range(1, n + 1)]
 
-        sequence = fit_to_bounds(make, 2, FootstepLimits.from_robot(robot), "a straight walk")
+        def along(poses: list[tuple[float, float, float]]):
+            left, right = soles["left"], soles["right"]
+            return footsteps_along_mid_poses(poses, first, left_start=left, right_start=right)
+
+        def together(n: int):
+            return along([(f * dx, f * dy, f * dyaw) for f in fractions(n)])
+
+        def turn_last(n: int):  # walk there, then turn on the spot: no turning while side-stepping
+            m = max(2, n // 2)
+            walk = [(f * dx, f * dy, 0.0) for f in fractions(m)]
+            return along(walk + [(dx, dy, f * dyaw) for f in fractions(max(2, n - m))])
+
+        limits = FootstepLimits.from_robot(robot)
+        try:
+            sequence = fit_to_bounds(together, 2, limits, "a straight walk")
+        except InfeasibleError:  # turning while stepping sideways can cross the feet
+            sequence = fit_to_bounds(turn_last, 4, limits, "a straight walk, then a turn")
         request = walk_msg.PlanRequest(
             steps=[
                 walk_msg.Step(pose=[st.pose.x_m, st.pose.y_m, st.pose.yaw_rad], side=st.side)
