@@ -69,8 +69,11 @@ def test_fetch_succeeds_when_walking_is_killed_during_the_turn(stack, tmp_path) 
 
     def kill_during_walking_plan(spec) -> None:
         if spec.path == "walking/plan" and in_turn.is_set() and not killed.is_set():
-            killed.set()  # in the middle of the request: the planner takes longer than this
-            threading.Timer(0.1, os.killpg, (first_pid, signal.SIGKILL)).start()
+            # As the request goes out: the kill lands while walking plans (the first walking/plan of the
+            # turn step may be a short step back, planned in a few tens of ms; a later kill could miss
+            # it and the service would be back before the turn's own plan).
+            killed.set()
+            threading.Thread(target=os.killpg, args=(first_pid, signal.SIGKILL)).start()
 
     sup.runner.on_event = watch_steps
     sup.bus.on_call = kill_during_walking_plan
