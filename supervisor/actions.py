@@ -37,7 +37,7 @@ from supervisor.perceive import Eyes
 from supervisor.planners import Planners
 from supervisor.report import ActionError, ActionReport
 from supervisor.runner import Action, Remedy
-from supervisor.scene_map import box_estimate, distance_to_box, is_obstacle, ray_entry
+from supervisor.scene_map import box_estimate, boxes, distance_to_box, is_obstacle, ray_entry
 from supervisor.script import Step
 
 #: A contact farther than this from every mapped box [m] hit something the map lacks.
@@ -245,12 +245,7 @@ class Actions:
         """Step back when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
         would sweep the arms into it, and navigation does not start from inside an obstacle's margin."""
         x, y, _yaw = self.body.base_xy_yaw()
-        held = set(self.memory.holding.values())
-        near = [
-            (distance_to_box(box_estimate(s), x, y), s.name)
-            for s in self.memory.sightings.values()
-            if is_obstacle(s) and s.name not in held
-        ]
+        near = [(distance_to_box(box, x, y), box.name) for box in boxes(self.memory)]
         if not near:
             return
         distance, name = min(near)
@@ -600,9 +595,9 @@ class Actions:
     def _map_what_was_hit(self, contacts: list[list[float]]) -> None:
         """A contact off every mapped box (by more than ``MAPPED_MARGIN_M``) hit something the map
         lacks: look at the first such contact point and put what is in view on the map."""
-        boxes = [box_estimate(s) for s in self.memory.sightings.values() if is_obstacle(s)]
+        mapped = boxes(self.memory)
         for point in contacts:
-            if all(distance_to_box(box, point[0], point[1]) > MAPPED_MARGIN_M for box in boxes):
+            if all(distance_to_box(box, point[0], point[1]) > MAPPED_MARGIN_M for box in mapped):
                 self.eyes.look_at(np.asarray(point, dtype=float), "look at what was hit")
                 self._survey(exclude=set())
                 return

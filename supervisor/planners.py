@@ -31,7 +31,7 @@ from services.walking.footsteps import (
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.memory import Memory
-from supervisor.scene_map import box_estimate, distance_to_box, is_obstacle, obstacles
+from supervisor.scene_map import boxes, distance_to_box, obstacles
 
 PLAN_TIMEOUT_S = 120.0
 #: Largest yaw of one pair of turning steps [rad]: the opening foot's bound is pi/4 (footstep paper §5).
@@ -157,11 +157,7 @@ class Planners:
         straight_m = math.hypot(goal[0] - x0, goal[1] - y0)
         if straight_m > SHORT_WALK_M or path_m <= DETOUR_FACTOR * straight_m + DETOUR_SLACK_M:
             return None
-        held = set(self.memory.holding.values())
-        boxes = [
-            box_estimate(s) for s in self.memory.sightings.values() if is_obstacle(s) and s.name not in held
-        ]
-        for box in boxes:
+        for box in boxes(self.memory):
             ends = (distance_to_box(box, goal[0], goal[1]), distance_to_box(box, x0, y0))
             need = min(SHORT_WALK_CLEARANCE_M, *ends) - 0.02
             for t in np.linspace(0.0, 1.0, max(2, math.ceil(straight_m / 0.05) + 1)):
@@ -170,17 +166,26 @@ class Planners:
                     return None
         try:
             return self.walk_to(
-                goal[0], goal[1], goal[2], planner=f"walking/plan, straight ({path_m:.1f} m path)"
+                goal[0], goal[1], goal[2], planner=f"walking/plan, straight ({path_m:.1f} m path)", q=q
             )
         except InfeasibleError:  # e.g. turning much while side-stepping crosses the feet: navigation's way
             return None
 
-    def walk_to(self, x_m: float, y_m: float, yaw_rad: float, *, planner: str = "walking/plan") -> Plan:
+    def walk_to(
+        self,
+        x_m: float,
+        y_m: float,
+        yaw_rad: float,
+        *,
+        planner: str = "walking/plan",
+        q: np.ndarray | None = None,
+    ) -> Plan:
         """Walk straight to the base pose (x, y [m], yaw [rad]) of the mid-feet frame, stepping forward,
         sideways and turning together (or, when that crosses the feet, walking there and then turning on
         the spot), steps as long as the robot's footstep bounds allow, the feet side by side at the end.
-        No obstacle check: for short walks on free floor."""
-        q = self.body.plan_q()
+        No obstacle check: for short walks on free floor. ``q``: the configuration to start from
+        (default: :meth:`Body.plan_q`)."""
+        q = self.body.plan_q() if q is None else q
         robot = self.body.robot
         soles = self._soles(q)
         x0, y0, yaw0 = robot.mid_feet_pose(q)
@@ -296,8 +301,9 @@ class Planners:
         """Walk straight back by ``distance_m`` [m] (:meth:`walk_to`: a staggered stance is evened out on
         the way, steps within the bounds): room to turn on the spot or to start a path away from an
         object."""
-        x, y, yaw = self.body.robot.mid_feet_pose(self.body.plan_q())
-        return self.walk_to(x - distance_m * math.cos(yaw), y - distance_m * math.sin(yaw), yaw)
+        q = self.body.plan_q()
+        x, y, yaw = self.body.robot.mid_feet_pose(q)
+        return self.walk_to(x - distance_m * math.cos(yaw), y - distance_m * math.sin(yaw), yaw, q=q)
 
     def _soles(self, q: np.ndarray) -> dict[str, SolePose]:
         """The sole poses (x, y, yaw) on the ground at ``q``."""

@@ -93,12 +93,15 @@ def is_obstacle(sighting: Sighting) -> bool:
     return max(sighting.size_m) >= SMALL_OBJECT_M
 
 
-def obstacles(memory: Memory) -> list[nav_msg.ObstacleMsg]:
-    """Navigation obstacles of every object seen, except small and held ones."""
+def boxes(memory: Memory) -> list[BoxEstimate]:
+    """The map: the box of every object seen, except small and held ones."""
     held = set(memory.holding.values())
-    return [
-        box_estimate(s).to_msg() for s in memory.sightings.values() if s.name not in held and is_obstacle(s)
-    ]
+    return [box_estimate(s) for s in memory.sightings.values() if s.name not in held and is_obstacle(s)]
+
+
+def obstacles(memory: Memory) -> list[nav_msg.ObstacleMsg]:
+    """The map as navigation obstacles."""
+    return [box.to_msg() for box in boxes(memory)]
 
 
 def ray_entry(box: BoxEstimate, origin_xy: np.ndarray, direction_xy: np.ndarray) -> float:
