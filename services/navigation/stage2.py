@@ -126,7 +126,8 @@ class WholeBodyMotion:
     the first, unreshaped, whole-body solution (whose 3D check is ``first_check``); ``hand_error_m`` the
     largest distance between the bar's planned and realised centre or between the hands [m].
     ``zmp_margin_m`` is the smallest distance [m] of the multibody ZMP (bar's mass included) inside the
-    support polygon (< 0: outside). ``bar_axis`` (n, 3) the bar's realised axis, ``bar_planned`` the
+    support polygon (< 0: outside). ``bar_axis`` (n, 3) the bar's realised axis (``bar_centre_first_m``,
+    ``bar_axis_first`` (n, 3): centre [m] and axis in the first solution), ``bar_planned`` the
     reshaped task-space trajectory (key frames interpolated at 5 ms), ``sampling`` what each random
     sampling did (mode ``"sample"``), ``mode`` the reshaping mode.
     """
@@ -146,6 +147,8 @@ class WholeBodyMotion:
     hand_error_m: float = 0.0
     first_check: MotionCheck | None = None
     bar_axis: np.ndarray | None = None
+    bar_centre_first_m: np.ndarray | None = None
+    bar_axis_first: np.ndarray | None = None
     bar_planned: BarTrajectory | None = None
     sampling: tuple[SampleStats, ...] = ()
     mode: str = "sample"
@@ -331,6 +334,7 @@ def plan_motion(
     times = pattern.times_s
 
     nominal = first_heights = first_check = nominal_bar = sampler = None
+    first_pose: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
     stats: list[SampleStats] = []
     extra: list[Level] = []
     update = None
@@ -394,6 +398,7 @@ def plan_motion(
         events = check.events(rs.required_clearance_m)
         if centre is not None and iteration == 0:
             first_heights = centre[:, 2].copy()
+            first_pose = (centre, bar_axis)
         if iteration == 0:
             first_check = check
         history.append(
@@ -468,6 +473,8 @@ def plan_motion(
         hand_error_m=0.0 if hand_error is None else hand_error,
         first_check=first_check,
         bar_axis=bar_axis,
+        bar_centre_first_m=first_pose[0],
+        bar_axis_first=first_pose[1],
         bar_planned=trajectory,
         sampling=tuple(stats),
         mode=rs.mode,
