@@ -60,6 +60,9 @@ class StereoConfig:
       size (rectified images: the same point is on the same row).
     bm_block_px, sgbm_block_px: correlation window sizes [px] (odd).
     min_valid_fraction: bm/sgbm need valid disparities on at least this fraction of the object pixels.
+    dense_full_frame: bm/sgbm correlate the whole image (the paper's "dense 3D image of the current
+      scene") instead of a crop around the object's window (same disparities there, measured by
+      ``scripts/bench perception``; the crop is what the service uses).
     """
 
     method: str = "centroid"
@@ -69,6 +72,7 @@ class StereoConfig:
     bm_block_px: int = 11
     sgbm_block_px: int = 5
     min_valid_fraction: float = 0.2
+    dense_full_frame: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -183,6 +187,8 @@ def dense_disparity_median(
     # (matchers also require that many columns).
     c0 = x - min_disp - num_disp - half
     c1 = min(W, x + w + half)
+    if config.dense_full_frame:  # the whole scene's disparity image, as the paper computes it
+        r0, r1, c0, c1 = 0, H, min(c0, 0), W
     pad = max(0, -c0)
     c0 = max(0, c0)
     crop_l = cv2.copyMakeBorder(left_gray[r0:r1, c0:c1], 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)

@@ -26,6 +26,7 @@ from services.ik import Level
 from services.ik.dofs import dof_mask
 from services.ik.solver import HierarchicalSolver
 from services.navigation.carry import BarGrip, BarTrajectory, HandOnBarTask, bar_rotation
+from services.navigation.collision3d import MotionChecker
 from services.navigation.geometry import Scene
 from services.navigation.reshaping import (
     BarOffset,
@@ -41,7 +42,8 @@ _R_CAPSULE_Z_TO_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]
 
 @dataclass(frozen=True)
 class SampleStats:
-    """What one sampling did: candidates drawn, rejected because the bar (or a hand) comes too close to
+    """What one sampling did: candidates drawn, rejected because the bar, a hand (or, after the reach
+    check, an arm) comes too close to
     an obstacle, rejected because the arms do not reach them, and the ring (1-based) of the result."""
 
     drawn: int
@@ -56,14 +58,21 @@ class ArmReach:
     joints move, the rest of the body as in the walk's configuration.
 
     ``model`` is the IK model (the walking planner's, grippers locked); ``reduce`` maps a full
-    configuration to it.
+    configuration to it, ``expand(q_reduced, q_full)`` back (the locked joints from ``q_full``).
     """
 
     def __init__(
-        self, robot: object, model: pin.Model, grip: BarGrip, reduce: object, iterations: int
+        self,
+        robot: object,
+        model: pin.Model,
+        grip: BarGrip,
+        reduce: object,
+        expand: object,
+        iterations: int,
     ) -> None:
         self.model = model
         self.reduce = reduce
+        self.expand = expand
         self.grip = grip
         self.iterations = iterations
         self.solver = HierarchicalSolver(model)
@@ -86,18 +95,20 @@ class ArmReach:
 
     def track(
         self, qs: np.ndarray, ks: np.ndarray, centre_m: np.ndarray, axis: np.ndarray, dt_s: float
-    ) -> tuple[float, float]:
+    ) -> tuple[float, float, np.ndarray]:
         """Follow the bar poses (centre (m, 3) [m], axis (m, 3)) at samples ``ks`` (m,) of the motion
         ``qs`` (n, nq) with the arms only, from the arms of ``qs[ks[0]]`` (the body as ``qs`` has it),
         ``iterations`` Gauss-Newton steps per sample, as the walk's whole-body IK tracks its knots.
 
         Returns the largest hand error [m] (held point, or axis misalignment times the bar's half
-        length) and the largest arm joint speed as a fraction of its limit (``dt_s`` [s] per sample)."""
+        length), the largest arm joint speed as a fraction of its limit (``dt_s`` [s] per sample) and
+        the configurations reached (m, nq) (full model)."""
         q_arms = self.reduce(qs[ks[0]])[self.arm_q]  # type: ignore[operator]
         worst_error = worst_speed = 0.0
         half = 0.5 * self.grip.bar.length_m
         data = self.model.createData()
         k_prev = int(ks[0])
+        reached = np.empty((len(ks), qs.shape[1]))
         for i, k in enumerate(ks):
             q = self.reduce(qs[k])  # type: ignore[operator]
             q[self.arm_q] = q_arms
@@ -109,6 +120,7 @@ class ArmReach:
                 speed = np.abs(q[self.arm_q] - q_arms) / ((k - k_prev) * dt_s) / self.v_max
                 worst_speed = max(worst_speed, float(speed.max()))
             q_arms, k_prev = q[self.arm_q].copy(), int(k)
+            reached[i] = self.expand(q, qs[k])  # type: ignore[operator]
             pin.forwardKinematics(self.model, data, q)
             pin.updateFramePlacements(self.model, data)
             for task in self.tasks.values():
@@ -116,7 +128,7 @@ class ArmReach:
                 worst_error = max(
                     worst_error, float(np.linalg.norm(e[:3])), half * float(np.linalg.norm(e[3:]))
                 )
-        return worst_error, worst_speed
+        return worst_error, worst_speed, reached
 
 
 class BarPoseSampler:
@@ -124,7 +136,9 @@ class BarPoseSampler:
 
     ``scene``: the obstacles; ``grip``: the bar held; ``options``: the reshaping options (clearances,
     ramp bounds, :class:`~services.navigation.reshaping.SamplingOptions`); ``reach``: the IK check;
-    ``rng``: the seeded generator (the same request gives the same samples).
+    ``rng``: the seeded generator (the same request gives the same samples); ``checker``: the 3D check of
+    the robot (when given, the arms of the configurations the reach check reaches must keep the
+    required clearance to every obstacle).
     """
 
     def __init__(
@@ -134,11 +148,13 @@ class BarPoseSampler:
         options: ReshapeOptions,
         reach: ArmReach,
         rng: np.random.Generator,
+        checker: MotionChecker | None = None,
     ) -> None:
         self.grip = grip
         self.options = options
         self.reach = reach
         self.rng = rng
+        self.checker = checker
         self.obstacles = [(o, *_obstacle_geometry(o)) for o in scene.obstacles]
         self.bar_shape = coal.Capsule(grip.bar.radius_m, grip.bar.length_m)
         self.hand_shape = coal.Sphere(options.sampling.hand_radius_m)
@@ -191,6 +207,13 @@ class BarPoseSampler:
             for j in near
             if self.clearance_m(nominal.centre_m[0], nominal.axis[0], [j]) < self.options.required_clearance_m
         }
+
+    def _arms_clear(self, qs: np.ndarray, dt_s: float) -> bool:
+        """The arms along ``qs`` (m, nq) keep the required clearance to every obstacle."""
+        if self.checker is None:
+            return True
+        check = self.checker.check(qs, dt_s, release_m=0.0)
+        return bool(check.min_distance("arms").min() >= self.options.required_clearance_m)
 
     # ------------------------------------------------------------------------------- sampling
     def free(
@@ -289,9 +312,13 @@ class BarPoseSampler:
                 for w in others:
                     offsets += w.weight(t[ks])[:, None] * w.offset.as_array()[None, :]
                 centre, axis = apply_offsets(nominal.centre_m[ks], nominal.axis[ks], offsets)
-                error, speed = self.reach.track(qs, ks, centre, axis, float(t[1] - t[0]))
+                dt = float(t[1] - t[0])
+                error, speed, reached = self.reach.track(qs, ks, centre, axis, dt)
                 if error <= 0.5 * self.options.max_hand_error_m and speed <= s.max_speed_ratio:
-                    return window, SampleStats(drawn, collide, unreachable, ring)
+                    if self._arms_clear(reached, dt):
+                        return window, SampleStats(drawn, collide, unreachable, ring)
+                    collide += 1
+                    continue
                 unreachable += 1
             if ik_checks >= s.max_ik_checks:
                 break

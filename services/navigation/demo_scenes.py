@@ -86,19 +86,19 @@ def bar_scenario() -> tuple[Scene, Pose2D, Pose2D]:
     return scene, Pose2D(0.0, 0.0, 0.0), Pose2D(BAR_GOAL_X_M, 0.0, 0.0)
 
 
-BAR_POLE_XY_M = (2.0, 0.9)
+BAR_POLE_XY_M = (2.0, 0.93)
 BAR_POLE_RADIUS_M = 0.04
 BAR_POLE_HEIGHT_M = 1.8
 
 
 def bar_rotation_scenario() -> tuple[Scene, Pose2D, Pose2D]:
     """The bar scenario with a pole beside the walking line, level with the box: the pole (1.8 m high,
-    out of lifting range) stands 0.86 m left of the line, inside the 0.9 m half length of the bar, and
-    the box on the table stands under the bar's right half. Lifting alone does not pass (the pole is
-    too high to lift over, the arms cannot shift the bar 0.1 m sideways past it); the bar must rotate
-    (yaw, or tilt: both shorten its reach across the walk) and its right half rise over the box: the
-    case of the smooth reshaping over the bar's 6-D pose ("Smooth Motion Reshaping",
-    `001_771c0ce3779b0683.txt`)."""
+    out of lifting range) stands 0.89 m left of the line (its near side), inside the 0.9 m half length
+    of the bar, and the box on the table stands under the bar's right half. Lifting alone does not pass
+    (the pole is too high to lift over, and the arms shift the bar at most 5 cm sideways
+    (``SamplingOptions.max_left_m``): its left end must come 9 cm in); the bar must rotate (yaw, or
+    tilt: both shorten its reach across the walk) and its right half rise over the box: the case of
+    the smooth reshaping over the bar's pose ("Smooth Motion Reshaping", `001_771c0ce3779b0683.txt`)."""
     scene, start, goal = bar_scenario()
     x, y = BAR_POLE_XY_M
     pole = CylinderObstacle("pole", (x, y, 0.5 * BAR_POLE_HEIGHT_M), BAR_POLE_RADIUS_M, BAR_POLE_HEIGHT_M)

@@ -65,9 +65,9 @@ class SamplingOptions:
 
     seed: int = 0
     rings: int = 6
-    samples_per_ring: int = 24
+    samples_per_ring: int = 64
     max_forward_m: float = 0.08
-    max_left_m: float = 0.10
+    max_left_m: float = 0.05
     max_down_m: float = 0.10
     max_up_m: float = 0.35
     max_roll_rad: float = math.radians(30.0)

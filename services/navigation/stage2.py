@@ -355,9 +355,11 @@ def plan_motion(
         extra = [Level((tasks["left"], tasks["right"]), name="hands_on_bar")]
         nominal_bar = nominal_bar_trajectory(pattern, grip, nominal)
         if rs.mode == "sample":
-            reach = ArmReach(robot, planner.model, grip, planner.reduce_q, rs.sampling.ik_iterations)
+            reach = ArmReach(
+                robot, planner.model, grip, planner.reduce_q, planner.expand_q, rs.sampling.ik_iterations
+            )
             rng = np.random.default_rng(rs.sampling.seed)
-            sampler = BarPoseSampler(scene, grip, rs, reach, rng)
+            sampler = BarPoseSampler(scene, grip, rs, reach, rng, checker)
 
     windows: list[ReshapeWindow] = []
     history: list[ReshapeIteration] = []
