@@ -259,7 +259,8 @@ class BarPoseSampler:
         """The window holding, over [t_collide_s, t_collide_end_s] [s], an offset drawn around ``base``
         (the colliding configuration: zero, or the offset of the window being reshaped again): among the
         collision-free ones of the first ring holding any, the nearest to the nominal pose that the arms
-        reach (the next nearest when not, ``max_ik_checks`` at most); None when no drawn candidate is both. ``qs`` (n, nq): the
+        reach (the next nearest when not, ``max_ik_checks`` at most); None when no drawn candidate is
+        both. ``qs`` (n, nq): the
         whole-body motion being reshaped (its configurations at the hold are where the arms' reach is
         checked); ``others``: the windows kept as they are; ``rejected``: windows the whole-body IK could
         not follow: candidates within ``reject_radius`` of their offsets (in units of the bounds' half
