@@ -13,8 +13,9 @@ import pytest
 from services.errors import InvalidRequestError
 from services.model import load_robot, robot_names
 from services.model.generate_urdf import DEFAULT_URDF_PATH, urdf_text
-from services.model.geometry import convex_hull_ccw, polygon_signed_margin, segment_distance
-from services.model.params import params_from_dict
+from services.model.geometry import segment_distance
+from services.model.ground import convex_hull_ccw, signed_distance
+from services.model.params import _BOUND_KEYS, params_from_dict
 from services.model.pybullet_robot import PybulletRobot
 
 ROBOTS = ["hrp2_like", "talos"]
@@ -133,7 +134,7 @@ def test_half_sitting_soles_flat_on_ground_and_com_over_support(name):
     assert robot.mid_feet_pose(q) == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
     polygon = robot.support_polygon(q)
     com = robot.com(q)
-    assert polygon_signed_margin(polygon, com[:2]) > 0.05
+    assert -signed_distance(com[:2], polygon)[0] > 0.05
     assert com[2] == pytest.approx(robot.params.com_height_m, abs=0.01)
 
 
@@ -385,7 +386,8 @@ def test_hrp2_gripper_holds_ball_and_bar(shape, radius_m, client):
 def test_params_validation_messages():
     robot = load_robot("hrp2_like")
     raw = {
-        "footstep_bounds": vars(robot.params.footstep_bounds) | {"dx_min_m": 0.3},
+        "footstep_bounds": {k: getattr(robot.params.footstep_bounds, k) for k in _BOUND_KEYS}
+        | {"dx_min_m": 0.3},
         "step_height_m": 0.05,
         "com_height_m": 0.75,
         "step_duration_s": 0.8,
@@ -439,7 +441,7 @@ def test_convex_hull_keeps_rectangle_corners_that_differ_by_float_noise():
         noisy = corners + rng.normal(0.0, 1e-15, corners.shape)
         hull = convex_hull_ccw(np.vstack([corners, noisy, corners.mean(axis=0)]))
         assert hull.shape == (4, 2)
-        assert all(polygon_signed_margin(hull, pt) >= -1e-12 for pt in corners)
+        assert all(-signed_distance(pt, hull)[0] >= -1e-12 for pt in corners)
 
 
 def test_geometry_helpers():
@@ -447,8 +449,8 @@ def test_geometry_helpers():
     pts = rng.uniform(-1.0, 1.0, size=(50, 2))
     hull = convex_hull_ccw(pts)
     for pt in pts:
-        assert polygon_signed_margin(hull, pt) >= -1e-12
-    assert polygon_signed_margin(hull, np.array([5.0, 0.0])) < 0.0
+        assert -signed_distance(pt, hull)[0] >= -1e-12
+    assert -signed_distance(np.array([5.0, 0.0]), hull)[0] < 0.0
     # segment distance against dense sampling
     for _ in range(20):
         a0, a1, b0, b1 = rng.normal(size=(4, 3))

@@ -28,7 +28,7 @@ from services.navigation.geometry import BoxObstacle, Pose2D, Scene
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto
 from services.navigation.reshaping import ReshapeOptions, make_window, merge_windows, reshaped_height
-from services.navigation.stage2 import Stage2Options, zmp_support_distance
+from services.navigation.stage2 import Stage2Options
 from services.navigation.upper_body import CarriedBar
 
 ROBOT = load_robot("hrp2_like")
@@ -258,8 +258,7 @@ def test_bar_scenario_is_reshaped_over_the_box(bar_plan: GotoResult, q_bar: np.n
 
     # the whole-body motion starts at the robot's configuration and keeps the ZMP in the support polygon
     assert np.allclose(motion.q[0], q_bar, atol=1e-9)
-    pattern = motion.pattern
-    wb_dist = zmp_support_distance(motion.wholebody.zmp_multibody_m, pattern, *ROBOT.sole_size_m)
+    wb_dist = motion.wholebody.zmp_distance_m
     assert wb_dist.max() < 0.0 and motion.zmp_margin_m > 0.0  # without and with the bar's mass
     goal = bar_plan.goal
     assert ROBOT.mid_feet_pose(motion.q[-1]) == pytest.approx((goal.x_m, goal.y_m, goal.theta_rad), abs=2e-3)

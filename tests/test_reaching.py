@@ -18,7 +18,7 @@ from services.reaching import CRITERIA, ReachingOptions, ReachRequest, plan_reac
 from services.reaching.gaze import GazeDirectionTask
 from services.reaching.monitors import ArmMonitor
 from services.reaching.support_polygon import SupportPolygonPlanner
-from services.walking.footsteps import FootstepLimits, FootstepSequence, SolePose, validate_footsteps
+from services.walking.footsteps import FootstepBounds, FootstepSequence, SolePose, validate_footsteps
 from services.walking.timing import DOUBLE, LEFT, RIGHT
 
 ROBOTS = ("hrp2_like", "talos")
@@ -133,7 +133,7 @@ def test_target_beyond_reach_reshapes_the_support_polygon(robot, where):
         T = robot.sole_pose(q0, side)
         starts[side] = SolePose(T.translation[0], T.translation[1], 0.0)
     validate_footsteps(
-        FootstepSequence(starts["left"], starts["right"], result.footsteps), FootstepLimits.from_robot(robot)
+        FootstepSequence(starts["left"], starts["right"], result.footsteps), FootstepBounds.from_robot(robot)
     )
     assert {LEFT, RIGHT} & set(np.unique(result.phase))
     # The robot ends facing the target more than it started (Fig. 5: the upper body turns to it).

@@ -30,6 +30,7 @@ import pinocchio as pin
 
 from services.errors import InfeasibleError, InternalError
 from services.model import load_robot
+from services.model.ground import sole_pose_at
 from services.reaching.envelope import ReachEnvelope, measure_envelope
 from services.reaching.monitors import MonitorSeries, Violation
 from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
@@ -39,7 +40,7 @@ from services.reaching.request import ReachRequest
 from services.reaching.result import Attempt, ReachResult
 from services.reaching.support_polygon import StepPlan, SupportPolygonPlanner, mid_pose
 from services.reaching.tracker import DT_S, ReachTracker, TrackResult
-from services.walking.footsteps import FootstepLimits, SolePose
+from services.walking.footsteps import FootstepBounds, SolePose
 from services.walking.multibody_zmp import multibody_zmp
 from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
 from services.walking.preview_control import preview_gains, second_stage_correction, settle_at_end
@@ -77,7 +78,7 @@ class ReachPlanner:
             dt_s=DT_S,
         )
         self.pattern_options = PatternOptions(step_height_m=float(params.step_height_m))
-        self.bounds = FootstepLimits.from_robot(robot)
+        self.bounds = FootstepBounds.from_robot(robot)
         self._envelopes: dict[str, ReachEnvelope] = {}
 
     # ---------------------------------------------------------------------------------------- plan
@@ -94,7 +95,7 @@ class ReachPlanner:
         req = request.validated(robot)
         q0 = req.q_start
         data = robot.new_data()
-        left, right = (_sole_pose(robot, q0, side, data) for side in ("left", "right"))
+        left, right = (sole_pose_at(robot, q0, side, data) for side in ("left", "right"))
         attempts: list[Attempt] = []
 
         spec0 = self._standing_spec(req, left, right)
@@ -145,7 +146,7 @@ class ReachPlanner:
         the first violation (the "without reshaping" curve of Fig. 7): (trajectory (n, nq), monitors)."""
         req = request.validated(self.robot)
         data = self.robot.new_data()
-        left, right = (_sole_pose(self.robot, req.q_start, side, data) for side in ("left", "right"))
+        left, right = (sole_pose_at(self.robot, req.q_start, side, data) for side in ("left", "right"))
         track = self.tracker.track(
             self._standing_spec(req, left, right), req.q_start, req.hand, stop_at_violation=False
         )
@@ -327,13 +328,6 @@ class ReachPlanner:
                 **details,
             },
         )
-
-
-def _sole_pose(robot: Any, q: np.ndarray, side: str, data: pin.Data) -> SolePose:
-    T = robot.sole_pose(q, side, data)
-    return SolePose(
-        float(T.translation[0]), float(T.translation[1]), math.atan2(T.rotation[1, 0], T.rotation[0, 0])
-    )
 
 
 def _in_body(point: np.ndarray, body_xy: np.ndarray, yaw: float) -> np.ndarray:

@@ -41,7 +41,7 @@ from services.ik import (
     Level,
     PostureTask,
 )
-from services.walking.footsteps import SIDES, FootstepLimits, FootstepSequence
+from services.walking.footsteps import SIDES, FootstepBounds, FootstepSequence
 from services.walking.multibody_zmp import MultibodyZmp, multibody_zmp
 from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
 from services.walking.preview_control import second_stage_correction, settle_at_end
@@ -488,7 +488,7 @@ def plan_walk(
         timing or WalkTiming(),
         options,
         initial_com_m=robot.com(q_start),
-        bounds=FootstepLimits.from_robot(robot),
+        bounds=FootstepBounds.from_robot(robot),
         ground_z_m=ground_z_m,
     )
     planner = planner or WholeBodyPlanner(robot, wholebody_options)
