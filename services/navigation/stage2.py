@@ -53,11 +53,10 @@ from services.navigation.reshaping import (
     reshaped_height,
 )
 from services.navigation.upper_body import CarriedBar
-from services.walking.footsteps import FootstepBounds, FootstepSequence
-from services.walking.multibody_zmp import multibody_zmp
-from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
-from services.walking.support_polygon import distances_to_support
+from services.walking.footsteps import FootstepSequence
+from services.walking.pattern import WalkPattern
 from services.walking.timing import WalkTiming
+from services.walking.two_stage import SupportSamples, robot_pattern
 from services.walking.wholebody import WholeBodyOptions, WholeBodyPlanner, WholeBodyResult
 from services.walking.zmp_reference import smoothstep5
 
@@ -260,16 +259,7 @@ def plan_motion(
     lowering = options.com_lowering_m
     if lowering is None:
         lowering = CARRY_COM_LOWERING_M if bar is not None else 0.0
-    pattern = plan_pattern(
-        footsteps,
-        options.timing,
-        PatternOptions(
-            step_height_m=float(robot.params.step_height_m),
-            com_height_m=float(robot.com(q_start)[2]) - lowering if lowering > 0.0 else None,
-        ),
-        initial_com_m=robot.com(q_start),
-        bounds=FootstepBounds.from_robot(robot),
-    )
+    pattern = robot_pattern(robot, footsteps, q_start, options.timing, com_lowering_m=lowering)
     planner = WholeBodyPlanner(robot, options.wholebody)
     grip = grip_from_configuration(robot, q_start, bar) if bar is not None else None
     checker = MotionChecker(robot, scene, grip)
@@ -410,10 +400,7 @@ def plan_motion(
             },
         )
     zmp_model = _with_bar_mass(robot.model, grip) if grip is not None else robot.model
-    mb = multibody_zmp(zmp_model, result.q, pattern.dt_s)
-    dist = distances_to_support(
-        mb.zmp_m, pattern.phase, pattern.left_sole, pattern.right_sole, *robot.sole_size_m
-    )
+    _, dist = SupportSamples.of_pattern(pattern, robot.sole_size_m).zmp_distance(zmp_model, result.q)
     zmp_margin = float(-dist.max())
     if zmp_margin < options.min_zmp_margin_m:
         k = int(np.argmax(dist))
