@@ -29,7 +29,7 @@ from services.ik.tasks.foot_outside_disk import FootOutsideDiskTask
 from services.ik.tasks.self_collision import SelfCollisionTask
 from services.model import load_robot
 from services.model.ground import (
-    point_rectangle_signed_distance,
+    Rectangle,
     rectangles_overlap_depth,
     signed_distance,
     sole_corners,
@@ -236,7 +236,9 @@ def rectangles_disjoint_margin(a: SolePose, b: SolePose, length_m: float, width_
 
 def disk_signed_distance(pose: SolePose, length_m: float, width_m: float, center_xy: np.ndarray) -> float:
     """Signed distance [m] from a disk centre to a footprint rectangle (< 0 under the sole)."""
-    return point_rectangle_signed_distance(center_xy, (pose.x_m, pose.y_m), length_m, width_m, pose.yaw_rad)
+    return float(
+        Rectangle((pose.x_m, pose.y_m), (length_m, width_m), pose.yaw_rad).signed_distance(center_xy)[0]
+    )
 
 
 def test_disk_signed_distance():

@@ -12,7 +12,7 @@ from services.bus.schemas import footsteps as msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.footsteps.service import plan_reply
 from services.model import load_robot
-from services.model.ground import point_rectangle_signed_distance
+from services.model.ground import Rectangle
 from services.walking.footsteps import (
     Footstep,
     FootstepBounds,
@@ -59,7 +59,7 @@ def test_plan_over_the_bus_returns_footsteps_and_the_final_configuration(client,
     )
     validate_footsteps(sequence, FootstepBounds.from_robot(robot))
     for step in reply.footsteps:
-        distance = point_rectangle_signed_distance((0.6, 0.0), (step.x, step.y), *robot.sole_size_m, step.yaw)
+        distance = Rectangle((step.x, step.y), robot.sole_size_m, step.yaw).signed_distance((0.6, 0.0))[0]
         assert distance >= 0.15 - 1e-3
     # the final configuration stands on the last footprints with the hand on the target
     hand = robot.frame_pose(reply.q_final, robot.frames.grasp("right")).translation

@@ -219,19 +219,52 @@ class FootstepBounds:
 # ------------------------------------------------------------------------------------------ rectangles
 
 
-def rectangle_corners(center_xy_m: Any, length_m: float, width_m: float, yaw_rad: float) -> np.ndarray:
-    """The 4 corners (4, 2) [m] of a rectangle of ``length_m`` along its yaw and ``width_m`` across,
-    centred at ``center_xy_m``, counter-clockwise from the front-left one."""
-    hl, hw = 0.5 * length_m, 0.5 * width_m
-    local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    R = np.array([[c, -s], [s, c]])
-    return local @ R.T + np.array([float(center_xy_m[0]), float(center_xy_m[1])])
+@dataclass(frozen=True)
+class Rectangle:
+    """A rectangle on the floor: centre (x, y) [m], size (length along its yaw, width across) [m] and
+    yaw [rad], world frame. The one rectangle of the stack: soles, object footprints (vision), box
+    obstacles (navigation) use its maths."""
+
+    center_xy_m: tuple[float, float]
+    size_m: tuple[float, float]
+    yaw_rad: float
+
+    def corners(self) -> np.ndarray:
+        """The 4 corners (4, 2) [m], counter-clockwise from the front-left one."""
+        hl, hw = 0.5 * self.size_m[0], 0.5 * self.size_m[1]
+        local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
+        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        R = np.array([[c, -s], [s, c]])
+        return local @ R.T + np.array([float(self.center_xy_m[0]), float(self.center_xy_m[1])])
+
+    def to_local(self, points_xy_m: Any) -> np.ndarray:
+        """World points (n, 2) (or (2,)) [m] in the rectangle's frame (x along its length), (n, 2)."""
+        P = np.atleast_2d(np.asarray(points_xy_m, dtype=float))
+        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        dx, dy = P[:, 0] - self.center_xy_m[0], P[:, 1] - self.center_xy_m[1]
+        return np.column_stack([c * dx + s * dy, -s * dx + c * dy])
+
+    def to_world(self, local_xy_m: Any) -> np.ndarray:
+        """Points (n, 2) (or (2,)) [m] of the rectangle's frame in the world, (n, 2)."""
+        L = np.atleast_2d(np.asarray(local_xy_m, dtype=float))
+        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        return np.column_stack(
+            [self.center_xy_m[0] + c * L[:, 0] - s * L[:, 1], self.center_xy_m[1] + s * L[:, 0] + c * L[:, 1]]
+        )
+
+    def signed_distance(self, points_xy_m: Any) -> np.ndarray:
+        """Signed distance (n,) [m] of points (n, 2) (or (2,)) to the rectangle: > 0 outside (the
+        Euclidean distance), < 0 inside (minus the distance to the boundary)."""
+        local = np.abs(self.to_local(points_xy_m))
+        half = 0.5 * np.asarray(self.size_m, dtype=float)
+        excess = local - half
+        outside = np.hypot(np.maximum(excess[:, 0], 0.0), np.maximum(excess[:, 1], 0.0))
+        return np.where(np.all(excess <= 0.0, axis=1), np.max(excess, axis=1), outside)
 
 
 def sole_corners(pose: SolePose, length_m: float, width_m: float) -> np.ndarray:
     """The 4 corners (4, 2) [m] of the sole rectangle centred on the sole frame, counter-clockwise."""
-    return rectangle_corners((pose.x_m, pose.y_m), length_m, width_m, pose.yaw_rad)
+    return Rectangle((pose.x_m, pose.y_m), (length_m, width_m), pose.yaw_rad).corners()
 
 
 def rectangles_overlap_depth(a: np.ndarray, b: np.ndarray) -> float:
@@ -246,21 +279,6 @@ def rectangles_overlap_depth(a: np.ndarray, b: np.ndarray) -> float:
         overlap = np.minimum(pa.max(0), pb.max(0)) - np.maximum(pa.min(0), pb.min(0))
         depth = min(depth, float(overlap.min()))
     return depth
-
-
-def point_rectangle_signed_distance(
-    point_xy_m: Any, center_xy_m: Any, length_m: float, width_m: float, yaw_rad: float
-) -> float:
-    """Signed distance [m] from a point to a rectangle (negative inside: minus the distance to the
-    boundary)."""
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    d = np.asarray(point_xy_m, dtype=float)[:2] - np.asarray(center_xy_m, dtype=float)[:2]
-    local = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
-    h = np.array([0.5 * length_m, 0.5 * width_m])
-    outside = np.maximum(np.abs(local) - h, 0.0)
-    if np.any(outside > 0.0):
-        return float(np.linalg.norm(outside))
-    return -float(np.min(h - np.abs(local)))
 
 
 # ------------------------------------------------------------------------------- hulls and distances
