@@ -300,35 +300,45 @@ def convex_hull_indices(points_xy: np.ndarray, grid_m: float = HULL_GRID_M) -> n
     cross product <= 1e-12 m^2, dropped real corners of a rectangle). A rectangle keeps its four
     corners.
     """
-    pts = np.asarray(points_xy, dtype=float).reshape(-1, 2)
-    if not np.all(np.isfinite(pts)):
-        raise ValueError("convex hull: points must be finite")
-    snapped, first = np.unique(np.round(pts / grid_m), axis=0, return_index=True)
-    if len(snapped) <= 2:
-        return first
-
-    grid = snapped.tolist()  # Python floats: a few times faster than numpy scalars here
-
-    def keep(o: list[float], a: list[float], b: list[float]) -> bool:
-        """True if o -> a -> b turns left and a is farther than one grid step from the segment o-b
-        (grid units; o and b are distinct grid points)."""
-        bx, by, ax, ay = b[0] - o[0], b[1] - o[1], a[0] - o[0], a[1] - o[1]
-        if ax * by - ay * bx <= 0.0:
-            return False
-        t = min(max((ax * bx + ay * by) / (bx * bx + by * by), 0.0), 1.0)
-        return math.hypot(ax - t * bx, ay - t * by) > 1.0
+    # Snap to the grid and keep the first of each grid point, sorted by (x, y): np.unique(np.round(...),
+    # axis=0, return_index=True) in plain Python, several times faster for the few corners of two soles
+    # (the IK evaluates it at every iteration).
+    first_of: dict[tuple[float, float], int] = {}
+    try:
+        for i, (x, y) in enumerate(np.asarray(points_xy, dtype=float).reshape(-1, 2).tolist()):
+            first_of.setdefault((float(round(x / grid_m)), float(round(y / grid_m))), i)
+    except (OverflowError, ValueError):  # round(inf), round(nan)
+        raise ValueError("convex hull: points must be finite") from None
+    grid = sorted(first_of)
+    first = [first_of[key] for key in grid]
+    if len(grid) <= 2:
+        return np.array(first, dtype=int)
 
     def chain(order: range) -> list[int]:
+        """One half of the hull: a vertex a between o and the next point b is kept when o -> a -> b turns
+        left and a is farther than one grid step from the segment o-b (grid units)."""
         out: list[int] = []
         for i in order:
-            while len(out) >= 2 and not keep(grid[out[-2]], grid[out[-1]], grid[i]):
+            px, py = grid[i]
+            while len(out) >= 2:
+                ox, oy = grid[out[-2]]
+                ax, ay = grid[out[-1]]
+                bx, by, ax, ay = px - ox, py - oy, ax - ox, ay - oy
+                cross = ax * by - ay * bx
+                if cross > 0.0:
+                    bb = bx * bx + by * by
+                    if cross * cross > 4.0 * bb:  # 2 steps from the line o-b, so from the segment
+                        break
+                    t = min(max((ax * bx + ay * by) / bb, 0.0), 1.0)
+                    if math.hypot(ax - t * bx, ay - t * by) > 1.0:
+                        break
                 out.pop()
             out.append(i)
         return out
 
     n = len(grid)
     lower, upper = chain(range(n)), chain(range(n - 1, -1, -1))
-    return first[lower[:-1] + upper[:-1]]
+    return np.array([first[k] for k in lower[:-1] + upper[:-1]], dtype=int)
 
 
 def convex_hull_ccw(points_xy: np.ndarray, grid_m: float = HULL_GRID_M) -> np.ndarray:
