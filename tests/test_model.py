@@ -461,3 +461,31 @@ def test_geometry_helpers():
         d = segment_distance(a0, a1, b0, b1)
         assert d <= brute + 1e-12
         assert d == pytest.approx(brute, abs=0.02)
+
+
+def test_ground_rectangle_and_bounds():
+    """services.model.ground: the rectangle's frame round-trips, its signed distance is the Euclidean
+    distance outside and minus the distance to the boundary inside; the robot's stepping bounds carry
+    its own sole."""
+    from services.model.ground import FootstepBounds, Rectangle, SolePose, sole_corners, sole_pose_at
+
+    rng = np.random.default_rng(3)
+    rect = Rectangle((1.0, -2.0), (0.6, 0.2), 0.7)
+    pts = rng.uniform(-3.0, 3.0, (200, 2))
+    np.testing.assert_allclose(rect.to_world(rect.to_local(pts)), pts, atol=1e-12)
+    corners = rect.corners()
+    d = rect.signed_distance(pts)
+    for pt, dist in zip(pts, d, strict=True):
+        on_edges = [
+            np.linalg.norm(pt - (a + np.clip(np.dot(pt - a, b - a) / np.dot(b - a, b - a), 0, 1) * (b - a)))
+            for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True)
+        ]
+        assert abs(dist) == pytest.approx(min(on_edges), abs=1e-12)
+        assert (dist < 0) == bool(np.all(np.abs(rect.to_local(pt)[0]) < [0.3, 0.1]))
+    np.testing.assert_array_equal(sole_corners(SolePose(1.0, -2.0, 0.7), 0.6, 0.2), corners)
+    for name in ("hrp2_like", "talos"):
+        robot = load_robot(name)
+        bounds = FootstepBounds.from_robot(robot)
+        assert (bounds.sole_length_m, bounds.sole_width_m) == tuple(robot.sole_size_m)
+        left = sole_pose_at(robot, robot.q_half_sitting, "left")
+        assert left.y_m > 0.0 and abs(left.yaw_rad) < 1e-9
