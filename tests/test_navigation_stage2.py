@@ -37,7 +37,7 @@ from services.navigation.reshaping import (
     offsets_on_grid,
     reshaped_trajectory,
 )
-from services.navigation.stage2 import Stage2Options, zmp_support_distance
+from services.navigation.stage2 import Stage2Options
 from services.navigation.upper_body import CarriedBar
 
 ROBOT = load_robot("hrp2_like")
@@ -378,8 +378,7 @@ def _assert_reshaped_smoothly(motion, q_bar: np.ndarray, obstacles: tuple[str, .
         < 3.0
     )
     assert np.allclose(motion.q[0], q_bar, atol=1e-9)
-    pattern = motion.pattern
-    wb_dist = zmp_support_distance(motion.wholebody.zmp_multibody_m, pattern, *ROBOT.sole_size_m)
+    wb_dist = motion.wholebody.zmp_distance_m
     assert wb_dist.max() < 0.0 and motion.zmp_margin_m > 0.0  # without and with the bar's mass
 
 

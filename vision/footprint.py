@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from services.model.ground import Rectangle
 from vision.camera import StereoRig
 from vision.camshift import Window
 from vision.stereo import silhouette_rows, to_world
@@ -133,14 +134,15 @@ def _rectangle(xy: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]
     angles = np.unique(np.round(np.arctan2(edges[:, 1], edges[:, 0]) % (math.pi / 2.0), 9))
     candidates = []
     for angle in angles:
-        c, s = math.cos(angle), math.sin(angle)
-        local = xy @ np.array([[c, -s], [s, c]])  # coordinates along (c, s) and (-s, c)
+        axes = Rectangle((0.0, 0.0), (0.0, 0.0), float(angle))  # the candidate's axes through the origin
+        local = axes.to_local(xy)  # coordinates along (c, s) and (-s, c)
         lo, hi = local.min(axis=0), local.max(axis=0)
         area = float(np.prod(hi - lo))
         to_boundary = np.minimum(np.abs(local - lo), np.abs(hi - local)).min(axis=1)
-        centre_local = 0.5 * (lo + hi)
-        centre = (c * centre_local[0] - s * centre_local[1], s * centre_local[0] + c * centre_local[1])
-        candidates.append((area, float(np.mean(to_boundary)), centre, tuple(hi - lo), float(angle)))
+        cx, cy = axes.to_world(0.5 * (lo + hi))[0]
+        candidates.append(
+            (area, float(np.mean(to_boundary)), (float(cx), float(cy)), tuple(hi - lo), float(angle))
+        )
     least = min(candidate[0] for candidate in candidates)
     _area, _fit, centre, size, yaw = min(
         (candidate for candidate in candidates if candidate[0] <= least * (1.0 + AREA_SLACK)),

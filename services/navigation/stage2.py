@@ -49,11 +49,10 @@ from services.navigation.geometry import Scene
 from services.navigation.keyframes import next_windows
 from services.navigation.reshaping import ReshapeOptions, ReshapeWindow, reshaped_trajectory
 from services.navigation.upper_body import CarriedBar
-from services.walking.footsteps import FootstepLimits, FootstepSequence
-from services.walking.multibody_zmp import multibody_zmp
-from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
-from services.walking.support_polygon import convex_hull, signed_distance, sole_polygon
-from services.walking.timing import LEFT, RIGHT, WalkTiming
+from services.walking.footsteps import FootstepSequence
+from services.walking.pattern import WalkPattern
+from services.walking.timing import WalkTiming
+from services.walking.two_stage import SupportSamples, robot_pattern
 from services.walking.wholebody import WholeBodyOptions, WholeBodyPlanner, WholeBodyResult
 from services.walking.zmp_reference import smoothstep5
 
@@ -221,31 +220,6 @@ def _with_bar_mass(model: pin.Model, grip: BarGrip) -> pin.Model:
     return out
 
 
-def zmp_support_distance(
-    zmp_m: np.ndarray, pattern: WalkPattern, sole_length_m: float, sole_width_m: float
-) -> np.ndarray:
-    """Signed distance (n,) [m] of the ZMP (n, 2) to the support polygon of each sample (< 0 inside).
-
-    As ``services.walking.support_polygon.distances_to_support``, with the sole corners rounded to 1 nm
-    before the convex hull: its monotone chain drops a corner when two corners differ by float noise
-    (1e-17 m, after a yaw of 1e-16 rad), which shrinks the double-support polygon to a triangle."""
-    n = zmp_m.shape[0]
-    left = pattern.left_sole[:, [0, 1, 3]]
-    right = pattern.right_sole[:, [0, 1, 3]]
-    key = np.column_stack([pattern.phase.astype(float), left, right])
-    key[pattern.phase == LEFT, 4:] = 0.0
-    key[pattern.phase == RIGHT, 1:4] = 0.0
-    change = np.ones(n, dtype=bool)
-    change[1:] = np.any(np.abs(np.diff(key, axis=0)) > 1e-12, axis=1)
-    starts = np.flatnonzero(change)
-    out = np.empty(n)
-    for a, b in zip(starts, np.append(starts[1:], n), strict=True):
-        soles = {LEFT: [left[a]], RIGHT: [right[a]]}.get(int(pattern.phase[a]), [left[a], right[a]])
-        corners = np.vstack([sole_polygon(sole, sole_length_m, sole_width_m) for sole in soles])
-        out[a:b] = signed_distance(zmp_m[a:b], convex_hull(np.round(corners, 9)))
-    return out
-
-
 def _nominal_heights(pattern: WalkPattern, start_height_m: float, carry_height_m: float | None) -> np.ndarray:
     """Bar height (n,) [m]: from the starting height to the carry height during the standing start
     (quintic), then constant."""
@@ -318,16 +292,7 @@ def plan_motion(
     lowering = options.com_lowering_m
     if lowering is None:
         lowering = CARRY_COM_LOWERING_M if bar is not None else 0.0
-    pattern = plan_pattern(
-        footsteps,
-        options.timing,
-        PatternOptions(
-            step_height_m=float(robot.params.step_height_m),
-            com_height_m=float(robot.com(q_start)[2]) - lowering if lowering > 0.0 else None,
-        ),
-        initial_com_m=robot.com(q_start),
-        bounds=FootstepLimits.from_robot(robot),
-    )
+    pattern = robot_pattern(robot, footsteps, q_start, options.timing, com_lowering_m=lowering)
     planner = WholeBodyPlanner(robot, options.wholebody)
     grip = grip_from_configuration(robot, q_start, bar) if bar is not None else None
     checker = MotionChecker(robot, scene, grip)
@@ -448,8 +413,7 @@ def plan_motion(
             },
         )
     zmp_model = _with_bar_mass(robot.model, grip) if grip is not None else robot.model
-    mb = multibody_zmp(zmp_model, result.q, pattern.dt_s)
-    dist = zmp_support_distance(mb.zmp_m, pattern, *robot.sole_size_m)
+    _, dist = SupportSamples.of_pattern(pattern, robot.sole_size_m).zmp_distance(zmp_model, result.q)
     zmp_margin = float(-dist.max())
     if zmp_margin < options.min_zmp_margin_m:
         k = int(np.argmax(dist))
