@@ -62,6 +62,14 @@ def _add_up(subparsers: Any) -> None:
     )
     p.add_argument("--services", help="comma-separated service names (default: every service found)")
     p.add_argument("--record", metavar="FILE", help="also record every message to this MCAP file")
+    p.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="also serve the live view to Foxglove on ws://127.0.0.1:PORT (8765): the viz service",
+    )
     p.add_argument("--log-dir", help="write each service's output to LOG_DIR/<service>.log")
     p.add_argument("--ready-timeout", type=float, help="seconds every service has to become alive (30)")
     p.add_argument("--duration", type=float, help="stop by itself this many seconds after all are ready")
@@ -74,7 +82,7 @@ def cmd_up(args: argparse.Namespace) -> int:
     import dataclasses
 
     from services.bus.config import load_section
-    from services.bus.discovery import RECORDER, discover
+    from services.bus.discovery import RECORDER, VIZ, discover
     from services.bus.launcher import Launcher, LauncherConfig, format_table, run_up
     from services.bus.service import configure_logging
 
@@ -82,7 +90,7 @@ def cmd_up(args: argparse.Namespace) -> int:
     found, problems = discover()
     for problem in problems:
         print(f"warning: {problem}", file=sys.stderr)
-    startable = {name: e for name, e in found.items() if name != RECORDER}
+    startable = {name: e for name, e in found.items() if name not in (RECORDER, VIZ)}
     if args.list:
         rows = [(name, e.module) for name, e in sorted(startable.items())]
         print(format_table(("SERVICE", "MODULE"), rows))
@@ -92,11 +100,14 @@ def cmd_up(args: argparse.Namespace) -> int:
         unknown = [n for n in names if n not in startable]
         if unknown:
             hint = " (the recorder starts with --record FILE)" if RECORDER in unknown else ""
+            hint += " (the live view starts with --foxglove [PORT])" if VIZ in unknown else ""
             known = ", ".join(sorted(startable))
             return _fail(f"unknown service(s) {', '.join(unknown)}{hint}; services found: {known}")
     else:
         names = sorted(startable)
     entries = [startable[n] for n in names] + [found[RECORDER]]
+    if args.foxglove is not None and VIZ in found:
+        entries.append(found[VIZ])
     bus = _bus(args)
     config = load_section(args.config, "launcher", LauncherConfig)
     if args.ready_timeout is not None:
@@ -104,8 +115,9 @@ def cmd_up(args: argparse.Namespace) -> int:
     if args.log_dir:
         config = dataclasses.replace(config, log_dir=args.log_dir)
     launcher = Launcher(
-        bus, entries, config, config_path=args.config, record=args.record, duration_s=args.duration
-    )
+        bus, entries, config, config_path=args.config, record=args.record, duration_s=args.duration,
+        foxglove_port=args.foxglove,
+    )  # fmt: skip
     return run_up(launcher)
 
 

@@ -2,12 +2,12 @@
 
 Started by ``humanoid record FILE`` (in the foreground) or ``humanoid up --record FILE`` (as a
 service process of the launcher), or directly: ``python -m services.bus.recorder --output FILE``.
-The log layout (exact originals for replay, Foxglove views, schemas) is described in
-:mod:`services.bus.mcaplog`.
+The log layout (one Foxglove-decodable copy of each message, Foxglove's own views made by
+:mod:`services.viz`'s converters, schemas) is described in :mod:`services.bus.mcaplog`.
 
 Threads: zenoh pushes samples into a FIFO channel (no GIL on its side); one writer thread takes
-them in order and writes; a flusher closes the open chunk every ``chunk_period_s`` so a SIGKILL
-loses at most that much.
+them in order and writes. Chunks close by size: a SIGKILL loses at most the open chunk
+(``chunk_size_bytes`` of messages); every closed chunk reads back (``humanoid log-info``).
 """
 
 from __future__ import annotations
@@ -37,26 +37,34 @@ class RecorderConfig:
     Attributes:
         output: the MCAP file to write (its directory is created).
         key_expr: what to record.
-        compression: ``lz4`` or ``none`` (zstd is refused: on images 2 % smaller, 5x slower).
-        chunk_size_bytes: a chunk is closed when it reaches this size [bytes].
-        chunk_period_s: ... or when it is this old [s]: at most this much is lost to a SIGKILL.
+        compression: ``zstd`` (default), ``lz4`` or ``none``.
+        chunk_size_bytes: a chunk is closed when its messages reach this size [bytes] (uncompressed):
+            at most this much is lost to a SIGKILL.
         queue_capacity: samples waiting for the writer; when full, zenoh holds back further ones.
-        image_views: write ``foxglove.RawImage`` views of image arrays.
-        max_view_elements: larger non-image arrays are summarised (shape, min, max) in JSON views.
+        foxglove_views: also write Foxglove's own messages (robot transforms and body, scene, map,
+            plans, cameras, log lines: :mod:`services.viz`).
+        model: robot model of those views ("": recognised from the joint state's size).
+        transform_hz: rate of the robot's transforms in the views [Hz].
     """
 
     output: str = "humanoid.mcap"
     key_expr: str = "hrp/**"
-    compression: str = "lz4"
-    chunk_size_bytes: int = 4 << 20
-    chunk_period_s: float = 1.0
+    compression: str = "zstd"
+    chunk_size_bytes: int = 1 << 20
     queue_capacity: int = 1024
-    image_views: bool = True
-    max_view_elements: int = 100_000
+    foxglove_views: bool = True
+    model: str = ""
+    transform_hz: float = 30.0
 
     def __post_init__(self) -> None:
-        if self.chunk_period_s <= 0 or self.chunk_size_bytes <= 0 or self.queue_capacity <= 0:
-            raise InvalidRequestError("chunk_period_s, chunk_size_bytes and queue_capacity must be > 0")
+        from services.bus.mcaplog import COMPRESSIONS
+
+        if self.chunk_size_bytes <= 0 or self.queue_capacity <= 0 or self.transform_hz <= 0:
+            raise InvalidRequestError("chunk_size_bytes, queue_capacity and transform_hz must be > 0")
+        if self.compression not in COMPRESSIONS:
+            raise InvalidRequestError(
+                f"compression {self.compression!r} is not one of: {', '.join(COMPRESSIONS)}"
+            )
 
 
 class RecorderService(Service):
@@ -78,12 +86,16 @@ class RecorderService(Service):
 
     def start(self) -> None:
         cfg: RecorderConfig = self.config
+        views = None
+        if cfg.foxglove_views:
+            from services.viz.converter import Converter
+
+            views = Converter(cfg.model, cfg.transform_hz).views
         self.writer = LogWriter(
             cfg.output,
             compression=cfg.compression,
             chunk_size_bytes=cfg.chunk_size_bytes,
-            image_views=cfg.image_views,
-            max_view_elements=cfg.max_view_elements,
+            views=views,
             metadata={
                 "robot": self.bus.robot,
                 "hub": self.bus.hub,
@@ -99,9 +111,7 @@ class RecorderService(Service):
             cfg.key_expr, zenoh.handlers.FifoChannel(cfg.queue_capacity)
         )
         self._writer_thread = threading.Thread(target=self._write_loop, name="record:writer", daemon=True)
-        self._flusher = threading.Thread(target=self._flush_loop, name="record:flusher", daemon=True)
         self._writer_thread.start()
-        self._flusher.start()
         self.log.info("recording %s to %s", cfg.key_expr, cfg.output)
 
     def _write_loop(self) -> None:
@@ -123,17 +133,6 @@ class RecorderService(Service):
                     self.recorded += 1
                 except Exception:  # a full disk must not stop the service from answering
                     self.log.exception("could not record a message on %s", sample.key_expr)
-
-    def _flush_loop(self) -> None:
-        period = self.config.chunk_period_s
-        while not self._done.wait(period):
-            with self._lock:
-                if self.writer.closed:
-                    return
-                try:
-                    self.writer.flush_chunk()
-                except Exception:
-                    self.log.exception("could not flush the log")
 
     def stop(self) -> None:
         self._done.set()
