@@ -37,8 +37,14 @@ def _schema_data(name: str) -> bytes:
 
 
 @pytest.fixture(scope="module")
-def stack(module_bus_harness):
+def log_path(tmp_path_factory):
+    return tmp_path_factory.mktemp("viz") / "live.mcap"
+
+
+@pytest.fixture(scope="module")
+def stack(module_bus_harness, log_path):
     h = module_bus_harness
+    h.spawn_service("services.bus.recorder", "--output", str(log_path), name="record")
     h.spawn_service("sim.service", "--scene", "empty", name="sim", timeout_s=60)
     h.spawn_service("services.walking.service", name="walking", timeout_s=60)
     port = free_port()
@@ -56,7 +62,7 @@ def _walk(h) -> sim_msg.ExecuteReply:
 
 
 def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
-    h, port, viz = stack
+    h, port, _viz = stack
     FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_data("foxglove.FrameTransforms"))
     SceneUpdate = protobuf_class("foxglove.SceneUpdate", _schema_data("foxglove.SceneUpdate"))
     with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
@@ -106,7 +112,7 @@ def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
 
 
 def test_misbehaving_viewers_do_not_hurt_the_stack(stack):
-    h, port, viz = stack
+    h, port, viz = stack[:3]
     for _ in range(10):  # connect and disconnect in a loop
         with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
             client.wait_for_topics([c.TF], timeout_s=2.0)
@@ -130,3 +136,39 @@ def test_misbehaving_viewers_do_not_hurt_the_stack(stack):
     finally:
         slow.close()
         odd.close()
+
+
+def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log_path):
+    """Runs after the other tests of the module (pytest keeps file order): the recorder saw them."""
+    import json
+
+    from mcap.reader import make_reader
+
+    from services.bus.foxglove import schema_problems
+
+    h = stack[0]
+    recorder = next(p for p in h.procs if "services.bus.recorder" in " ".join(map(str, p.args)))
+    assert h.stop(recorder) == 0
+    topics: dict[str, int] = {}
+    with open(log_path, "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        summary = reader.get_summary()
+        for schema, channel, message in reader.iter_messages():
+            topics[channel.topic] = topics.get(channel.topic, 0) + 1
+            if channel.message_encoding == "protobuf":
+                protobuf_class(schema.name, schema.data).FromString(message.data)
+            else:
+                assert channel.message_encoding == "json"
+                json.loads(message.data)
+                if schema is not None:
+                    assert schema.encoding == "jsonschema"
+                    assert schema_problems(json.loads(schema.data), channel.topic) == []
+    assert summary is not None and summary.statistics.message_count == sum(topics.values())
+    robot = h.bus.robot
+    for topic in (c.TF, c.ROBOT, c.PLAN_FOOTSTEPS, c.PLAN_COM_ZMP, f"hrp/{robot}/sim/joint_state"):
+        assert topics.get(topic, 0) > 0, topic
+    # One copy of the 200 Hz joint state, at its own rate; the transforms at about 30 Hz.
+    assert [t for t in topics if t.startswith(f"hrp/{robot}/sim/joint_state")] == [
+        f"hrp/{robot}/sim/joint_state"
+    ]
+    assert topics[c.TF] < topics[f"hrp/{robot}/sim/joint_state"] / 2

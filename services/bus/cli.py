@@ -567,13 +567,27 @@ def _wait_for_peers(session: Any, timeout_s: float = 3.0) -> None:
 def _add_log_info(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "log-info",
-        help="channels, message counts, duration and schemas of an MCAP log",
-        description="Summarise an MCAP log: duration, channels with their encodings, schema names and "
-        "message counts. Works on a log whose recorder was killed (it reads what was written).",
+        help="channels, message counts, bytes, rates, duration and schemas of an MCAP log",
+        description="Summarise an MCAP log: duration, channels with their encodings, schema names, "
+        "message counts, bytes (before chunk compression) and rates. A log whose recorder was killed is "
+        "reported as truncated and read up to its last complete chunk.",
     )
     p.add_argument("file", help="MCAP file")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_log_info)
+
+
+def _human_bytes(n: int) -> str:
+    """``812 B``, ``3.4 kB``, ``12.5 MB`` (bytes of messages before chunk compression)."""
+    for unit, size in (("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{n} B"
+
+
+def _log_info_row(c: Any) -> tuple[str, ...]:
+    size, rate = _human_bytes(c.bytes), f"{c.rate_hz:.1f}"
+    return (c.topic, c.role, c.message_encoding, c.schema_name or "-", str(c.messages), size, rate)
 
 
 def cmd_log_info(args: argparse.Namespace) -> int:
@@ -592,9 +606,13 @@ def cmd_log_info(args: argparse.Namespace) -> int:
         doc["duration_s"] = info.duration_s
         print(json.dumps(doc, indent=2))
         return 0
-    state = "complete" if info.complete else "no summary (recorder stopped abruptly)"
+    state = (
+        "complete"
+        if info.complete
+        else "truncated: no summary (the recorder was stopped abruptly); read up to its last complete chunk"
+    )
     if info.unreadable_tail:
-        state += ", last chunk cut off"
+        state += ", the cut-off rest skipped"
     print(f"file:      {info.path} ({info.size_bytes / 1e6:.2f} MB, {state})")
     print(f"duration:  {info.duration_s:.3f} s")
     if info.messages:
@@ -602,8 +620,6 @@ def cmd_log_info(args: argparse.Namespace) -> int:
         print(f"start:     {start}")
     print(f"messages:  {info.messages}")
     print(f"channels:  {len(info.channels)}")
-    rows = [
-        (c.topic, c.role, c.message_encoding, c.schema_name or "-", str(c.messages)) for c in info.channels
-    ]
-    print(format_table(("TOPIC", "ROLE", "ENCODING", "SCHEMA", "MESSAGES"), rows))
+    rows = [_log_info_row(c) for c in info.channels]
+    print(format_table(("TOPIC", "ROLE", "ENCODING", "SCHEMA", "MESSAGES", "BYTES", "HZ"), rows))
     return 0

@@ -123,9 +123,11 @@ def nested_list_paths(type_: Any) -> tuple[tuple[str, ...], ...]:
         elif kind == "array":
             item = node["items"]
             props = item.get("properties", {})
-            if item.get("type") == "object" and list(props) == [NESTED_KEY] and props[NESTED_KEY].get(
-                "type"
-            ) == "array":
+            if (
+                item.get("type") == "object"
+                and list(props) == [NESTED_KEY]
+                and props[NESTED_KEY].get("type") == "array"
+            ):
                 found.append(path)
             walk(item, (*path, "[]"))
 
@@ -140,11 +142,11 @@ def schema_problems(schema: Any, name: str = "") -> list[str]:
 
     def obj(node: Any, path: str) -> None:
         if not isinstance(node, dict) or node.get("type") != "object":
-            problems.append(f"{path or '(root)'}: expected \"type\": \"object\"")
+            problems.append(f'{path or "(root)"}: expected "type": "object"')
             return
         props = node.get("properties")
         if not isinstance(props, dict):
-            problems.append(f"{path or '(root)'}: an object needs a \"properties\" mapping")
+            problems.append(f'{path or "(root)"}: an object needs a "properties" mapping')
             return
         for field, sub in props.items():
             where = f"{path}.{field}" if path else field

@@ -25,6 +25,7 @@ import msgspec
 from services.bus.codec import MAGIC, split
 from services.bus.foxglove import NESTED_KEY, nested_list_paths
 from services.bus.frames import frame_kind
+from services.errors import HumanoidError
 
 _ND_KEY = "__nd__"
 _HEADER = struct.Struct("<4sI")
@@ -42,17 +43,21 @@ def to_log_form(data: bytes, type_: type | None) -> tuple[str, bytes]:
     """``(kind, JSON bytes)``: the frame's kind (json, hrpb, octets) and its form in the log."""
     kind = frame_kind(data)
     nested = nested_list_paths(type_) if type_ is not None else ()
+    if kind == "json" and not nested:
+        return kind, bytes(data)
     try:
         if kind == "json":
-            if not nested:
-                return kind, bytes(data)
-            doc = msgspec.json.decode(data)
-            return kind, _encoder.encode(_map_nested(doc, nested, _wrap))
-        if kind == "hrpb":
+            stored = _encoder.encode(_map_nested(msgspec.json.decode(data), nested, _wrap))
+        elif kind == "hrpb":
             header, blob = split(data)
             doc = _arrays_out(msgspec.json.decode(header), blob)
-            return kind, _encoder.encode(_map_nested(doc, nested, _wrap) if nested else doc)
-    except (msgspec.DecodeError, ValueError, TypeError, KeyError):
+            stored = _encoder.encode(_map_nested(doc, nested, _wrap) if nested else doc)
+        else:
+            stored = b""
+        # Only a form that gives the frame back is kept (a frame with stray bytes is kept as octets).
+        if stored and from_log_form(kind, stored, type_) == data:
+            return kind, stored
+    except (msgspec.DecodeError, ValueError, TypeError, KeyError, HumanoidError):
         pass  # not what its first bytes said: kept as octets
     return "octets", _encoder.encode({"data": base64.b64encode(bytes(data)).decode()})
 
