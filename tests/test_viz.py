@@ -196,3 +196,57 @@ def test_plans_map_cameras_and_text_become_foxglove_messages():
     assert encoded(
         c.TF, got and __import__("foxglove.messages").messages.FrameTransforms(), t
     ).schema_name == ("foxglove.FrameTransforms")
+
+
+def test_a_recorded_log_is_served_to_foxglove(tmp_path):
+    """``humanoid replay FILE --foxglove``: the log's channels, advertised and played to a viewer."""
+    import threading
+
+    from services.bus.mcaplog import LogWriter
+    from services.viz.player import serve_log
+    from services.viz.wsclient import FoxgloveClient
+    from tests.conftest import free_port
+
+    robot = load_robot("hrp2_like")
+    path = tmp_path / "log.mcap"
+    writer = LogWriter(path, views=Converter().views)
+    t = time.time_ns()
+    for i in range(20):
+        q = robot.q_half_sitting.copy()
+        q[0] = 0.01 * i
+        frame = encode(sim_msg.JointState(sim_time_s=0.005 * i, q=q, v=np.zeros(robot.nv)))
+        writer.write("hrp/hrp2/sim/joint_state", frame, t + i * 50_000_000)
+    writer.close()
+    port = free_port()
+    ready = threading.Event()
+    player = threading.Thread(
+        target=serve_log,
+        args=(str(path),),
+        kwargs={"port": port, "speed": 4.0, "on_ready": lambda _p: ready.set(), "wait_for_viewer_s": 10.0},
+    )
+    player.start()
+    try:
+        assert ready.wait(10.0)
+        with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+            assert client.wait_for_topics([c.TF, c.ROBOT, "hrp/hrp2/sim/joint_state"])
+            client.subscribe([c.TF])
+            FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_bytes())
+            xs = []
+            while len(xs) < 20:
+                got = client.receive(5.0)
+                assert got is not None
+                base = next(
+                    tf
+                    for tf in FrameTransforms.FromString(got.data).transforms
+                    if tf.parent_frame_id == "world"
+                )
+                xs.append(round(base.translation.x, 3))
+    finally:
+        player.join(timeout=20)
+    assert xs == [round(0.01 * i, 3) for i in range(20)]
+
+
+def _schema_bytes() -> bytes:
+    from foxglove.messages import FrameTransforms
+
+    return bytes(FrameTransforms.get_schema().data)

@@ -482,6 +482,14 @@ def _add_replay(subparsers: Any) -> None:
         "--requests", action="store_true", help="re-send the recorded requests and compare replies"
     )
     p.add_argument("--timeout", type=float, default=30.0, help="--requests: seconds per request (30)")
+    p.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="serve the log to Foxglove on ws://127.0.0.1:PORT (8765) instead of publishing on the bus",
+    )
     p.add_argument("--quiet", action="store_true", help="no line per message")
     _bus_options(p)
     p.set_defaults(func=cmd_replay)
@@ -497,6 +505,22 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from services.errors import HumanoidError
 
     patterns = [p.strip() for arg in args.topics or [] for p in arg.split(",") if p.strip()] or None
+    if args.foxglove is not None:
+        from services.viz.player import serve_log
+
+        def ready(port: int) -> None:
+            print(f"Foxglove: open a connection to ws://127.0.0.1:{port} (playing on the first subscription)")
+
+        try:
+            stats = serve_log(
+                args.file, port=args.foxglove, speed=args.speed, on_ready=ready, wait_for_viewer_s=600
+            )
+        except KeyboardInterrupt:
+            return 130
+        except HumanoidError as exc:
+            return _fail(exc.message)
+        print(f"served {stats.messages} messages on {stats.channels} channels in {stats.duration_s:.2f} s")
+        return 0
     try:
         reader = LogReader(args.file)
     except HumanoidError as exc:
