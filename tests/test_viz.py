@@ -250,3 +250,12 @@ def _schema_bytes() -> bytes:
     from foxglove.messages import FrameTransforms
 
     return bytes(FrameTransforms.get_schema().data)
+
+
+def test_the_committed_layout_is_the_generated_one():
+    from services.viz.layout import LAYOUT_PATH, layout_json
+
+    assert LAYOUT_PATH.read_text() == layout_json(), "regenerate it: python -m services.viz.layout"
+    text = LAYOUT_PATH.read_text()
+    for topic in (c.ROBOT, c.camera_image_topic("wide_left"), c.camera_image_topic("wide_right"), c.LOG):
+        assert f'"{topic}' in text
