@@ -509,12 +509,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
         from services.viz.player import serve_log
 
         def ready(port: int) -> None:
-            print(f"Foxglove: open a connection to ws://127.0.0.1:{port} (playing on the first subscription)")
+            print(
+                f"Foxglove: open a connection to ws://127.0.0.1:{port} (playing on the first subscription; "
+                "Ctrl-C to stop)"
+            )
 
         try:
             stats = serve_log(
-                args.file, port=args.foxglove, speed=args.speed, on_ready=ready, wait_for_viewer_s=600
-            )
+                args.file, port=args.foxglove, speed=args.speed, on_ready=ready, wait_for_viewer_s=600,
+                linger_s=600,
+            )  # fmt: skip
         except KeyboardInterrupt:
             return 130
         except HumanoidError as exc:

@@ -35,11 +35,13 @@ def serve_log(
     stop: threading.Event | None = None,
     on_ready: Callable[[int], None] | None = None,
     wait_for_viewer_s: float = 0.0,
+    linger_s: float = 1.0,
 ) -> PlayStats:
     """Play the log at ``path`` to Foxglove viewers on ws://host:port until its end (or ``stop``).
 
     ``on_ready(port)`` is called once the server listens; ``wait_for_viewer_s`` > 0 holds the start
-    that long (at most) until a viewer subscribes to something."""
+    that long (at most) until a viewer subscribes to something; after the end the server stays up
+    ``linger_s`` (the last messages reach the viewers; the panels keep showing them)."""
     if not speed > 0:
         raise InvalidRequestError(f"speed={speed} must be > 0 (2 plays twice as fast)")
     stop = stop or threading.Event()
@@ -85,6 +87,7 @@ def serve_log(
             channels[channel.id].log(bytes(message.data), log_time=message.log_time)
             stats.messages += 1
         stats.duration_s = time.monotonic() - started
+        stop.wait(linger_s)
     finally:
         server.stop()
     return stats
