@@ -172,3 +172,33 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
         f"hrp/{robot}/sim/joint_state"
     ]
     assert topics[c.TF] < topics[f"hrp/{robot}/sim/joint_state"] / 2
+
+
+def test_up_foxglove_starts_the_live_view_and_only_then(tmp_path):
+    import subprocess
+    import sys
+
+    from tests.test_launcher import REPO, Up
+
+    listed = subprocess.run(
+        [sys.executable, "-m", "services.cli", "up", "--list"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
+    )
+    assert "diag" in listed.stdout and "viz" not in listed.stdout  # not started unless asked for
+    port = free_port()
+    up = Up("--services", "diag", "--foxglove", str(port))
+    try:
+        up.client.wait_for(["diag", "viz"], timeout_s=60.0)
+        Log = protobuf_class("foxglove.Log", _schema_data("foxglove.Log"))
+        with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+            assert client.wait_for_topics([c.TF, c.ROBOT, c.LOG])
+            client.subscribe([c.LOG])
+            got = client.receive(10.0)  # the latest log line is sent to a new subscriber
+            assert got is not None and got.topic == c.LOG
+            line = Log.FromString(got.data)
+            assert line.name == "launcher" and ": ready" in line.message
+    finally:
+        up.close()
