@@ -184,3 +184,28 @@ def test_sigkilled_recorder_leaves_a_log_read_up_to_its_last_complete_chunk(bus_
     assert cli.returncode == 0, cli.stderr
     assert "truncated" in cli.stdout and "read up to its last complete chunk" in cli.stdout
     assert f"hrp/{h.bus.robot}/diag/ping" in cli.stdout and "hrp.diag.Ping" in cli.stdout
+
+
+def test_state_every_thins_out_the_200_hz_state_topics_only(bus_harness, tmp_path):
+    from services.bus.schemas.sim import CLOCK, Clock
+
+    h = bus_harness
+    config = tmp_path / "stack.yaml"
+    config.write_text("record:\n  state_every: 4\n")
+    path = tmp_path / "thin.mcap"
+    recorder = _start_recorder(h, path, "--config", str(config))
+    clock = TypedPublisher(h.session, h.bus.robot, CLOCK)
+    ping = TypedPublisher(h.session, h.bus.robot, PING)
+    time.sleep(0.5)
+    for i in range(40):
+        clock.put(Clock(sim_time_s=0.005 * i))
+        ping.put(Ping(seq=i))
+        time.sleep(0.005)
+    time.sleep(0.5)
+    assert h.stop(recorder) == 0
+    clock.undeclare()
+    ping.undeclare()
+    messages = list(LogReader(path).messages())
+    clocks = [decode(m.data, Clock).sim_time_s for m in messages if m.key.endswith("/sim/clock")]
+    assert clocks == [pytest.approx(0.005 * i) for i in range(0, 40, 4)]
+    assert [decode(m.data, Ping).seq for m in messages if m.key.endswith("/diag/ping")] == list(range(40))

@@ -29,6 +29,9 @@ from services.bus.service import Service, run_service
 from services.bus.session import request_id_from
 from services.errors import InvalidRequestError
 
+#: The sim's 200 Hz state topics (``state_every`` thins them out).
+STATE_TOPICS = ("/sim/joint_state", "/sim/base_pose", "/sim/clock")
+
 
 @dataclass(frozen=True)
 class RecorderConfig:
@@ -45,6 +48,10 @@ class RecorderConfig:
             plans, cameras, log lines: :mod:`services.viz`).
         model: robot model of those views ("": recognised from the joint state's size).
         transform_hz: rate of the robot's transforms in the views [Hz].
+        state_every: record one in this many messages of the sim's 200 Hz state topics
+            (``sim/joint_state``, ``sim/base_pose``, ``sim/clock``); 1 (default): every message. Their
+            float64 values hardly compress: 4 (50 Hz of sim time) makes a fetch's log about a third
+            smaller, and the transforms in the views stay above 30 Hz of sim time up to 6.
     """
 
     output: str = "humanoid.mcap"
@@ -55,12 +62,15 @@ class RecorderConfig:
     foxglove_views: bool = True
     model: str = ""
     transform_hz: float = 30.0
+    state_every: int = 1
 
     def __post_init__(self) -> None:
         from services.bus.mcaplog import COMPRESSIONS
 
-        if self.chunk_size_bytes <= 0 or self.queue_capacity <= 0 or self.transform_hz <= 0:
-            raise InvalidRequestError("chunk_size_bytes, queue_capacity and transform_hz must be > 0")
+        if min(self.chunk_size_bytes, self.queue_capacity, self.transform_hz, self.state_every) <= 0:
+            raise InvalidRequestError(
+                "chunk_size_bytes, queue_capacity, transform_hz and state_every must be > 0"
+            )
         if self.compression not in COMPRESSIONS:
             raise InvalidRequestError(
                 f"compression {self.compression!r} is not one of: {', '.join(COMPRESSIONS)}"
@@ -116,6 +126,8 @@ class RecorderService(Service):
 
     def _write_loop(self) -> None:
         channel = self._subscriber.handler
+        every = self.config.state_every
+        seen: dict[str, int] = {}
         while True:
             try:
                 sample = channel.recv()  # no GIL while waiting; ZError when undeclared and drained
@@ -123,6 +135,12 @@ class RecorderService(Service):
                 return
             if sample.kind != zenoh.SampleKind.PUT:
                 continue
+            if every > 1:
+                key = str(sample.key_expr)
+                if key.endswith(STATE_TOPICS):
+                    seen[key] = seen.get(key, -1) + 1
+                    if seen[key] % every:
+                        continue
             sequence = request_id_from(sample.attachment) or 0
             data = sample.payload.to_bytes()
             with self._lock:
