@@ -142,10 +142,45 @@ def _percentile(values: list[float], p: float) -> float | None:
     return round(ordered[min(len(ordered) - 1, int(p / 100 * len(ordered)))], 2)
 
 
+def thinned_log_mb(every: int, log_dir: Path) -> float:
+    """The demo's run recorded by a recorder with ``state_every = every`` (its own process) [MB]."""
+    from services.bus.config import BusConfig
+    from supervisor.core import Supervisor
+    from supervisor.fetch import fetch, running_stack
+
+    config = log_dir / "thinned.yaml"
+    config.write_text(f"record:\n  state_every: {every}\n")
+    log = (log_dir / f"demo-state-every-{every}.mcap").resolve()
+    bus = BusConfig().with_hub_port(_free_port())
+    with running_stack(bus, log_dir=str(log_dir / "c")), Supervisor.connect(bus) as sup:
+        sup.wait_for_services(30.0)
+        recorder = subprocess.Popen(
+            [sys.executable, "-m", "services.bus.recorder", "--hub", bus.hub, "--robot", bus.robot,
+             "--config", str(config), "--output", str(log), "--log-level", "WARNING"],
+            cwd=REPO, start_new_session=True,
+        )  # fmt: skip
+        try:
+            deadline = time.monotonic() + 60
+            while "record" not in sup.client.alive_services() and time.monotonic() < deadline:
+                time.sleep(0.1)
+            summary, _ = fetch(sup)
+        finally:
+            recorder.terminate()
+            recorder.wait(30)
+    print(f"fetch recorded with state_every={every}: ok={summary.ok}, log {log.stat().st_size / 1e6:.1f} MB")
+    return round(log.stat().st_size / 1e6, 2)
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="scripts/bench viz", description=__doc__.split("\n\n")[0])
     parser.add_argument("--log-dir", default="bench/out/viz-logs", help="services' output and the demo log")
     parser.add_argument("--out", default=str(OUT), help="JSON output file")
+    parser.add_argument(
+        "--state-every",
+        type=int,
+        default=0,
+        help="also record the fetch with the recorder's state_every = N (demo_log_mb_state_every)",
+    )
     args = parser.parse_args(argv)
 
     from services.bus.config import BusConfig
@@ -165,6 +200,8 @@ def main(argv: list[str]) -> int:
     size_mb = log.stat().st_size / 1e6
     print(f"recorded fetch: ok={recorded.ok} wall {recorded.wall_s:.1f} s; log {size_mb:.1f} MB")
     report = channels_report(log)
+    if args.state_every:
+        report["demo_log_mb_state_every"] = {str(args.state_every): thinned_log_mb(args.state_every, log_dir)}
 
     # 2. Without, then with the live view and a connected client.
     bus = BusConfig().with_hub_port(_free_port())
