@@ -43,6 +43,7 @@ from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
 from services.bus.schemas.common import ErrorInfo, LauncherEvent
 from services.bus.schemas.supervisor import SupervisorEvent
+from services.model import ground
 from services.viz import common as c
 from services.viz.common import WORLD, color, point, stamp
 
@@ -138,18 +139,13 @@ def sole_cube(side: str, x: float, y: float, yaw: float, sole_m: tuple[float, fl
 
 
 def sole_corners(x: float, y: float, yaw: float, sole_m: tuple[float, float]) -> np.ndarray:
-    """The 4 corners (4, 2) [m] of a sole rectangle."""
-    hl, hw = sole_m[0] / 2, sole_m[1] / 2
-    local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
-    R = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
-    return local @ R.T + (x, y)
+    """The 4 corners (4, 2) [m] of a sole rectangle (length, width) at (x, y, yaw)."""
+    return ground.sole_corners(ground.SolePose(x, y, yaw), sole_m[0], sole_m[1])
 
 
 def support_polygon(soles: list[tuple[float, float, float]], sole_m: tuple[float, float]) -> np.ndarray:
     """Convex hull (counter-clockwise, (N, 2)) of sole rectangles (x, y, yaw)."""
-    from services.model.geometry import convex_hull_ccw
-
-    return convex_hull_ccw(np.vstack([sole_corners(x, y, yaw, sole_m) for x, y, yaw in soles]))
+    return ground.convex_hull_ccw(np.vstack([sole_corners(x, y, yaw, sole_m) for x, y, yaw in soles]))
 
 
 def footsteps_update(
@@ -412,9 +408,7 @@ def sighting(stamp_ns: int, reply: per_msg.LocateReply) -> Out:
     }
     fp = reply.footprint
     if fp is not None:
-        corners = sole_corners(
-            float(fp.center[0]), float(fp.center[1]), float(fp.yaw), (fp.size[0], fp.size[1])
-        )
+        corners = ground.Rectangle((fp.center[0], fp.center[1]), (fp.size[0], fp.size[1]), fp.yaw).corners()
         prims["lines"] = [_loop(corners, col, z=float(fp.top_z))]
     id_ = f"sighting/{reply.object}"
     entity = _entity(stamp_ns, id_, **prims)
