@@ -7,7 +7,8 @@ Open Foxglove, "Open connection", Foxglove WebSocket, ``ws://127.0.0.1:8765``.
 It subscribes to ``hrp/**`` and serves the topics of :mod:`services.viz.common` (the same as the
 recorder's views): the zenoh callback only decides whether a message is wanted (joint states are
 taken at ``transform_hz`` of wall time, and only while a viewer watches ``/tf``) and hands it to one
-worker thread through a bounded queue; when the queue is full the message is dropped (``dropped``),
+worker thread through a bounded queue, holding at most one joint state (the converters' slowest
+input must not crowd the plans out); when the queue is full the message is dropped (``dropped``),
 never queued further. The SDK's server keeps at most ``backlog`` messages per viewer and drops the
 oldest for a slow one. A viewer that subscribes to a topic gets its latest message again at once
 (the map, the plans, the robot's body).
@@ -120,6 +121,7 @@ class VizService(Service):
         self.served = 0
         self._period_ns = int(1e9 / cfg.transform_hz)
         self._next_tf_ns = 0
+        self._tf_pending = False
         self._inbox: queue.Queue[Any] = queue.Queue(maxsize=cfg.queue_capacity)
         self._listener = _Listener(self._inbox)
         self._context = foxglove.Context()
@@ -154,13 +156,18 @@ class VizService(Service):
             return
         now = time.time_ns()
         if tail == "sim/joint_state":
-            if now < self._next_tf_ns or not self._listener.watched(c.TF):
+            # At most one joint state waits for the converters (the latest rate-limited one), so a
+            # slow conversion never crowds the rare messages (plans, map) out of the queue.
+            if self._tf_pending or now < self._next_tf_ns or not self._listener.watched(c.TF):
                 return
             self._next_tf_ns = now + self._period_ns
+            self._tf_pending = True
         try:
             self._inbox.put_nowait(("bus", key, (sample.payload.to_bytes(), now)))
         except queue.Full:
             self.dropped += 1
+            if tail == "sim/joint_state":
+                self._tf_pending = False
 
     # worker thread ------------------------------------------------------------------------------------
     def _work(self) -> None:
@@ -175,6 +182,8 @@ class VizService(Service):
                     self._channels[key].log(last[0], log_time=last[1])
                 continue
             frame, t = item
+            if key.endswith("/sim/joint_state"):
+                self._tf_pending = False
             for topic, msg in self.converter.convert(key, frame, t):
                 data = msg.encode()
                 self._channel(topic, msg).log(data, log_time=t)
