@@ -14,7 +14,13 @@
 References (issue 3, measured on an idle machine): ~3500 steps/s for hrp2_like, ~2700 for talos;
 ~80 ms at 640x480 and ~20 ms at 320x240. Writes bench/out/sim.json.
 
-Usage: scripts/bench sim [--repeats N] [--renders N] [--no-service] [--help]
+``--subscriber`` runs only this instead (bench/out/sim_subscriber.json): ``sim/execute`` of a 12.3 s squat
+over the bus with no subscriber and with an idle ``hrp/**`` subscriber, alternated ``--repeats`` times;
+per run the wall time and the CPU time and runqueue wait of the sim's executing thread (Linux
+schedstat), so a difference in wall time shows whether it is work or waiting for a core;
+``--baseline DIR`` runs the sim of another source tree too (before/after a change, in one run).
+
+Usage: scripts/bench sim [--repeats N] [--renders N] [--no-service] [--subscriber [--baseline DIR]]
 """
 
 from __future__ import annotations
@@ -239,7 +245,7 @@ def render_ms(renders: int) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="scripts/bench sim", description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=3, help="runs of 2 s of sim time per steps/s figure")
+    parser.add_argument("--repeats", type=int, default=3, help="runs of 2 s of sim time per steps/s figure (--subscriber: alternations)"
     parser.add_argument("--renders", type=int, default=10, help="images per render figure")
     parser.add_argument("--no-service", action="store_true", help="skip the execution over the bus")
     parser.add_argument(
