@@ -245,7 +245,12 @@ def render_ms(renders: int) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="scripts/bench sim", description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=3, help="runs of 2 s of sim time per steps/s figure (--subscriber: alternations)"
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=3,
+        help="runs of 2 s of sim time per steps/s figure (with --subscriber: alternations)",
+    )
     parser.add_argument("--renders", type=int, default=10, help="images per render figure")
     parser.add_argument("--no-service", action="store_true", help="skip the execution over the bus")
     parser.add_argument(
