@@ -41,6 +41,8 @@ WORDS = (
     "",
     "left",
     "right",
+    "left",
+    "right",
     "auto",
     "wide",
     "narrow",
@@ -67,9 +69,19 @@ WORDS = (
     "../../etc/passwd.yaml",
     "/etc/hostname",
 )
-#: Configuration sizes that the models use (hrp2_like: nq = 39; talos_reduced: 39 + 7 ...).
-NQ_CHOICES = (0, 1, 7, 38, 39, 40, 46)
+#: Array lengths drawn besides the robot's nq (hrp2_like: 37).
+NQ_CHOICES = (0, 1, 7, 36, 37, 38, 46)
 MUTATIONS = ("valid", "leaf", "unknown", "bytes", "binary")
+#: Fields drawn from a narrower range than the schema allows, so that a fuzz run is not spent waiting
+#: for valid long requests (a 60 s planning budget, a 100 000-frame stream); the schema's bounds
+#: themselves are tested by the leaf mutations.
+NARROWER = {
+    "time_budget_s": st.floats(0.01, 2.0),
+    "count": st.integers(1, 20),
+    "hold_s": st.floats(0.0, 1.0),
+    "max_iterations": st.integers(0, 300),
+    "dt_s": st.sampled_from((0.005, 0.01, 0.001, 0.0015, 0.0)),
+}
 
 
 # ---------------------------------------------------------------------------------------------- schemas
@@ -83,15 +95,18 @@ def _number_bounds(node: dict[str, Any], lo: float, hi: float) -> tuple[float, f
     return float(lo), float(hi), "exclusiveMinimum" in node, "exclusiveMaximum" in node
 
 
-def strategy_for(node: dict[str, Any], depth: int = 0) -> st.SearchStrategy[Any]:
-    """JSON values that satisfy (mostly) the JSON schema ``node``; arrays as nested lists."""
+def strategy_for(
+    node: dict[str, Any], depth: int = 0, q_ref: tuple[float, ...] = ()
+) -> st.SearchStrategy[Any]:
+    """JSON values that satisfy (mostly) the JSON schema ``node``; arrays as nested lists, near the
+    configuration ``q_ref`` (the robot's, so that requests reach past the planners' first checks)."""
     if _is_array(node):
-        return array_lists()
+        return array_lists(q_ref)
     if "anyOf" in node:
-        return st.one_of([strategy_for(n, depth) for n in node["anyOf"]])
+        return st.one_of([strategy_for(n, depth, q_ref) for n in node["anyOf"]])
     kind = node.get("type")
     if isinstance(kind, list):
-        return st.one_of([strategy_for({**node, "type": k}, depth) for k in kind])
+        return st.one_of([strategy_for({**node, "type": k}, depth, q_ref) for k in kind])
     if kind == "null":
         return st.none()
     if kind == "boolean":
@@ -104,7 +119,9 @@ def strategy_for(node: dict[str, Any], depth: int = 0) -> st.SearchStrategy[Any]
     if kind == "number":
         lo, hi, ex_lo, ex_hi = _number_bounds(node, -5.0, 5.0)
         lo, hi = max(lo, -1e6), min(hi, 1e6)
-        return st.floats(lo, hi, exclude_min=ex_lo, exclude_max=ex_hi, allow_nan=False)
+        room = st.floats(max(lo, -3.0), min(hi, 3.0), exclude_min=ex_lo, exclude_max=ex_hi, allow_nan=False)
+        anywhere = st.floats(lo, hi, exclude_min=ex_lo, exclude_max=ex_hi, allow_nan=False)
+        return st.one_of(room, room, anywhere) if max(lo, -3.0) < min(hi, 3.0) else anywhere
     if kind == "string":
         if "enum" in node:
             return st.sampled_from(node["enum"])
@@ -117,40 +134,105 @@ def strategy_for(node: dict[str, Any], depth: int = 0) -> st.SearchStrategy[Any]
         items = node.get("items", {})
         if depth > 4:
             return st.just([])
-        return st.lists(strategy_for(items, depth + 1), min_size=lo, max_size=hi)
+        return st.lists(strategy_for(items, depth + 1, q_ref), min_size=lo, max_size=hi)
     if kind == "object":
         props = node.get("properties")
         if props is None:  # a dict
             values = node.get("additionalProperties", {})
-            value_strategy = strategy_for(values, depth + 1) if isinstance(values, dict) else st.none()
+            value_strategy = strategy_for(values, depth + 1, q_ref) if isinstance(values, dict) else st.none()
             return st.dictionaries(st.sampled_from(WORDS), value_strategy, max_size=3)
         required = set(node.get("required", []))
+        fields = {
+            k: NARROWER[k] if k in NARROWER else strategy_for(v, depth + 1, q_ref) for k, v in props.items()
+        }
         return st.fixed_dictionaries(
-            {k: strategy_for(v, depth + 1) for k, v in props.items() if k in required},
-            optional={k: strategy_for(v, depth + 1) for k, v in props.items() if k not in required},
+            {k: v for k, v in fields.items() if k in required},
+            optional={k: v for k, v in fields.items() if k not in required},
         )
     return st.one_of(st.none(), st.integers(-3, 3), st.sampled_from(WORDS))
 
 
-def array_lists() -> st.SearchStrategy[Any]:
-    """A configuration (nq,), a trajectory (n, nq) or a small matrix, as nested lists of floats."""
+def array_lists(q_ref: tuple[float, ...] = ()) -> st.SearchStrategy[Any]:
+    """A configuration (nq,), a trajectory (n, nq) or a small matrix, as nested lists of floats;
+    with ``q_ref``, often ``q_ref`` itself or a trajectory that stays near it."""
     value = st.floats(-2.0, 2.0, allow_nan=False)
+    near: list[st.SearchStrategy[Any]] = []
+    if q_ref:
+        ref = list(q_ref)
+        noise = st.floats(-0.05, 0.05, allow_nan=False)
+        near_q = st.lists(noise, min_size=len(ref), max_size=len(ref)).map(
+            lambda d: [a + b for a, b in zip(ref, d, strict=True)]
+        )
+        near = [st.just(ref), near_q, st.tuples(near_q, st.integers(1, 400)).map(lambda t: [t[0]] * t[1])]
     vector = st.sampled_from(NQ_CHOICES).flatmap(lambda n: st.lists(value, min_size=n, max_size=n))
     matrix = st.tuples(st.integers(1, 6), st.sampled_from(NQ_CHOICES)).flatmap(
         lambda rc: st.lists(st.lists(value, min_size=rc[1], max_size=rc[1]), min_size=rc[0], max_size=rc[0])
     )
-    return st.one_of(vector, matrix, st.just([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
+    return st.one_of(*near, vector, matrix, st.just([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
+
+
+#: Realistic requests of the endpoints known here (``"$q"``: the robot's configuration, ``"$traj"``: a
+#: short trajectory holding it): hostile mutations of one of their fields reach the planners' code.
+EXAMPLES: dict[str, list[dict[str, Any]]] = {
+    "walking/plan": [
+        {"steps": [{"pose": [0.2, -0.095, 0.0]}, {"pose": [0.2, 0.095, 0.0]}], "first_side": "right"},
+        {"q_start": "$q", "steps": [{"pose": [0.15, -0.095, 0.1], "side": "right"}], "hands": []},
+    ],
+    "footsteps/plan": [
+        {
+            "tasks": [{"kind": "reach", "target": [1.0, -0.2, 0.8]}, {"kind": "posture"}],
+            "disks": [{"x": 0.6, "y": 0.0, "radius": 0.1}],
+            "time_budget_s": 2.0,
+        },
+        {"q_start": "$q", "tasks": [{"kind": "gaze", "target": [2.0, 0.0, 0.5]}], "max_steps": 4},
+    ],
+    "navigation/goto": [
+        {"q_start": "$q", "goal_pose": [1.0, 0.5, 0.3], "time_budget_s": 1.0},
+        {
+            "q_start": "$q",
+            "obstacles": [{"name": "b", "center": [1.2, 0.8, 0.3], "size": [0.3, 0.3, 0.6]}],
+            "goal_object": "b",
+        },
+    ],
+    "reaching/reach": [
+        {"hand": "right", "target": [0.35, -0.2, 0.8], "q_start": "$q"},
+        {"hand": "left", "target": [0.6, 0.3, 0.4], "q_start": "$q", "allow_stepping": True},
+    ],
+    "sim/execute": [{"q": "$traj"}, {"q": "$traj", "dt_s": 0.01, "hold_s": 0.1}],
+    "sim/render": [{"camera": "wide", "width_px": 160, "height_px": 120, "depth": True}],
+    "sim/snapshot": [{"viewpoint": "top", "width_px": 160, "height_px": 120}],
+    "sim/gripper": [{"side": "right", "action": "close"}, {"side": "left", "action": "open"}],
+    "sim/reset": [{"scene": "ball_fetch", "seed": 3}, {"scene": "empty"}],
+    "perception/locate": [
+        {"object": "orange_ball"},
+        {"object": "green_box", "camera": "narrow", "width_px": 320, "height_px": 240},
+    ],
+    "diag/stream": [{"count": 3, "width": 64, "height": 48}],
+    "diag/raise": [{"code": "bug", "message": "x"}, {"code": "infeasible", "message": "x"}],
+}
+
+
+def _fill(doc: Any, q_ref: tuple[float, ...]) -> Any:
+    if doc == "$q":
+        return list(q_ref) or [0.0]
+    if doc == "$traj":
+        return [list(q_ref) or [0.0]] * 20
+    if isinstance(doc, dict):
+        return {k: _fill(v, q_ref) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [_fill(v, q_ref) for v in doc]
+    return doc
 
 
 # ---------------------------------------------------------------------------------------------- hostility
 HUGE_STRING = "x" * 1_000_000
 
 
-def _deep(depth: int, container: str) -> Any:
-    value: Any = 0
-    for _ in range(depth):
-        value = [value] if container == "list" else {"a": value}
-    return value
+#: Values too deep for the json module: a placeholder string in the document, the raw JSON in the bytes.
+_RAW = {
+    "\x01deep_list\x01": b"[" * 3000 + b"0" + b"]" * 3000,
+    "\x01deep_dict\x01": b'{"a":' * 3000 + b"0" + b"}" * 3000,
+}
 
 
 HOSTILE_VALUES: tuple[Any, ...] = (
@@ -174,8 +256,7 @@ HOSTILE_VALUES: tuple[Any, ...] = (
     [1e308] * 39,
     [0.0] * 200_000,
     [[0.0] * 39] * 20_000,
-    _deep(3000, "list"),
-    _deep(3000, "dict"),
+    *_RAW,
     {"__nd__": [0, 8], "dtype": "<f8", "shape": [1]},
 )
 
@@ -204,7 +285,12 @@ def _replace(doc: Any, path: tuple[Any, ...], value: Any) -> Any:
 
 
 def _dump(doc: Any) -> bytes:
-    return json.dumps(doc, allow_nan=False, separators=(",", ":")).encode()
+    raw = json.dumps(doc, allow_nan=False, separators=(",", ":")).encode()
+    for placeholder, deep in _RAW.items():
+        quoted = json.dumps(placeholder).encode()
+        if quoted in raw:
+            raw = raw.replace(quoted, deep)
+    return raw
 
 
 @st.composite
@@ -312,11 +398,16 @@ def array_fields_of(schema: dict[str, Any]) -> tuple[str, ...]:
     return tuple(out)
 
 
-def payloads(spec: EndpointSpec) -> st.SearchStrategy[tuple[str, bytes]]:
-    """``(mutation kind, payload bytes)`` for ``spec``'s request."""
+def payloads(spec: EndpointSpec, q_ref: tuple[float, ...] = ()) -> st.SearchStrategy[tuple[str, bytes]]:
+    """``(mutation kind, payload bytes)`` for ``spec``'s request (arrays near ``q_ref``, see
+    :func:`array_lists`)."""
     schema = json_schema(spec.request)
     arrays = array_fields_of(schema)
-    docs = strategy_for(schema)
+    docs = strategy_for(schema, q_ref=q_ref)
+    examples = [_fill(doc, q_ref) for doc in EXAMPLES.get(spec.path, [])]
+    if examples:  # two draws in three from a realistic request, so that mutations reach the planners
+        realistic = st.sampled_from(examples)
+        docs = st.sampled_from((0, 1, 2)).flatmap(lambda i: docs if i == 0 else realistic)
 
     def mutate(kind: str) -> st.SearchStrategy[tuple[str, bytes]]:
         if kind == "valid":
@@ -335,6 +426,17 @@ def payloads(spec: EndpointSpec) -> st.SearchStrategy[tuple[str, bytes]]:
 
 
 # ---------------------------------------------------------------------------------------------- sending
+def reference_q(session: Any, robot: str) -> tuple[float, ...]:
+    """The sim's current configuration (``()`` without a sim): arrays of valid payloads stay near it."""
+    from services.bus.codec import decode
+    from services.bus.schemas.sim import STATE, StateReply
+
+    for reply in session.get(keys.key(robot, STATE.service, STATE.name), payload=b"{}", timeout=30.0):
+        if reply.ok is not None:
+            return tuple(float(x) for x in decode(reply.ok.payload.to_bytes(), StateReply).q)
+    return ()
+
+
 @dataclass
 class Tally:
     """Counts of the answers, per endpoint, and the worst offenders (for the report)."""
@@ -344,12 +446,17 @@ class Tally:
     by_endpoint: dict[str, Counter[str]] = field(default_factory=dict)
     by_mutation: Counter[str] = field(default_factory=Counter)
     failures: list[dict[str, Any]] = field(default_factory=list)
+    #: The first few messages of each (endpoint, mutation, outcome): what the typed errors said.
+    samples: dict[str, list[str]] = field(default_factory=dict)
 
     def add(self, spec: EndpointSpec, kind: str, raw: bytes, outcome: str, message: str) -> None:
         self.payloads += 1
         self.outcomes[outcome] += 1
         self.by_mutation[kind] += 1
         self.by_endpoint.setdefault(spec.path, Counter())[outcome] += 1
+        said = self.samples.setdefault(f"{spec.path} {kind} {outcome}", [])
+        if len(said) < 3:
+            said.append(message[:300])
         if outcome in ("internal", "no_reply", "bad_error") and len(self.failures) < 200:
             self.failures.append(
                 {

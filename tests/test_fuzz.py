@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from fuzzing import payloads, send
+from fuzzing import payloads, reference_q, send
 from hypothesis import HealthCheck, Phase, given, settings
 
 from services.bus.discovery import discover
@@ -37,12 +37,13 @@ def stack(module_bus_harness):
     procs = {}
     for name in services:
         procs[name] = module_bus_harness.spawn_service(found[name].module, name=name, timeout_s=120)
-    return module_bus_harness, procs
+    q_ref = reference_q(module_bus_harness.session, module_bus_harness.bus.robot) if "sim" in procs else ()
+    return module_bus_harness, procs, q_ref
 
 
 @pytest.mark.parametrize("spec", ENDPOINTS, ids=[s.path for s in ENDPOINTS])
 def test_every_payload_gets_a_typed_answer(stack, spec):
-    harness, procs = stack
+    harness, procs, q_ref = stack
     if spec.service not in procs:
         pytest.skip(f"no service {spec.service} in this checkout")
     started = time.monotonic()
@@ -55,7 +56,7 @@ def test_every_payload_gets_a_typed_answer(stack, spec):
         phases=(Phase.generate,),
         suppress_health_check=list(HealthCheck),
     )
-    @given(payloads(spec))
+    @given(payloads(spec, q_ref))
     def check(case: tuple[str, bytes]) -> None:
         if time.monotonic() - started > TIME_PER_ENDPOINT_S:
             return

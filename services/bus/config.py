@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import yaml
 
 from services.errors import InvalidRequestError
@@ -51,6 +52,8 @@ class BusConfig:
     zenoh: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.robot, str):
+            raise InvalidRequestError(f"robot name must be a string, got {self.robot!r}")
         if self.mode not in ("peer", "client"):
             raise InvalidRequestError(f"bus mode {self.mode!r} is not one of: peer, client")
         if not self.robot.replace("_", "").isalnum() or not self.robot[:1].isalpha():
@@ -102,7 +105,7 @@ def _yaml_section(path: str | Path, section: str) -> dict[str, Any]:
         doc = yaml.safe_load(Path(path).read_text()) or {}
     except FileNotFoundError:
         raise InvalidRequestError(f"config file {path} does not exist") from None
-    except yaml.YAMLError as exc:
+    except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as exc:
         raise InvalidRequestError(f"config file {path} is not valid YAML: {exc}") from None
     if not isinstance(doc, dict):
         raise InvalidRequestError(f"config file {path} must be a mapping at the top level")
@@ -119,21 +122,25 @@ def load_section(path: str | Path | None, section: str, config_type: type) -> An
 
 
 def from_mapping(config_type: type, values: dict[str, Any], *, where: str) -> Any:
-    """Build a frozen config dataclass, rejecting unknown keys with the list of valid ones."""
+    """Build a frozen config dataclass from YAML values through ``msgspec.convert`` (strict types).
+
+    Unknown keys are refused with the list of valid ones; a wrong type names the field path and
+    what was expected (``image_views: "no"`` -> "Expected `bool`, got `str` - at `$.image_views`";
+    ``listen: "tcp/..."`` -> "Expected `array`, got `str`"); the dataclass's ``__post_init__`` checks
+    the ranges.
+    """
+    if not isinstance(values, dict):
+        raise InvalidRequestError(f"{config_type.__name__} in {where} must be a mapping")
     fields = {f.name: f for f in dataclasses.fields(config_type)}
-    unknown = sorted(set(values) - set(fields))
+    unknown = sorted(str(k) for k in set(values) - set(fields))
     if unknown:
         raise InvalidRequestError(
             f"unknown {config_type.__name__} option(s) {', '.join(unknown)} in {where}; "
             f"valid options: {', '.join(fields)}"
         )
-    converted = {}
-    for name, value in values.items():
-        default = getattr(config_type, name, None)
-        if isinstance(default, tuple) and isinstance(value, list):
-            value = tuple(value)
-        converted[name] = value
     try:
-        return config_type(**converted)
-    except TypeError as exc:
+        return msgspec.convert(values, config_type, strict=True)
+    except msgspec.ValidationError as exc:
         raise InvalidRequestError(f"bad {config_type.__name__} in {where}: {exc}") from None
+    except RecursionError:
+        raise InvalidRequestError(f"bad {config_type.__name__} in {where}: nested too deeply") from None

@@ -84,7 +84,7 @@ class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_f
     # may keep touching one of them until that contact first breaks; touching it again is a collision.
     leaving: Names = []
     # Wall-clock limit of the execution [s]: past it the robot holds where it is and the reply is a
-    # timeout error naming the samples played. None: bounded by the trajectory's length only.
+    # timeout error saying how much was played. None: the sim's execute_budget_s (300 s by default).
     time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] | None = None
 
 
