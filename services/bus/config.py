@@ -39,7 +39,11 @@ class BusConfig:
             supervisor's 2 MB sim/execute requests in the full test suite, see ``shm.py``), and
             loopback TCP is fast enough (``scripts/bench bus``: 640x480 stereo pairs at 520 pairs/s,
             960 MB/s, without it).
-        zenoh: raw zenoh config overrides, ``{"path/in/config": value}``, applied last.
+        zenoh: raw zenoh config overrides, ``{"path/in/config": value}``, applied last. In string
+            values ``{identity}`` stands for this process's :attr:`identity` (one YAML file gives every
+            service its own TLS certificate: ``certs/{identity}.pem``; see the README, "Access control").
+        identity: who this process is on the bus (the common name of its certificate in a TLS
+            deployment); empty: the service's name, ``hub`` for the launcher, ``client`` otherwise.
     """
 
     robot: str = "hrp2"
@@ -50,10 +54,13 @@ class BusConfig:
     multicast_scouting: bool = False
     shared_memory: bool = False
     zenoh: dict[str, Any] = field(default_factory=dict)
+    identity: str = ""
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, str):
             raise InvalidRequestError(f"robot name must be a string, got {self.robot!r}")
+        if self.identity and not self.identity.replace("_", "").replace("-", "").isalnum():
+            raise InvalidRequestError(f"identity {self.identity!r} must be letters, digits, _ and -")
         if self.mode not in ("peer", "client"):
             raise InvalidRequestError(f"bus mode {self.mode!r} is not one of: peer, client")
         if not self.robot.replace("_", "").isalnum() or not self.robot[:1].isalpha():
@@ -63,9 +70,12 @@ class BusConfig:
         """The same config with the hub on loopback port ``port`` (tests run hubs side by side)."""
         return dataclasses.replace(self, hub=f"tcp/127.0.0.1:{port}")
 
-    def zenoh_config(self, *, as_hub: bool = False) -> Any:
-        """Build the ``zenoh.Config`` (``as_hub``: listen on the hub endpoint instead of connecting)."""
+    def zenoh_config(self, *, as_hub: bool = False, identity: str = "") -> Any:
+        """Build the ``zenoh.Config`` (``as_hub``: listen on the hub endpoint instead of connecting;
+        ``identity``: the process's name when :attr:`identity` is not set, e.g. the service's)."""
         import zenoh
+
+        who = self.identity or identity or ("hub" if as_hub else "client")
 
         listen = [self.hub] if as_hub else list(self.listen)
         connect = list(self.connect) + ([] if as_hub else [self.hub])
@@ -82,13 +92,24 @@ class BusConfig:
             "connect/exit_on_failure": False,
             "transport/shared_memory/enabled": self.shared_memory,
         }
-        entries.update(self.zenoh)
+        entries.update({path: _with_identity(value, who) for path, value in self.zenoh.items()})
         for path, value in entries.items():
             try:
                 conf.insert_json5(path, json.dumps(value))
             except Exception as exc:  # zenoh raises ZError with its own message
                 raise InvalidRequestError(f"bad zenoh config entry {path}={value!r}: {exc}") from None
         return conf
+
+
+def _with_identity(value: Any, identity: str) -> Any:
+    """``value`` with ``{identity}`` replaced in every string inside it."""
+    if isinstance(value, str):
+        return value.replace("{identity}", identity)
+    if isinstance(value, list | tuple):
+        return [_with_identity(v, identity) for v in value]
+    if isinstance(value, dict):
+        return {k: _with_identity(v, identity) for k, v in value.items()}
+    return value
 
 
 def load_bus_config(path: str | Path | None = None, **overrides: Any) -> BusConfig:

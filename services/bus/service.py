@@ -385,7 +385,7 @@ def serve(
     ready: Callable[[Service], None] | None = None,
 ) -> None:
     """Run ``service_type`` until ``stop`` is set (in this thread; the session is closed on return)."""
-    session = open_session(bus)
+    session = open_session(bus, identity=service_type.name)
     try:
         service = service_type(config, bus, session)
         runtime = _Runtime(service)
