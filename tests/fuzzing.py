@@ -426,6 +426,9 @@ def payloads(spec: EndpointSpec, q_ref: tuple[float, ...] = ()) -> st.SearchStra
 
 
 # ---------------------------------------------------------------------------------------------- sending
+#: Endpoints whose job includes answering ``internal`` on request (diag/raise with code "bug").
+ASKED_FOR_INTERNAL = frozenset({"diag/raise"})
+
 def reference_q(session: Any, robot: str) -> tuple[float, ...]:
     """The sim's current configuration (``()`` without a sim): arrays of valid payloads stay near it."""
     from services.bus.codec import decode
@@ -450,6 +453,8 @@ class Tally:
     samples: dict[str, list[str]] = field(default_factory=dict)
 
     def add(self, spec: EndpointSpec, kind: str, raw: bytes, outcome: str, message: str) -> None:
+        if outcome == "internal" and spec.path in ASKED_FOR_INTERNAL:
+            outcome = "internal_asked"  # diag/raise {"code": "bug"}: the documented answer, not a bug
         self.payloads += 1
         self.outcomes[outcome] += 1
         self.by_mutation[kind] += 1
