@@ -8,7 +8,7 @@ import msgspec
 import numpy as np
 from msgspec import Meta
 
-from services.bus.limits import Budget, ImageSide, Name
+from services.bus.limits import Budget, ImageSide
 from services.bus.spec import EndpointSpec, TopicSpec
 
 
@@ -33,8 +33,8 @@ class RaiseRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     handler (which the service reports as ``internal`` and survives).
     """
 
-    code: Name
-    message: Annotated[str, Meta(max_length=10_000)]
+    code: str
+    message: str
 
 
 class RaiseReply(msgspec.Struct, kw_only=True, frozen=True):
