@@ -55,6 +55,9 @@ def _enc_hook(obj: Any) -> Any:
 ARRAY_KINDS = "biuf"
 #: Most dimensions of an array in a message (a trajectory is 2-D, an image 3-D).
 MAX_ARRAY_DIMS = 4
+#: Largest magnitude of a value in a float array of a request: configurations are in m and rad,
+#: camera matrices in px; 1e308 would overflow the first sum that uses it.
+MAX_ARRAY_ABS = 1e9
 _REF_KEYS = frozenset((_ND_KEY, "dtype", "shape"))
 
 
@@ -128,11 +131,17 @@ def _is_count(value: Any) -> bool:
 
 
 def _check_finite(arr: np.ndarray) -> None:
+    """Requests only (``decode(..., finite=True)``): float arrays finite and within MAX_ARRAY_ABS."""
     if not getattr(_local, "finite", False):
         return
     if arr.dtype.kind == "f" and arr.size and not np.isfinite(arr).all():
         bad = int(np.flatnonzero(~np.isfinite(arr.reshape(-1)))[0])
         raise ValueError(f"array has a non-finite value (NaN or infinity) at flat index {bad}")
+    if arr.dtype.kind == "f" and arr.size and float(np.abs(arr).max()) > MAX_ARRAY_ABS:
+        bad = int(np.argmax(np.abs(arr).reshape(-1)))
+        raise ValueError(
+            f"array value {arr.reshape(-1)[bad]:g} at flat index {bad} is beyond +-{MAX_ARRAY_ABS:g}"
+        )
 
 
 _encoder = msgspec.json.Encoder(enc_hook=_enc_hook)
