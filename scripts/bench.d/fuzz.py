@@ -4,8 +4,9 @@ Starts every service that serves an endpoint (the launcher of ``humanoid up``, o
 restarts included), then sends ``--payloads`` payloads spread evenly over the endpoints, drawn by
 hypothesis from each request schema and mutated (``tests/fuzzing.py``: valid, leaf, unknown, bytes,
 binary); an endpoint slower than ``--time-per-endpoint`` gets fewer, and the fast ones share the
-rest in a second pass. Each answer is classified: ok, a typed error, ``internal`` (an unhandled exception: a bug),
-``no_reply`` (nothing within ``--timeout`` seconds). Services restarted by the launcher are counted.
+rest in a second pass. Each answer is classified: ok, a typed error, ``internal`` (an unhandled
+exception: a bug), ``no_reply`` (nothing within ``--timeout`` seconds). Services restarted by the
+launcher are counted.
 
 Writes ``bench/out/fuzz.json``: ``payloads``, ``endpoints``, ``typed_errors``, ``ok``, ``internal``,
 ``no_reply``, ``services_restarted``, per endpoint and per mutation counts, and the first failures

@@ -7,9 +7,10 @@ last. ``max_growth`` is the largest relative growth of any of them, for any serv
 (goal <= 0.10); ``success_rate`` the share of fetches that put the ball on the table (goal >= 0.95).
 
 ``--kill``: instead, one fetch per service of ``--victims`` during which that service is killed
-with SIGKILL as the supervisor's first request to it goes out (footsteps, which the fetch does not
-call, is killed 5 s into the fetch): a planner's death must end in a completed fetch (the launcher
-restarts it, the supervisor retries), the sim's in a failure that says so, never in a hang.
+with SIGKILL as the supervisor's first request to it goes out (the sim: its first ``sim/execute``;
+footsteps, which the fetch does not call, 5 s into the fetch): a planner's death must end in a
+completed fetch (the launcher restarts it, the supervisor retries), the sim's in a failure that says
+so, never in a hang.
 
 Writes ``bench/out/soak.json`` (``--kill``: ``bench/out/soak_kill.json``).
 
@@ -79,12 +80,23 @@ def growth(before: dict[str, dict[str, float]], after: dict[str, dict[str, float
 
 def _run(sup: Any, fetch: Any, seed: int | None) -> tuple[dict[str, Any], Any]:
     out: list[Any] = []
-    thread = threading.Thread(target=lambda: out.append(fetch(sup, seed=seed)), daemon=True)
+
+    def run() -> None:
+        try:
+            out.append(fetch(sup, seed=seed))
+        except Exception as exc:  # e.g. the reset itself failed: the fetch ends, it does not hang
+            out.append(exc)
+
+    thread = threading.Thread(target=run, daemon=True)
     started = time.monotonic()
     thread.start()
     thread.join(HANG_S)
     if thread.is_alive():
         return {"seed": seed, "ok": False, "hung": True, "wall_s": HANG_S, "failure": "hung"}, None
+    if isinstance(out[0], Exception):
+        failure = f"{type(out[0]).__name__}: {out[0]}"
+        return {"seed": seed, "ok": False, "hung": False, "wall_s": round(time.monotonic() - started, 1),
+                "failure": failure}, None  # fmt: skip
     summary, report = out[0]
     return {
         "seed": seed,
@@ -144,7 +156,9 @@ def kill_each(args: argparse.Namespace, launcher: Any, sup: Any) -> dict[str, An
         killed = threading.Event()
 
         def kill(spec: Any, victim: str = victim, pid: int = pid, killed: threading.Event = killed) -> None:
-            if spec.service == victim and not killed.is_set():
+            # the sim: as the first motion goes out (mid-fetch, after the reset and the first looks)
+            first = spec.path == "sim/execute" if victim == "sim" else spec.service == victim
+            if first and not killed.is_set():
                 killed.set()
                 threading.Thread(target=os.killpg, args=(pid, signal.SIGKILL)).start()
 
