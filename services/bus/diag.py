@@ -7,8 +7,9 @@
 * ``diag/stream``: publishes stereo pairs on ``diag/frames`` as fast as the bus takes them, for at
   most ``time_budget_s`` (then a ``timeout`` error says how many were sent).
 
-Not started by ``humanoid up`` unless named (``--services ...,diag``): ``diag/raise`` and
-``diag/stream`` are tools for tests and benchmarks, not for a deployed robot.
+Left out of :func:`services.bus.discovery.default_services` (``humanoid up`` is to start it only when
+named in ``--services``): ``diag/raise`` and ``diag/stream`` are tools for tests and benchmarks, not
+for a deployed robot.
 """
 
 from __future__ import annotations
