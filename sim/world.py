@@ -46,6 +46,27 @@ _FINGER_DONE_TOL = 1e-3  # [m or rad]: a finger this close to its target has arr
 TickHook = Callable[["World"], None]
 
 
+def start_configuration(robot: RobotModel, scene_layout: Layout) -> np.ndarray:
+    """The robot's configuration at a reset: half-sitting with the soles' midpoint at the scene's
+    start pose, or the scene's ``robot.posture`` (e.g. seated) with the base there."""
+    x, y = scene_layout.robot_xy
+    yaw = scene_layout.robot_yaw_rad
+    q = robot.half_sitting_at(x, y, yaw)
+    posture = scene_layout.scene.robot_posture
+    if posture is None:
+        return q
+    for name, value in posture.joints:
+        if name not in robot.joint_names:
+            raise InvalidRequestError(
+                f"scene {scene_layout.scene.name}: robot.posture names an unknown joint {name!r}; "
+                f"joints: {robot.joint_names}"
+            )
+        q[robot.joint_index(name).idx_q] = value
+    q[:3] = (x, y, posture.base_z_m)
+    q[3:7] = pin.Quaternion(pin.rpy.rpyToMatrix(0.0, posture.pitch_rad, yaw)).coeffs()
+    return q
+
+
 @contextlib.contextmanager
 def _quiet_stdout() -> Iterator[None]:
     """Silence pybullet's C-level prints (URDF loading logs every merged link on stdout)."""
@@ -128,8 +149,7 @@ class World:
         self.floor_id, self.bodies = build_scene(new_layout, c)
         self.body_names = {body: name for name, body in self.bodies.items()}
         self.movable = {b: n for n, b in self.bodies.items() if not new_layout.object(n).spec.is_static}
-        x, y = new_layout.robot_xy
-        q0 = self.robot.half_sitting_at(x, y, new_layout.robot_yaw_rad)
+        q0 = start_configuration(self.robot, new_layout)
         with _quiet_stdout():
             self.pyrobot = PybulletRobot(self.robot, c, q0)
         self._index_robot()
