@@ -23,7 +23,7 @@ from services.model import RobotModel
 SEAT = "chair.seat"
 START_PAIRS = (("left_sole", "floor"), ("right_sole", "floor"), ("left_thigh", SEAT), ("right_thigh", SEAT))
 FINAL_PAIRS = (("left_sole", "floor"), ("right_sole", "floor"))
-GOAL_AXIS, GOAL_VALUE_M = "y", 0.75  # the waist must exceed y = 0.75 m (beside the table, §3.1)
+GOAL_AXIS, GOAL_VALUE_M = "y", 0.6  # the waist must exceed y = 0.6 m (beside the table, §3.1)
 SPOTS = (
     "left_sole",
     "right_sole",
@@ -47,7 +47,7 @@ PAIRS = tuple(
 LEANING_HANDS_XY = ((-0.22, 0.25), (-0.22, -0.25))
 LEANING_PITCH_RAD = 0.35
 # key postures of T (Fig. 4): seated, standing in front of the chair, standing beside the table
-STAND_XY = ((0.30, 0.0), (0.30, 0.80))
+STAND_XY = ((0.30, 0.0), (0.30, 0.65))
 
 
 def seated_guess(robot: RobotModel, q: np.ndarray) -> np.ndarray:

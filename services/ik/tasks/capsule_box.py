@@ -38,7 +38,7 @@ def segment_box_distances(
     R_box: np.ndarray,
     t_box: np.ndarray,
     half: np.ndarray,
-    iterations: int = 6,
+    iterations: int = 12,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Signed distances [m] between k segments [p0, p1] (k x 3, world) and k boxes (rotations k x 3 x 3,
     centres k x 3, half extents k x 3), with the closest points A on the segments and the unit normals
