@@ -131,11 +131,16 @@ def transition(
     """The n postures from q1 to q2 (q2 last). ``geometric_extra``: a contact removed at the previous
     transition, still in place at q1 (its body leaves it now). Raises InfeasibleError naming the step."""
     pairs1 = {c.pair: c for c in (*s1, *geometric_extra)}
-    pairs2 = {c.pair: c for c in s2}
-    held = tuple(c for c in pairs1.values() if pairs2.get(c.pair) == c)
     candidates = sorted({c.spot for c in (*pairs1.values(), *s2)})
     moving = _moving_spot(gen, candidates, q1, q2)
-    held = tuple(c for c in held if c.spot != moving)
+    # held: every contact in place at q1 that stays in place at q2 (a contact removed at this
+    # transition is still there at q2, §2.3: it is released at q2)
+    held = tuple(
+        c
+        for c in pairs1.values()
+        if c.spot != moving
+        and np.linalg.norm(gen.spot_pose(q2, c.spot).translation - gen.contact_pose(c).translation) < 5e-3
+    )
     stable = tuple(c for c in s1 if c in held) or held
     frames = []
     if moving is not None:

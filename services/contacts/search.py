@@ -52,10 +52,10 @@ class SearchConfig:
     reach_m: float = 0.6
     reach_theta_rad: float = 0.8
     reach_z_m: float = 0.7
-    v_half: tuple[float, float, float] = (0.07, 0.07, 0.5)
+    v_half: tuple[float, float, float] = (0.15, 0.15, 0.8)
     min_part: tuple[float, float, float] = (0.02, 0.02, 0.1)
-    close_m: float = 0.04
-    close_rad: float = 0.3
+    close_m: float = 0.08
+    close_rad: float = 0.4
     max_sons_per_pair: int = 8
 
 
