@@ -47,7 +47,7 @@ PAIRS = tuple(
 LEANING_HANDS_XY = ((-0.22, 0.25), (-0.22, -0.25))
 LEANING_PITCH_RAD = 0.35
 # key postures of T (Fig. 4): seated, standing in front of the chair, standing beside the table
-STAND_XY = ((0.30, 0.0), (0.30, 0.65))
+STAND_XY = ((0.30, 0.0), (0.30, 0.85))  # T goes on past the goal: its slope still pulls there
 
 
 def seated_guess(robot: RobotModel, q: np.ndarray) -> np.ndarray:

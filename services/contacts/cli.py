@@ -97,5 +97,3 @@ def cmd_scenario(args: argparse.Namespace) -> int:
         )
     print("chair egress:", "succeeded" if ok else "failed")
     return 0 if ok else 1
-
-

@@ -162,7 +162,7 @@ def transition(
                 )
             ]
         result = gen.generate(
-            held, stable, q, PostureTask(gen.model, q_ref), extra=extra, extra_touching=touching
+            held, stable, q, PostureTask(gen.model, q_ref), guide=extra, extra_touching=touching
         )
         if not result.ok:
             raise InfeasibleError(

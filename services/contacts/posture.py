@@ -168,12 +168,15 @@ class PostureGenerator:
         floating: Floating | None = None,
         extra: Sequence[Task] = (),
         extra_touching: Sequence[tuple[str, str]] = (),
+        guide: Sequence[Task] = (),
     ) -> PostureResult:
         """A posture matching every contact of ``geometric`` (and the ``floating`` one inside its
         volume), statically stable on ``stable`` (a subset of ``geometric``), collision free, within
         joint limits, optimizing ``criterion`` from ``q_init``. ``extra`` tasks join the contacts'
         level (interpolation constraints C_i, §3.3); ``extra_touching`` lists the (spot, surface) pairs
-        they bring in contact (excluded from the collision pairs)."""
+        they bring in contact (excluded from the collision pairs); ``guide`` tasks form a level of their
+        own between the contacts and the criterion, met as well as the levels above allow (the path of
+        a moving body, §3.3)."""
         start = time.perf_counter()
         self.calls += 1
         cfg = self.config
@@ -214,6 +217,8 @@ class PostureGenerator:
                 InVolumeTask(self.model, frame, surface, floating.volume),
             ]
         levels = [Level(tuple(safety), name="safety"), Level(tuple(contacts), name="contacts")]
+        if guide:
+            levels.append(Level(tuple(guide), name="guide", tol=math.inf))
         if criterion is not None:
             # no error damping: f_T's task keeps a large value by design (the slope k t / 2)
             levels.append(Level((criterion,), name="criterion", tol=math.inf, error_damping=0.0))
@@ -279,7 +284,7 @@ class PostureGenerator:
                     best = (f, q, it, residual)
                 f_history.append(f)
                 # met, and the criterion no longer decreases (by 0.1 % over 5 iterations)
-                if criterion is None or (len(f_history) > 5 and f_history[-6] - f < 1e-3 * max(1.0, abs(f))):
+                if len(levels) == 2 or (len(f_history) > 5 and f_history[-6] - f < 1e-3 * max(1.0, abs(f))):
                     break
             else:
                 # not met, and the constraints' residual no longer decreases (by 1 % over 6 iterations)
@@ -300,11 +305,12 @@ class PostureGenerator:
         return last
 
     def _criterion_value(self, criterion: Task | None) -> Callable[[np.ndarray, list], float]:
-        """f_T for the potential task (eq. 1), else the criterion level's task value."""
+        """f_T for the potential task (eq. 1), else the task values of the guide and criterion levels."""
         trajectory = getattr(criterion, "trajectory", None)
         if trajectory is not None:
             return lambda q, systems: trajectory.value(q)
-        return lambda q, systems: systems[-1].value if criterion is not None else 0.0
+        # the guide's and the criterion's task values (levels below the contacts)
+        return lambda q, systems: sum(system.value for system in systems[2:])
 
 
 def pairs_allowed(spots: Sequence[ContactSpot], surfaces: Sequence[str]) -> list[tuple[str, str]]:
