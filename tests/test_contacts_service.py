@@ -48,6 +48,7 @@ def test_a_one_removal_plan_with_its_motion_and_progress(services, q_seated):
             goal_axis="x",
             goal_value_m=-1.0,  # already exceeded: the goal is the final contacts
             final_contacts=SEATED[:3],  # the right thigh leaves the seat
+            pairs=[],  # no contact added: sons by removal only (a small tree)
             time_budget_s=120.0,
             n_interpolation=4,
         )

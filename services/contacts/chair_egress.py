@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from services.contacts.environment import Environment
-from services.contacts.posture import PostureGenerator
+from services.contacts.posture import PostureConfig, PostureGenerator
 from services.contacts.sets import Contact
 from services.errors import InfeasibleError
 from services.ik import PostureTask
@@ -54,10 +54,11 @@ def seated_guess(robot: RobotModel, q: np.ndarray) -> np.ndarray:
     """Hips at a right angle, knees bent further so that the feet are under the knees' back (where a
     person puts them before getting up), ankles flat (an initial guess, not a witness)."""
     q = q.copy()
+    q[3:7] = (0.0, 0.0, 0.0, 1.0)  # the waist upright
     for side in ("L", "R"):
-        q[robot.joint_index(f"{side}LEG_JOINT2").idx_q] = -1.45
+        q[robot.joint_index(f"{side}LEG_JOINT2").idx_q] = -1.57
         q[robot.joint_index(f"{side}LEG_JOINT3").idx_q] = 2.0
-        q[robot.joint_index(f"{side}LEG_JOINT4").idx_q] = -0.55
+        q[robot.joint_index(f"{side}LEG_JOINT4").idx_q] = -0.43
     return q
 
 
@@ -66,7 +67,8 @@ def seated_posture(
 ) -> np.ndarray:
     """A witness of the seated start: both thighs on the seat ``seat_x_m`` from its centre (y = +-0.06
     m), the soles flat on the floor wherever the legs put them, statically stable on the thighs."""
-    gen = PostureGenerator(robot, env, _spots(robot))
+    # the CoM well inside the thighs' region: seated in the sim, the robot then does not rock back
+    gen = PostureGenerator(robot, env, _spots(robot), PostureConfig(com_margin_m=0.05))
     thighs = (
         Contact("left_thigh", SEAT, seat_x_m, 0.06, 0.0),
         Contact("right_thigh", SEAT, seat_x_m, -0.06, 0.0),

@@ -145,7 +145,10 @@ def transition(
     frames = []
     if moving is not None:
         frames = spot_path(gen, gen.spot_pose(q1, moving), gen.spot_pose(q2, moving), config.n, config.lift_m)
-    touching = [c.pair for c in (*pairs1.values(), *s2) if c.spot == moving]
+    # the moving body may touch the surface it leaves during the first step and the one it enters
+    # during the last (within the straight lines along the normal); elsewhere it must clear them
+    leaving = [c.pair for c in pairs1.values() if c.spot == moving]
+    entering = [c.pair for c in s2 if c.spot == moving]
     out: list[np.ndarray] = []
     q = q1.copy()
     for i in range(1, config.n + 1):
@@ -162,7 +165,12 @@ def transition(
                 )
             ]
         result = gen.generate(
-            held, stable, q, PostureTask(gen.model, q_ref), guide=extra, extra_touching=touching
+            held,
+            stable,
+            q,
+            PostureTask(gen.model, q_ref),
+            guide=extra,
+            extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []),
         )
         if not result.ok:
             raise InfeasibleError(
@@ -212,7 +220,11 @@ def time_segment(gen: PostureGenerator, waypoints: np.ndarray, duration_s: float
     spline = CubicSpline(np.linspace(0.0, 1.0, len(waypoints)), d, bc_type="clamped")
     n = max(2, round(duration_s / dt_s) + 1)
     u = sinusoidal_profile(n)
-    return np.array([pin.integrate(gen.model, base, v) for v in spline(u)])
+    q = np.array([pin.integrate(gen.model, base, v) for v in spline(u)])
+    # a cubic through postures at a joint limit can overshoot it by a hair: clip
+    bound = gen.solver.bound_q_idx
+    q[:, bound] = q[:, bound].clip(gen.solver.q_lower[bound], gen.solver.q_upper[bound])
+    return q
 
 
 def interpolate_plan(
@@ -238,8 +250,9 @@ def interpolate_plan(
             )
         s1, s2 = sets[k - 1], sets[k]
         q1, q2 = np.asarray(witnesses[k - 1], float), np.asarray(witnesses[k], float)
-        path = [q1, *transition(gen, s1, q1, s2, q2, removed, config)]
-        path[-1] = q2 if np.allclose(path[-1], q2, atol=5e-3) else path[-1]
+        # the last posture generated aims at q2; the witness itself (stable and collision free by
+        # construction) ends the segment, so that the next one starts exactly there
+        path = [q1, *transition(gen, s1, q1, s2, q2, removed, config)[:-1], q2]
         removed = tuple(c for c in s1 if c not in s2)
         segment = np.array(path)
         duration = segment_duration(gen, segment, config, v_max)

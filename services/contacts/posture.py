@@ -55,7 +55,7 @@ class PostureConfig:
     ``tol`` on levels 1-2 (m / rad), ``max_iters`` IK iterations per posture."""
 
     com_margin_m: float = 0.02
-    collision_margin_m: float = 0.005
+    collision_margin_m: float = 0.015  # the capsules are not the sim's shapes: room for the difference
     self_margin_m: float = 0.005
     tol: float = 2e-3
     max_iters: int = 60

@@ -91,8 +91,9 @@ def hrp2_like_spots() -> tuple[ContactSpot, ...]:
                 (0.04, 0.025),
                 f"{s}_forearm",
             ),
-            # the fist's end: hand capsule end 0.13 m + radius 0.075 m below the wrist
-            _spot(f"{side}_hand", f"{arm}_LINK5", (0.0, 0.0, -0.205), eye, (0.03, 0.03), f"{s}_hand"),
+            # the hand's lowest point: the fixed finger's tip, 0.185 m below the wrist (the URDF's
+            # collision box; the hand capsule reaches 0.205 m and is excluded from what it touches)
+            _spot(f"{side}_hand", f"{arm}_LINK5", (0.0, 0.0, -0.185), eye, (0.03, 0.03), f"{s}_hand"),
         ]
     return tuple(spots)
 
