@@ -48,7 +48,7 @@ class InterpolationConfig:
     lift_m: float = 0.03
     base_speed_m_s: float = 0.08
     spot_speed_m_s: float = 0.15
-    joint_speed_ratio: float = 0.25
+    joint_speed_ratio: float = 0.1
     min_segment_s: float = 0.8
     dt_s: float = 0.005
     deadline: float = math.inf  # time.monotonic() after which the interpolation gives up (timeout)
