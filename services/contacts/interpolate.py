@@ -95,7 +95,10 @@ def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: f
     b = p2 + (lift_m * n2 if n2 is not None else 0.0)
     span = max(float(np.linalg.norm(b - a)), 1e-6)
     # Hermite tangents: along the normals at the ends of the straight lines (C1 junctions)
-    ta = (n1 if n1 is not None else (b - a) / span) * span
+    # a body leaving no surface (a hand hanging) first rises: a straight chord to a table's top would
+    # run into its edge from below
+    up = np.array([0.0, 0.0, 1.0])
+    ta = (n1 if n1 is not None else (up if b[2] > a[2] else (b - a) / span)) * span
     tb = (-n2 if n2 is not None else (b - a) / span) * span
     lengths = [lift_m if n1 is not None else 0.0, span, lift_m if n2 is not None else 0.0]
     total = sum(lengths)
