@@ -76,7 +76,7 @@ def hrp2_like_spots() -> tuple[ContactSpot, ...]:
             _spot(
                 f"{side}_thigh",
                 f"{leg}_LINK2",
-                (-0.06, 0.0, -0.08),
+                (-0.065, 0.0, -0.08),  # on the URDF's thigh cylinder (radius 0.065 m)
                 _UNDERSIDE,
                 (0.10, 0.04),
                 f"{s}_thigh",
