@@ -20,6 +20,7 @@ CLI_MODULES = (
     "services.footsteps.cli",
     "services.contacts.cli",
     "supervisor.cli",
+    "services.viz.cli",
 )
 
 
