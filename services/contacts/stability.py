@@ -31,7 +31,7 @@ import proxsuite
 from scipy.optimize import linprog
 
 from services.errors import InfeasibleError
-from services.ik.geometry import convex_hull_2d
+from services.model.ground import convex_hull_indices
 
 N_GENERATORS = 4  # edges of each linearized friction cone
 REGION_BOUND_M = 5.0  # the region is clipped to this square around the contacts [m] (unbounded LPs)
@@ -112,7 +112,7 @@ def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max
     done: set[tuple[float, float, float, float]] = set()
     while lps < max_lps:
         points = np.array(vertices)
-        hull = convex_hull_2d(points)
+        hull = convex_hull_indices(points)
         polygon = points[hull]
         if polygon.shape[0] < 3:
             return polygon  # a segment or a point: degenerate (e.g. one point contact)
@@ -135,7 +135,7 @@ def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max
         if not grown:
             break
     points = np.array(vertices)
-    return points[convex_hull_2d(points)]
+    return points[convex_hull_indices(points)]
 
 
 def is_statically_stable(
