@@ -4,7 +4,9 @@ footstep planning as inverse kinematics, with their figures:
 - out/footsteps_<name>_chain.png: top views of the virtual chain at several iterations of
   Algorithm 1 and the retained footsteps with the final posture (like Figs. 6, 7 and 11);
 - out/footsteps_<name>_values.png: the task values against the iterations, a dashed line at each
-  step addition (like Fig. 10).
+  step addition (like Fig. 10);
+- out/footsteps_fig10_epsilon.png: Fig. 10's threshold study (reach > gaze > posture with low,
+  average and high epsilon_i: step additions and computation times), scenario ``fig10``.
 
     .venv/bin/python examples/footsteps_scenarios.py                 # all three
     .venv/bin/python examples/footsteps_scenarios.py reach --execute # + walk and reach motion
@@ -16,7 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from services.footsteps.demo import format_summary, run_scenario
+from services.footsteps.demo import format_summary, run_epsilon_study, run_scenario
 from services.footsteps.scenarios import SCENARIOS
 
 
@@ -33,10 +35,16 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"unknown scenarios {unknown}; choose among {sorted(SCENARIOS)}")
     failures = 0
-    for name in args.names or ["reach", "pickup", "posture"]:
+    for name in args.names or ["reach", "pickup", "posture", "fig10"]:
         summary = run_scenario(name, robot_name=args.robot, out_dir=args.out, execute=args.execute)
         print(format_summary(summary), flush=True)
         failures += not summary["solved"]
+        if name == "fig10":
+            for row in run_epsilon_study(args.robot, args.out):
+                print(
+                    f"  epsilon {row['label']} (x{row['epsilon_scale']:g}): {row['steps']} steps, "
+                    f"added after iterations {row['steps_added_at']}, {row['solve_s']:.2f} s"
+                )
     return 1 if failures else 0
 
 

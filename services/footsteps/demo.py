@@ -92,6 +92,42 @@ def run_scenario(
     return summary
 
 
+def run_epsilon_study(
+    robot_name: str = "hrp2_like", out_dir: Path | None = Path("out")
+) -> list[dict[str, Any]]:
+    """Fig. 10's threshold study: the ``fig10`` scenario with every epsilon_i scaled low, average and
+    high (``scenarios.EPSILON_STUDY``); rows (label, scale, solved, steps, steps_added_at, solve_s)
+    and, with ``out_dir``, ``footsteps_fig10_epsilon.png``."""
+    from services.footsteps.plotting import epsilon_study_figure
+
+    robot = load_robot(robot_name)
+    rows, runs = [], []
+    for label, scale in scenarios.EPSILON_STUDY.items():
+        request = scenarios.with_trace(scenarios.fig10(robot_name, scale).request)
+        t0 = time.perf_counter()
+        result, error = plan_footsteps_best(request, robot)
+        solve_s = time.perf_counter() - t0
+        runs.append((f"{label} epsilon (x{scale:g})", request, result, solve_s))
+        rows.append(
+            {
+                "label": label,
+                "epsilon_scale": scale,
+                "solved": error is None,
+                "steps": result.n_steps,
+                "iterations": result.iterations,
+                "steps_added_at": list(result.steps_added_at),
+                "solve_s": solve_s,
+            }
+        )
+    if out_dir is not None:
+        epsilon_study_figure(
+            runs,
+            Path(out_dir) / "footsteps_fig10_epsilon.png",
+            title=f"Fig. 10 threshold study [{robot_name}]",
+        )
+    return rows
+
+
 def format_summary(summary: dict[str, Any]) -> str:
     """A few human-readable lines for one scenario."""
     lines = [

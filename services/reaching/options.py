@@ -81,7 +81,7 @@ class ReachingOptions:
     manipulability_threshold: float | None = None
     ee_error_threshold_m: float | None = None
     joint_limit_margin_rad: float = 1e-3
-    criteria: tuple[str, ...] = ("manipulability", "ee_error", "joint_speed", "joint_torque")
+    criteria: tuple[str, ...] = ("manipulability", "ee_error")
     weighted: bool = True
     other_arm_still: bool = True
     joint_limit_selection_rad: float | None = None
@@ -89,6 +89,7 @@ class ReachingOptions:
     max_iterations_per_knot: int = 3
     knot_tolerance_m: float = 1e-6
     velocity_ratio: float = 0.5
+    arm_speed_per_knot: bool = True
     torque_ratio: float = 0.6
     hand_speed_m_s: float = 0.2
     min_reach_s: float = 2.0

@@ -128,10 +128,32 @@ class ReachPlanner:
             )
             spec = self._stepping_spec(req, pattern)
             track = self.tracker.track(spec, q0, req.hand)
-            attempts.append(Attempt(plan.kind, plan.n_steps, track.violation, track.wall_time_s))
-            if track.violation is None:
-                return self._finish(req, spec, track, plan, track0, attempts, t0)
-            last_violation = track.violation
+            violation = track.violation
+            if violation is None:
+                try:
+                    return self._finish(
+                        req,
+                        spec,
+                        track,
+                        plan,
+                        track0,
+                        [*attempts, Attempt(plan.kind, plan.n_steps, None, track.wall_time_s)],
+                        t0,
+                    )
+                except InfeasibleError as exc:
+                    # The trajectory has no ZMP (a joint jumps between two knots: the CoM would fall
+                    # faster than gravity): discarded like a criterion out of range, next reshaping.
+                    if "sample" not in exc.details:
+                        raise
+                    k = int(exc.details["sample"])
+                    violation = Violation(
+                        "multibody_zmp",
+                        float(spec.times_s[min(k, spec.n_samples - 1)]),
+                        float(exc.details["vertical_force_n"]),
+                        0.0,
+                    )
+            attempts.append(Attempt(plan.kind, plan.n_steps, violation, track.wall_time_s))
+            last_violation = violation
         raise self._infeasible(
             req,
             last_violation,

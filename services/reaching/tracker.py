@@ -97,7 +97,7 @@ class IKModel:
         # ``joint_speed`` criterion (near a singularity the arm's joints would have to fly).
         v_max = np.asarray(robot.v_max)[self.free_v_idx]
         knot_dt_s = options.knot_stride * DT_S
-        self.solver = HierarchicalSolver(self.model, dq_max=options.velocity_ratio * v_max * knot_dt_s)
+        dq_max = options.velocity_ratio * v_max * knot_dt_s
         self.weights = link_mass_weights(self.model) if options.weighted else None
         self.monitor = ArmMonitor(
             self.model,
@@ -109,6 +109,13 @@ class IKModel:
             (robot.frames.left_sole, robot.frames.right_sole),
         )
         self.v_max_arm = v_max[self.monitor.arm_v_idx]
+        # The reaching arm's joints move at most velocity_ratio of their limits over a whole knot (the
+        # Gauss-Newton steps of a knot share it): near a singular configuration the arm cannot whip
+        # round to keep up; the hand falls behind its reference and the paper's end-effector error
+        # criterion (or the manipulability) is what fails, as on HRP-2.
+        if options.arm_speed_per_knot:
+            dq_max[self.monitor.arm_v_idx] /= options.max_iterations_per_knot
+        self.solver = HierarchicalSolver(self.model, dq_max=dq_max)
 
     def reduce_q(self, q_full: np.ndarray) -> np.ndarray:
         """IK configuration of a full one."""
