@@ -83,6 +83,7 @@ def run_scenario(
             "final_errors_m": motion.final_errors_m,
             "reach_max_sole_drift_m": motion.reach_max_sole_drift_m,
             "reach_min_com_margin_m": motion.reach_min_com_margin_m,
+            "reach_min_self_distance_m": motion.reach_min_self_distance_m,
             "walk": None if motion.walk is None else motion.walk.figures(),
         }
         if out_dir is not None:
@@ -147,7 +148,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         errors = ", ".join(f"{k} {1000 * v:.1f} mm" for k, v in motion["final_errors_m"].items())
         lines.append(
             f"  motion: {motion['duration_s']:.2f} s (walk {motion['walk_end_s']:.2f} s) computed in "
-            f"{motion['compute_s']:.2f} s; final hand error {errors or '-'}"
+            f"{motion['compute_s']:.2f} s; final hand error {errors or '-'}; closest self-collision "
+            f"pair {1000 * motion['reach_min_self_distance_m']:.0f} mm"
         )
     for path in summary["figures"]:
         lines.append(f"  wrote {path}")
