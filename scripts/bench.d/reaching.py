@@ -11,6 +11,11 @@ Figures (issue 7), all from one run:
   and executed in ``sim.world.World`` (scene ``empty``); a success is a completed execution, the robot
   standing and the hand within 1 cm of the target (goal: >= 95 %). Planning times are wall times on
   this shared machine (CPU times alongside).
+- ``trigger``: over the random targets, how many reshapings each criterion triggered (the first
+  attempt's violation, on the initial support polygon: the paper's ``manipulability`` (< 1.5e-4) and
+  ``ee_error`` (> 4e-5 m), and ``multibody_zmp``, a motion whose ZMP does not exist, discarded);
+  ``single_step_share``: the share of the reshaped reaches done with one step (the paper's Fig. 6
+  makes one step).
 
 The envelopes of reach (measured once per hand, see ``services/reaching/envelope.py``) are computed
 before the timings.
@@ -85,7 +90,12 @@ def run_one(world, robot, hand: str, target: np.ndarray) -> dict:
     try:
         result = plan_reach(robot, ReachRequest(hand, target, q0))
     except HumanoidError as exc:
-        return {"outcome": exc.code, "message": exc.message, "planning_s": time.perf_counter() - t0}
+        return {
+            "outcome": exc.code,
+            "message": exc.message,
+            "planning_s": time.perf_counter() - t0,
+            "trigger": (exc.details or {}).get("criterion"),
+        }
     plan_s, plan_cpu_s = time.perf_counter() - t0, time.process_time() - c0
     ex = world.execute(result.q, hold_s=HOLD_S)
     q = world.state().q
@@ -106,6 +116,7 @@ def run_one(world, robot, hand: str, target: np.ndarray) -> dict:
         "attempts": [
             a.kind + ("" if a.violation is None else f":{a.violation.criterion}") for a in result.attempts
         ],
+        "trigger": None if result.attempts[0].violation is None else result.attempts[0].violation.criterion,
     }
 
 
@@ -191,6 +202,16 @@ def main(argv: list[str] | None = None) -> int:
     outcomes: dict[str, int] = {}
     for r in runs:
         outcomes[r["outcome"]] = outcomes.get(r["outcome"], 0) + 1
+    triggers: dict[str, int] = {}
+    for r in runs:
+        if r.get("trigger"):
+            triggers[r["trigger"]] = triggers.get(r["trigger"], 0) + 1
+    reshaped = [r for r in planned if r.get("steps", 0) > 0]
+    results["trigger"] = triggers
+    results["single_step_share"] = (
+        sum(r["steps"] == 1 for r in reshaped) / len(reshaped) if reshaped else None
+    )
+    results["paper_single_step"] = "Fig. 6: one step"
     results["random"] = {
         "n": len(runs),
         "seed": args.seed,
@@ -219,6 +240,12 @@ def main(argv: list[str] | None = None) -> int:
     ):
         print(f"{label:44s} {value:10.2f}")
     print(f"  outcomes: {rnd['outcomes']}")
+    share = results["single_step_share"]
+    print(f"  trigger (first violation) by criterion: {results['trigger']}")
+    print(
+        "  single_step_share (reshapings with one step; paper Fig. 6: one step): "
+        + ("-" if share is None else f"{share:.2f} of {len(reshaped)}")
+    )
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
     print(f"wrote {OUT.relative_to(ROOT)}")

@@ -118,6 +118,11 @@ class Violation:
                 f"holding the posture takes {100 * self.value:.0f} % of a joint's effort limit (admissible "
                 f"{100 * self.threshold:.0f} %) at t={self.time_s:.2f} s"
             )
+        if self.criterion == "multibody_zmp" and self.value > 0:
+            return (
+                f"the multibody ZMP leaves the support polygon by {1e3 * self.value:.0f} mm at "
+                f"t={self.time_s:.2f} s"
+            )
         if self.criterion == "multibody_zmp":
             return (
                 f"the whole-body motion has no ZMP at t={self.time_s:.2f} s (vertical contact force "
