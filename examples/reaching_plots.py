@@ -1,16 +1,18 @@
-"""Plot the reaching paper's Figs. 7 and 8 for a reach beyond the arm's reach, as PNG files under out/.
+"""Plot the reaching paper's Figs. 6-7 and 8 for a reach beyond the arm's reach, as PNG files under out/.
 
-* ``reaching_<robot>_manipulability.png`` (Figs. 6-7): the two criteria of the paper's experiment, the
-  arm's manipulability (eq. 5) and the end-effector error, over time on the initial support polygon
+Each for the paper's experiment (``paper``: its two criteria, S = I) and the stack's defaults (``stack``):
+
+* ``reaching_<robot>_<settings>_criteria.png`` (Figs. 6-7): the two criteria of the paper's experiment,
+  the arm's manipulability (eq. 5) and the end-effector error, over time on the initial support polygon
   (computed to its end: "without reshaping"; the planner discards it at the first criterion out of
   range, marked) and in the motion with support polygon reshaping, against their thresholds.
-* ``reaching_<robot>_zmp.png`` (Fig. 8): the ZMP in x and in y over time against the support polygon
-  projected on each axis (shaded): planned (dotted: the pattern generator's, dashed: multibody ZMP of the
-  whole-body trajectory) and measured in the sim (solid: centre of pressure of the floor contacts), plus
-  a top view of the footsteps, the ZMP and the target.
+* ``reaching_<robot>_<settings>_zmp.png`` (Fig. 8): the ZMP in x and in y over time against the support
+  polygon projected on each axis (shaded): planned (dotted: the pattern generator's, dashed: multibody
+  ZMP of the whole-body trajectory) and measured in the sim (solid: centre of pressure of the floor
+  contacts), plus a top view of the footsteps, the ZMP and the target.
 
 Usage: python examples/reaching_plots.py [--robot hrp2_like|talos] [--target X Y Z] [--hand left|right]
-       [--no-sim] [--s-identity] [--out out]
+       [--no-sim] [--settings paper stack] [--out out]
 """
 
 from __future__ import annotations
@@ -41,8 +43,8 @@ from services.reaching.planner import planner_for  # noqa: E402
 from services.walking.support_polygon import support_hull  # noqa: E402
 
 MEASURED_WINDOW = 20  # samples (0.1 s) of the moving mean of the measured centre of pressure
-# Front-left, just beyond the left arm's reach on the initial support polygon (left hand).
-DEFAULT_TARGETS = {"hrp2_like": (0.50, 0.70, 0.90), "talos": (0.20, 0.80, 1.00)}
+# Beyond the left arm's reach on the initial support polygon (left hand).
+DEFAULT_TARGETS = {"hrp2_like": (0.90, 0.30, 0.90), "talos": (0.20, 0.80, 1.00)}
 
 
 def polygon_extents(result, robot) -> np.ndarray:
@@ -130,7 +132,7 @@ def plot_criteria(path: Path, result, monitors_without, robot_name: str) -> None
     axes[1].set_xlabel("time [s]")
     axes[0].legend(fontsize=8, loc="lower left")
     axes[0].set_title(
-        f"Figs. 6-7 — {robot_name}: the monitored criteria with and without support polygon reshaping",
+        f"Figs. 6-7 — {robot_name}\nthe monitored criteria with and without support polygon reshaping",
         fontsize=9,
     )
     fig.tight_layout()
@@ -138,7 +140,7 @@ def plot_criteria(path: Path, result, monitors_without, robot_name: str) -> None
     plt.close(fig)
 
 
-def plot_zmp(path: Path, result, robot, cop: np.ndarray | None) -> None:
+def plot_zmp(path: Path, result, robot, cop: np.ndarray | None, label: str = "") -> None:
     t = result.times_s
     ext = polygon_extents(result, robot)
     fig = plt.figure(figsize=(12, 4.5))
@@ -175,13 +177,19 @@ def plot_zmp(path: Path, result, robot, cop: np.ndarray | None) -> None:
     ax.legend(fontsize=7)
     ax.set_title("top view (soles: left green, right orange)", fontsize=8)
     fig.suptitle(
-        f"Fig. 8 — {robot.name}: ZMP against the support polygon, {len(result.footsteps)} step(s), "
+        f"Fig. 8 — {robot.name} ({label}): ZMP against the support polygon, {len(result.footsteps)} step(s), "
         f"min margin {1e3 * result.min_zmp_margin_m:.0f} mm",
         fontsize=9,
     )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+SETTINGS = {
+    "stack": ("the stack's defaults", ReachingOptions()),
+    "paper": ("the paper's experiment (2 criteria, S = I)", ReachingOptions.paper_experiment()),
+}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -191,9 +199,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--hand", choices=("left", "right"), help="default: the target's side")
     parser.add_argument("--no-sim", action="store_true", help="do not execute in the sim (no measured ZMP)")
     parser.add_argument(
-        "--s-identity",
-        action="store_true",
-        help="S = I_n as in the paper's experiment (the other arm free too; default: left out)",
+        "--settings",
+        nargs="+",
+        choices=sorted(SETTINGS),
+        default=["paper", "stack"],
+        help="planner settings to plot: the paper's experiment and/or the stack's defaults (default both)",
     )
     parser.add_argument("--out", default=str(ROOT / "out"), help="output directory (default out/)")
     args = parser.parse_args(argv)
@@ -202,23 +212,27 @@ def main(argv: list[str] | None = None) -> int:
     target = np.array(args.target or DEFAULT_TARGETS[robot.name])
     hand = args.hand or ("left" if target[1] >= 0 else "right")
     request = ReachRequest(hand, target, robot.q_half_sitting)
-    planner = planner_for(robot.name, ReachingOptions(other_arm_still=not args.s_identity))
-    result = planner.plan(request)
-    _, without = planner.without_reshaping(request)
-    print(
-        f"{robot.name}: {len(result.footsteps)} step(s), {result.duration_s:.1f} s motion planned in "
-        f"{result.wall_time_s:.2f} s; attempts: "
-        + ", ".join(
-            f"{a.kind}" + (f" ({a.violation.criterion} at {a.violation.time_s:.2f} s)" if a.violation else "")
-            for a in result.attempts
-        )
-    )
-    cop = None if args.no_sim else measured_zmp(robot, result)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    plot_criteria(out / f"reaching_{robot.name}_manipulability.png", result, without, robot.name)
-    plot_zmp(out / f"reaching_{robot.name}_zmp.png", result, robot, cop)
-    print(f"wrote {out}/reaching_{robot.name}_manipulability.png and reaching_{robot.name}_zmp.png")
+    for name in args.settings:
+        label, options = SETTINGS[name]
+        planner = planner_for(robot.name, options)
+        result = planner.plan(request)
+        _, without = planner.without_reshaping(request)
+        print(
+            f"{robot.name}, {label}: {len(result.footsteps)} step(s), {result.duration_s:.1f} s motion "
+            f"planned in {result.wall_time_s:.2f} s; attempts: "
+            + ", ".join(
+                f"{a.kind}"
+                + (f" ({a.violation.criterion} at {a.violation.time_s:.2f} s)" if a.violation else "")
+                for a in result.attempts
+            )
+        )
+        cop = None if args.no_sim else measured_zmp(robot, result)
+        stem = f"reaching_{robot.name}_{name}"
+        plot_criteria(out / f"{stem}_criteria.png", result, without, f"{robot.name}, {label}")
+        plot_zmp(out / f"{stem}_zmp.png", result, robot, cop, label)
+        print(f"wrote {out}/{stem}_criteria.png and {stem}_zmp.png")
     return 0
 
 
