@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     for r in study:
         print(
             f"  {r['label']:8s} x{r['epsilon_scale']:<4g} steps {r['steps']} "
-            f"added after {r['steps_added_at']} {r['solve_s']:.3f} s"
+            f"added after {r['steps_added_at']} {r['solve_s']:.3f} s wall, {r['cpu_s']:.3f} s CPU"
         )
     numerics = bench_numerics(robot)
     print("numerics (paper scenarios; each device switched to eqs. 2/15's form)")

@@ -186,12 +186,13 @@ def task_values_figure(
 def epsilon_study_figure(
     runs: Sequence[tuple[str, FootstepPlanRequest, FootstepPlanResult, float]], path: Path, title: str = ""
 ) -> Path:
-    """Fig. 10 (b)-(e): one panel of task values per threshold setting (label, request, result, solve
-    time [s]), the step additions marked, the steps and the computation time in each panel's title."""
+    """Fig. 10 (b)-(e): one panel of task values per threshold setting (label, request, result, CPU
+    time of the solve [s]), the step additions marked, the steps and the computation time in each
+    panel's title."""
     fig, axes = plt.subplots(1, len(runs), figsize=(5.2 * len(runs), 3.8), squeeze=False)
     for ax, (label, request, result, solve_s) in zip(axes[0], runs, strict=True):
         _draw_task_values(ax, request, result)
-        ax.set_title(f"{label}: {result.n_steps} steps, {solve_s:.2f} s", fontsize=10)
+        ax.set_title(f"{label}: {result.n_steps} steps, {solve_s:.2f} s CPU", fontsize=10)
     fig.suptitle(title or "threshold study (Fig. 10 b-e)", fontsize=10)
     fig.tight_layout()
     path = Path(path)
