@@ -201,6 +201,7 @@ class SimService(Service):
                     request.stop_on_collision,
                     request.hold_s,
                     tuple(request.leaving),
+                    tuple(request.supports),
                 )
             except _OverBudgetError:
                 played = self.world.sim_time_s - t0

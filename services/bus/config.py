@@ -146,7 +146,7 @@ def from_mapping(config_type: type, values: dict[str, Any], *, where: str) -> An
     """Build a frozen config dataclass from YAML values through ``msgspec.convert`` (strict types).
 
     Unknown keys are refused with the list of valid ones; a wrong type names the field path and
-    what was expected (``image_views: "no"`` -> "Expected `bool`, got `str` - at `$.image_views`";
+    what was expected (``foxglove_views: "no"`` -> "Expected `bool`, got `str` - at `$.foxglove_views`";
     ``listen: "tcp/..."`` -> "Expected `array`, got `str`"); the dataclass's ``__post_init__`` checks
     the ranges.
     """

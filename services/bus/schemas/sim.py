@@ -83,6 +83,9 @@ class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_f
     # Objects the robot touches at the start and moves away from (backing out of a collision): any link
     # may keep touching one of them until that contact first breaks; touching it again is a collision.
     leaving: Names = []
+    # Objects any link may touch during the whole motion: the supports of a multi-contact motion (the
+    # chair the robot gets up from, the table it leans on), chosen by the contact planner.
+    supports: Names = []
     # Wall-clock limit of the execution [s]: past it the robot holds where it is and the reply is a
     # timeout error saying how much was played. None: the sim's execute_budget_s (300 s by default).
     time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] | None = None
