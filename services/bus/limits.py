@@ -66,3 +66,5 @@ SceneName = Annotated[
     str, Meta(pattern=r"^([A-Za-z0-9_][A-Za-z0-9_-]{0,63})?$", description="scene name (not a path)")
 ]
 StepCount = Annotated[int, Meta(ge=0, le=MAX_STEPS, description="number of footsteps")]
+#: Lists of names, e.g. [spot, surface] pairs of contacts.
+NameLists = Annotated[list[Names], Meta(max_length=MAX_NAMES)]
