@@ -136,7 +136,7 @@ class Actions:
 
     # The tables the runner uses ---------------------------------------------------------------------
     def table(self) -> dict[str, Action]:
-        names = ("detect", "localize", "goto", "turn", "reach", "grasp", "open", "put", "look_at")
+        names = ("detect", "localize", "goto", "turn", "walk", "reach", "grasp", "open", "put", "look_at")
         return {name: self._timed(getattr(self, f"do_{name}")) for name in names}
 
     def remedies(self) -> dict[str, Remedy]:
@@ -252,7 +252,11 @@ class Actions:
         if distance >= self.options.clearance_m:
             return
         back = min(self.options.clearance_m - distance + 0.05, 0.45)
-        plan = self.planners.step_back(back)
+        try:
+            plan = self.planners.step_back(back)
+        except InfeasibleError as exc:  # something behind too: the planner that follows decides
+            self.progress(f"{what}: no step back from {name}: {exc.message}")
+            return
         self.progress(f"{what}: stepping back {back:.2f} m from {name} ({plan.describe()})")
         self.body.execute(plan.q, what=f"step back from {name}", progress=self.progress)
 
@@ -308,6 +312,30 @@ class Actions:
             step.args,
             message=f"now facing {math.degrees(yaw):.0f} deg ({steps} steps)",
             details={"yaw": yaw},
+        )
+
+    def do_walk(self, step: Step) -> ActionReport:
+        """Walk relative to the robot: ``forward_m`` ahead, ``left_m`` to the left [m], then facing
+        ``yaw_deg`` more (positive = left; default 0), as ``walking/goal`` plans it: steps within the
+        robot's bounds, checked against the map (``infeasible`` naming the box in the way)."""
+        try:
+            forward, left, *yaw = (float(v) for v in step.args)
+        except ValueError:
+            raise InvalidRequestError(
+                f"walk {' '.join(step.args)!r}: expected FORWARD_M LEFT_M [YAW_DEG] numbers"
+            ) from None
+        yaw_rad = math.radians(yaw[0]) if yaw else 0.0
+        self.body.straighten()
+        plan = self.planners.walk(forward, left, yaw_rad)
+        what = f"walk {forward:+.2f} m forward, {left:+.2f} m left"
+        self.progress(f"{what}: {plan.describe()}")
+        executed = self.body.execute(plan.q, what=what, progress=self.progress)
+        x, y, heading = self.body.base_xy_yaw(executed.q)
+        return ActionReport(
+            "walk",
+            step.args,
+            message=f"at ({x:.2f}, {y:.2f}) facing {math.degrees(heading):.0f} deg ({plan.n_steps} steps)",
+            details={"pose": [x, y, heading], "steps": plan.n_steps},
         )
 
     def _turn_rad(self, angle_rad: float, what: str) -> int:

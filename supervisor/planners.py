@@ -4,7 +4,9 @@ Every plan starts at the configuration ``sim/state`` reports now (the planners a
 ``sim/execute`` wants the first sample near the current joints). The planners:
 
 * ``navigation/goto``: walk in front of an object (from the map of perception's sightings) or to a pose;
-* ``walking/plan``: a footstep sequence (a turn on the spot from ``turn_in_place``) to a whole body walk;
+* ``walking/goal``: a short walk to a pose relative to the robot (or in the world), a turn on the spot, a
+  step back: the walking planner makes the footsteps within the robot's bounds and checks them against
+  the map's boxes;
 * ``reaching/reach``: whole-body reaching with support polygon reshaping (stepping when needed).
 """
 
@@ -20,24 +22,14 @@ from services.bus.schemas import navigation as nav_msg
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import walking as walk_msg
 from services.errors import InfeasibleError
-from services.walking.footsteps import (
-    Footstep,
-    FootstepLimits,
-    SolePose,
-    fit_to_bounds,
-    footsteps_along_mid_poses,
-    turn_in_place,
-)
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.memory import Memory
-from supervisor.scene_map import boxes, distance_to_box, obstacles
+from supervisor.scene_map import obstacles
 
 PLAN_TIMEOUT_S = 120.0
-#: Largest yaw of one pair of turning steps [rad]: the opening foot's bound is pi/4 (footstep paper §5).
-TURN_PER_PAIR_RAD = 0.98 * math.pi / 4
-#: Double support between turning steps [s]: with walking's default 0.1 s the simulated robot fell in
-#: about half of the 60-90 deg turns (tilting over during a weight transfer); 0.3 s turned every time.
+#: Double support between steps of navigation's path walked by ``walking/plan`` [s]: with walking's
+#: former default 0.1 s the simulated robot fell in about half of the 60-90 deg turns; 0.3 s held.
 TURN_DOUBLE_SUPPORT_S = 0.3
 #: A goal nearer than this [m] whose car-like path is longer than ``DETOUR_FACTOR`` times the straight
 #: line plus ``DETOUR_SLACK_M`` is walked straight (sideways and turning as needed): navigation's
@@ -49,11 +41,6 @@ DETOUR_SLACK_M = 0.5
 #: radius [m] (the first one's is navigation's default, 0.5 m).
 RETRY_BUDGET_S = 4.0
 RETRY_TURNING_RADIUS_M = 0.3
-#: The straight walk keeps the base this far from every mapped obstacle [m] (or as far as its start or
-#: its goal is).
-SHORT_WALK_CLEARANCE_M = 0.35
-
-
 @dataclass(frozen=True)
 class Plan:
     """A whole-body trajectory to execute: ``q`` (N, nq) every ``dt_s``; ``n_steps`` footsteps taken;
@@ -151,79 +138,41 @@ class Planners:
 
     def _short_walk(self, q: np.ndarray, goal: list[float], path_m: float) -> Plan | None:
         """The straight walk to a near ``goal`` (x, y, yaw) when navigation's path of ``path_m`` [m] is a
-        detour (see ``SHORT_WALK_M``) and the straight line keeps clear of the mapped obstacles; None
+        detour (see ``SHORT_WALK_M``) and ``walking/goal`` finds the line clear of the map's boxes; None
         otherwise (navigation's path is walked)."""
         x0, y0, _yaw = self.body.robot.mid_feet_pose(q)
         straight_m = math.hypot(goal[0] - x0, goal[1] - y0)
         if straight_m > SHORT_WALK_M or path_m <= DETOUR_FACTOR * straight_m + DETOUR_SLACK_M:
             return None
-        for box in boxes(self.memory):
-            ends = (distance_to_box(box, goal[0], goal[1]), distance_to_box(box, x0, y0))
-            need = min(SHORT_WALK_CLEARANCE_M, *ends) - 0.02
-            for t in np.linspace(0.0, 1.0, max(2, math.ceil(straight_m / 0.05) + 1)):
-                x, y = x0 + t * (goal[0] - x0), y0 + t * (goal[1] - y0)
-                if distance_to_box(box, x, y) < need:
-                    return None
         try:
-            return self.walk_to(
-                goal[0], goal[1], goal[2], planner=f"walking/plan, straight ({path_m:.1f} m path)", q=q
+            return self.walk_goal(
+                walk_msg.GoalRequest(q_start=q, kind="pose", pose=list(goal), frame="world"),
+                planner=f"walking/goal, straight ({path_m:.1f} m path)",
             )
-        except InfeasibleError:  # e.g. turning much while side-stepping crosses the feet: navigation's way
+        except InfeasibleError:  # blocked by the map, or out of the bounds: navigation's way
             return None
 
-    def walk_to(
-        self,
-        x_m: float,
-        y_m: float,
-        yaw_rad: float,
-        *,
-        planner: str = "walking/plan",
-        q: np.ndarray | None = None,
-    ) -> Plan:
-        """Walk straight to the base pose (x, y [m], yaw [rad]) of the mid-feet frame, stepping forward,
-        sideways and turning together (or, when that crosses the feet, walking there and then turning on
-        the spot), steps as long as the robot's footstep bounds allow, the feet side by side at the end.
-        No obstacle check: for short walks on free floor. ``q``: the configuration to start from
-        (default: :meth:`Body.plan_q`)."""
-        q = self.body.plan_q() if q is None else q
-        robot = self.body.robot
-        soles = self._soles(q)
-        x0, y0, yaw0 = robot.mid_feet_pose(q)
-        c, s = math.cos(yaw0), math.sin(yaw0)
-        dx, dy = c * (x_m - x0) + s * (y_m - y0), -s * (x_m - x0) + c * (y_m - y0)
-        dyaw = math.remainder(yaw_rad - yaw0, 2.0 * math.pi)
-        first = "left" if (dy if abs(dy) > 0.02 else dyaw) > 0 else "right"  # lead with the foot on the way
-
-        def fractions(n: int) -> list[float]:  # n steps, the last one bringing the feet side by side
-            return [min(k, n - 1) / (n - 1) for k in range(1, n + 1)]
-
-        def along(poses: list[tuple[float, float, float]]):
-            left, right = soles["left"], soles["right"]
-            return footsteps_along_mid_poses(poses, first, left_start=left, right_start=right)
-
-        def together(n: int):
-            return along([(f * dx, f * dy, f * dyaw) for f in fractions(n)])
-
-        def turn_last(n: int):  # walk there, then turn on the spot: no turning while side-stepping
-            m = max(2, n // 2)
-            walk = [(f * dx, f * dy, 0.0) for f in fractions(m)]
-            return along(walk + [(dx, dy, f * dyaw) for f in fractions(max(2, n - m))])
-
-        limits = FootstepLimits.from_robot(robot)
-        try:
-            sequence = fit_to_bounds(together, 2, limits, "a straight walk")
-        except InfeasibleError:  # turning while stepping sideways can cross the feet
-            sequence = fit_to_bounds(turn_last, 4, limits, "a straight walk, then a turn")
-        request = walk_msg.PlanRequest(
-            steps=[
-                walk_msg.Step(pose=[st.pose.x_m, st.pose.y_m, st.pose.yaw_rad], side=st.side)
-                for st in sequence.steps
-            ],
-            model=robot.name,
-            q_start=q,
-            double_support_s=TURN_DOUBLE_SUPPORT_S,
+    def walk_goal(self, request: walk_msg.GoalRequest, *, planner: str = "walking/goal") -> Plan:
+        """``walking/goal`` of ``request`` with the map's boxes as its obstacles, as a :class:`Plan`."""
+        request = msgspec.structs.replace(
+            request, model=self.body.robot.name, obstacles=obstacles(self.memory)
         )
-        return self._walk(request, planner=planner, goal=[x_m, y_m, yaw_rad])
+        reply = self.bus.call(walk_msg.GOAL, request, PLAN_TIMEOUT_S)
+        goal = list(request.pose) if request.kind == "pose" else [request.angle_rad]
+        return Plan(
+            q=np.asarray(reply.q, dtype=float),
+            dt_s=float(reply.dt_s),
+            n_steps=len(reply.steps),
+            planner=planner,
+            goal=goal,
+        )
+
+    def walk(self, forward_m: float, left_m: float, yaw_rad: float) -> Plan:
+        """Walk by (forward, left) [m] and turn by ``yaw_rad`` relative to the robot's stance now (the
+        mid-feet frame), checked against the map (``walking/goal``)."""
+        return self.walk_goal(
+            walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="pose", pose=[forward_m, left_m, yaw_rad])
+        )
 
     def goto_object(self, name: str, distance_m: float) -> Plan:
         """Stand ``distance_m`` in front of ``name``'s face (as the map estimates it), facing it."""
@@ -234,34 +183,12 @@ class Planners:
 
     # walking ----------------------------------------------------------------------------------------------
     def turn(self, angle_rad: float) -> Plan:
-        """Turn on the spot by ``angle_rad`` (> 0: left): ``turn_in_place`` footsteps from the soles where
-        they are now (squared up first when one foot is ahead of the other, as after a reaching step),
-        planned by ``walking/plan``; a held object is carried (the arm keeps its posture, walking's
-        lowest level)."""
-        q = self.body.plan_q()
-        robot = self.body.robot
-        soles = self._soles(q)
-        limits = FootstepLimits.from_robot(robot)
-        first = square_up(soles, limits)
-        if first is not None:
-            soles[first.side] = first.pose
-        n_pairs = max(1, math.ceil(abs(angle_rad) / TURN_PER_PAIR_RAD))
-        sequence = turn_in_place(
-            angle_rad,
-            2 * n_pairs,
-            left_start=soles["left"],
-            right_start=soles["right"],
-            sole_size_m=tuple(robot.sole_size_m),
-            limits=limits,
+        """Turn on the spot by ``angle_rad`` (> 0: left) with ``walking/goal`` (a staggered stance, as after
+        a reaching step, is squared up first; no box of the map nearer than its turning room); a held
+        object is carried (the arm keeps its posture, walking's lowest level)."""
+        return self.walk_goal(
+            walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="turn", angle_rad=angle_rad)
         )
-        steps = [*([first] if first is not None else []), *sequence.steps]
-        request = walk_msg.PlanRequest(
-            steps=[walk_msg.Step(pose=[s.pose.x_m, s.pose.y_m, s.pose.yaw_rad], side=s.side) for s in steps],
-            model=robot.name,
-            q_start=q,
-            double_support_s=TURN_DOUBLE_SUPPORT_S,
-        )
-        return self._walk(request)
 
     # reaching -------------------------------------------------------------------------------------------
     def reach(
@@ -298,51 +225,7 @@ class Planners:
         )
 
     def step_back(self, distance_m: float) -> Plan:
-        """Walk straight back by ``distance_m`` [m] (:meth:`walk_to`: a staggered stance is evened out on
-        the way, steps within the bounds): room to turn on the spot or to start a path away from an
-        object."""
-        q = self.body.plan_q()
-        x, y, yaw = self.body.robot.mid_feet_pose(q)
-        return self.walk_to(x - distance_m * math.cos(yaw), y - distance_m * math.sin(yaw), yaw, q=q)
-
-    def _soles(self, q: np.ndarray) -> dict[str, SolePose]:
-        """The sole poses (x, y, yaw) on the ground at ``q``."""
-        soles = {}
-        for side in ("left", "right"):
-            T = self.body.robot.sole_pose(q, side)
-            yaw = math.atan2(T.rotation[1, 0], T.rotation[0, 0])
-            soles[side] = SolePose(float(T.translation[0]), float(T.translation[1]), yaw)
-        return soles
-
-
-#: Feet further apart than this along the heading [m], or turned apart by more [rad], are squared up
-#: before a turn on the spot (whose steps are made for a square stance).
-SQUARE_DX_M = 0.02
-SQUARE_DYAW_RAD = math.radians(3.0)
-
-
-def square_up(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep | None:
-    """The step that brings the rear foot beside the front one (parallel, at their current lateral
-    distance kept within the bounds), or None when the stance is already square.
-
-    After a reaching step one foot is up to 0.22 m ahead, while ``turn_in_place`` makes its steps for
-    a square stance, turning about its mid-feet point."""
-    yaw = math.atan2(
-        math.sin(soles["left"].yaw_rad) + math.sin(soles["right"].yaw_rad),
-        math.cos(soles["left"].yaw_rad) + math.cos(soles["right"].yaw_rad),
-    )
-    c, s = math.cos(yaw), math.sin(yaw)
-    ahead = {side: c * p.x_m + s * p.y_m for side, p in soles.items()}
-    dyaw = abs(math.remainder(soles["left"].yaw_rad - soles["right"].yaw_rad, 2 * math.pi))
-    if abs(ahead["left"] - ahead["right"]) <= SQUARE_DX_M and dyaw <= SQUARE_DYAW_RAD:
-        return None
-    front = max(soles, key=lambda side: ahead[side])
-    rear = "left" if front == "right" else "right"
-    f = soles[front]
-    cf, sf = math.cos(f.yaw_rad), math.sin(f.yaw_rad)
-    dx, dy = soles[rear].x_m - f.x_m, soles[rear].y_m - f.y_m
-    lateral = abs(-sf * dx + cf * dy)  # the rear foot's distance to the side in the front foot's frame
-    lateral = min(max(lateral, limits.dy_min_m + 0.02), limits.dy_max_m - 0.02)
-    sign = 1.0 if rear == "left" else -1.0  # the left foot is on the +y side
-    pose = SolePose(f.x_m - sign * lateral * sf, f.y_m + sign * lateral * cf, f.yaw_rad)
-    return Footstep(side=rear, pose=pose)  # type: ignore[arg-type]
+        """Walk straight back by ``distance_m`` [m] (``walking/goal``: a staggered stance is evened out
+        on the way, steps within the bounds, checked against the map): room to turn on the spot or to
+        start a path away from an object."""
+        return self.walk(-distance_m, 0.0, 0.0)

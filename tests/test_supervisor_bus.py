@@ -1,4 +1,5 @@
-"""The supervisor on a real bus with the sim and perception services: events, health, perception actions.
+"""The supervisor on a real bus with the sim, perception and walking services: events, health,
+perception actions, walks relative to the robot.
 
 The planner-dependent actions and the whole fetch are in test_supervisor_fetch.py.
 """
@@ -25,6 +26,7 @@ def stack(module_bus_harness):
     h = module_bus_harness
     h.spawn_service("sim.service", "--scene", "ball_fetch", name="sim")
     h.spawn_service("services.perception.service", name="perception")
+    h.spawn_service("services.walking.service", name="walking")
     return h
 
 
@@ -170,3 +172,24 @@ def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, 
     q = body.q()
     body.execute(np.repeat(q[None, :], 20, axis=0), what="hold still")  # completes: no contact left
     assert body.back_out() == 0.0  # nothing left to undo
+
+
+def test_walk_relative_to_the_robot_and_back(sup) -> None:
+    """``walk 0.4 0.1 30``: 0.4 m forward, 0.1 m to the left, turned 30 deg left, the walking planner
+    making the steps (walking/goal); ``walk -0.3 0`` then steps back along the new heading."""
+    import math
+
+    body = sup.actions.body
+    x0, y0, yaw0 = body.base_xy_yaw()
+    report = sup.run(parse_script("walk 0.4 0.1 30\nwalk -0.3 0"))
+    assert report.ok, [r.message for r in report.reports]
+    first = report.reports[0]
+    assert first.details["steps"] >= 3
+    x1, y1, yaw1 = first.details["pose"]
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    forward, left = c * (x1 - x0) + s * (y1 - y0), -s * (x1 - x0) + c * (y1 - y0)
+    assert (forward, left) == pytest.approx((0.4, 0.1), abs=0.05)
+    assert math.degrees(math.remainder(yaw1 - yaw0, 2 * math.pi)) == pytest.approx(30.0, abs=4.0)
+    x2, y2, _ = report.reports[1].details["pose"]
+    back = math.cos(yaw1) * (x2 - x1) + math.sin(yaw1) * (y2 - y1)
+    assert back == pytest.approx(-0.3, abs=0.05)
