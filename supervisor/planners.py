@@ -7,6 +7,9 @@ Every plan starts at the configuration ``sim/state`` reports now (the planners a
 * ``walking/goal``: a short walk to a pose relative to the robot (or in the world), a turn on the spot, a
   step back: the walking planner makes the footsteps within the robot's bounds and checks them against
   the map's boxes;
+* ``footsteps/plan``: the last steps before a reach or a put (footstep planning as inverse kinematics,
+  the paper's "fine-tuner" that "reshapes the last few steps precisely according to the tasks"),
+  walked by ``walking/plan``;
 * ``reaching/reach``: whole-body reaching with support polygon reshaping (stepping when needed).
 """
 
@@ -18,29 +21,18 @@ from dataclasses import dataclass, field
 import msgspec
 import numpy as np
 
+from services.bus.schemas import footsteps as fs_msg
 from services.bus.schemas import navigation as nav_msg
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import walking as walk_msg
 from services.errors import InfeasibleError
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
+from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
-from supervisor.scene_map import obstacles
+from supervisor.scene_map import boxes, obstacles
 
-PLAN_TIMEOUT_S = 120.0
-#: Double support between steps of navigation's path walked by ``walking/plan`` [s]: with walking's
-#: former default 0.1 s the simulated robot fell in about half of the 60-90 deg turns; 0.3 s held.
-TURN_DOUBLE_SUPPORT_S = 0.3
-#: A goal nearer than this [m] whose car-like path is longer than ``DETOUR_FACTOR`` times the straight
-#: line plus ``DETOUR_SLACK_M`` is walked straight (sideways and turning as needed): navigation's
-#: forward-preferring Dubins curves loop around to shift the robot sideways by half a metre.
-SHORT_WALK_M = 1.5
-DETOUR_FACTOR = 1.5
-DETOUR_SLACK_M = 0.5
-#: When navigation finds no path in its default budget: the second search's budget [s] and turning
-#: radius [m] (the first one's is navigation's default, 0.5 m).
-RETRY_BUDGET_S = 4.0
-RETRY_TURNING_RADIUS_M = 0.3
+
 @dataclass(frozen=True)
 class Plan:
     """A whole-body trajectory to execute: ``q`` (N, nq) every ``dt_s``; ``n_steps`` footsteps taken;
@@ -65,99 +57,59 @@ class Plan:
 class Planners:
     """Builds planner requests from the robot's state and the map; returns :class:`Plan` objects."""
 
-    def __init__(self, bus: ServiceCaller, body: Body, memory: Memory) -> None:
+    def __init__(
+        self, bus: ServiceCaller, body: Body, memory: Memory, config: SupervisorConfig | None = None
+    ) -> None:
         self.bus = bus
         self.body = body
         self.memory = memory
-
-    def _walk(
-        self,
-        request: walk_msg.PlanRequest,
-        *,
-        planner: str = "walking/plan",
-        goal: list[float] | None = None,
-        plan_s: float = 0.0,
-    ) -> Plan:
-        """``walking/plan`` of ``request`` as a :class:`Plan`."""
-        reply = self.bus.call(walk_msg.PLAN, request, PLAN_TIMEOUT_S)
-        return Plan(
-            q=np.asarray(reply.q, dtype=float),
-            dt_s=float(reply.dt_s),
-            n_steps=len(reply.steps),
-            planner=planner,
-            goal=goal or [],
-            plan_s=plan_s,
-        )
+        self.config = config or SupervisorConfig()
 
     # navigation -----------------------------------------------------------------------------------------
     def _goto(self, **goal: object) -> Plan:
+        """``navigation/goto`` from the configuration to plan from, with the map's boxes: the reply's
+        whole-body motion is executed as navigation's stage 2 checked and reshaped it (each walk planned
+        once). A near goal whose car-like path is a detour is walked straight by navigation itself."""
         q = self.body.plan_q()
-        request = nav_msg.GotoRequest(q_start=q, obstacles=obstacles(self.memory), **goal)  # type: ignore[arg-type]
-        try:
-            reply = self.bus.call(nav_msg.GOTO, request, PLAN_TIMEOUT_S)
-        except InfeasibleError as exc:
-            if exc.details.get("reason") != "no_path_within_budget":
-                raise
-            # No car-like path in the budget: a near goal is walked straight to if the line is clear,
-            # else navigation searches again, longer and with the tighter turns a humanoid can make.
-            for tried in exc.details.get("goals", []):
-                straight = self._short_walk(q, [float(v) for v in tried], math.inf)
-                if straight is not None:
-                    return straight
-            request = msgspec.structs.replace(
-                request, time_budget_s=RETRY_BUDGET_S, turning_radius_m=RETRY_TURNING_RADIUS_M
-            )
-            reply = self.bus.call(nav_msg.GOTO, request, PLAN_TIMEOUT_S)
-        goal_reached = [float(v) for v in reply.goal]
-        path_m = float(np.asarray(reply.path_s_m)[-1]) if len(reply.path_s_m) else 0.0
-        straight = self._short_walk(q, goal_reached, path_m)
-        if straight is not None:
-            return straight
-        # navigation's path and footsteps, walked by walking/plan with the longer double support that
-        # keeps the simulated robot up (see TURN_DOUBLE_SUPPORT_S), not navigation's own whole-body walk:
-        # with it the fetch benchmark failed more often (one walk failed a joint speed check). A held
-        # object is carried by the arm keeping its posture (walking's lowest level): a hand task in the
-        # walk frame made the planner move the arms at up to 1.5x their speed limits.
-        walk = walk_msg.PlanRequest(
-            steps=[
-                walk_msg.Step(pose=[float(v) for v in pose], side=side)
-                for side, pose in zip(reply.step_sides, np.asarray(reply.step_poses), strict=True)
-            ],
-            model=self.body.robot.name,
+        request = nav_msg.GotoRequest(
             q_start=q,
-            left_start=list(reply.left_start),
-            right_start=list(reply.right_start),
-            double_support_s=TURN_DOUBLE_SUPPORT_S,
+            obstacles=obstacles(self.memory),
+            double_support_s=self.config.walk_double_support_s,
+            **goal,  # type: ignore[arg-type]
         )
-        return self._walk(
-            walk,
-            planner="navigation/goto + walking/plan",
-            goal=goal_reached,
+        try:
+            reply = self.bus.call(nav_msg.GOTO, request, self.config.plan_timeout_s)
+        except InfeasibleError as exc:
+            if exc.details.get("reason") != nav_msg.REASON_NO_PATH_WITHIN_BUDGET:
+                raise
+            # No car-like path in the budget (and no straight walk): search again, longer and with the
+            # tighter turns a humanoid can make.
+            request = msgspec.structs.replace(
+                request,
+                time_budget_s=self.config.retry_budget_s,
+                turning_radius_m=self.config.retry_turning_radius_m,
+            )
+            reply = self.bus.call(nav_msg.GOTO, request, self.config.plan_timeout_s)
+        path_m = float(np.asarray(reply.path_s_m)[-1]) if len(reply.path_s_m) else 0.0
+        how = "straight" if reply.path_curve == "straight" else f"{path_m:.1f} m {reply.path_curve} path"
+        return Plan(
+            q=np.asarray(reply.q, dtype=float),
+            dt_s=float(reply.dt_s),
+            n_steps=len(reply.step_sides),
+            planner=f"navigation/goto, {how}",
+            goal=[float(v) for v in reply.goal],
             plan_s=float(reply.timings_s.get("total_s", 0.0)),
         )
-
-    def _short_walk(self, q: np.ndarray, goal: list[float], path_m: float) -> Plan | None:
-        """The straight walk to a near ``goal`` (x, y, yaw) when navigation's path of ``path_m`` [m] is a
-        detour (see ``SHORT_WALK_M``) and ``walking/goal`` finds the line clear of the map's boxes; None
-        otherwise (navigation's path is walked)."""
-        x0, y0, _yaw = self.body.robot.mid_feet_pose(q)
-        straight_m = math.hypot(goal[0] - x0, goal[1] - y0)
-        if straight_m > SHORT_WALK_M or path_m <= DETOUR_FACTOR * straight_m + DETOUR_SLACK_M:
-            return None
-        try:
-            return self.walk_goal(
-                walk_msg.GoalRequest(q_start=q, kind="pose", pose=list(goal), frame="world"),
-                planner=f"walking/goal, straight ({path_m:.1f} m path)",
-            )
-        except InfeasibleError:  # blocked by the map, or out of the bounds: navigation's way
-            return None
 
     def walk_goal(self, request: walk_msg.GoalRequest, *, planner: str = "walking/goal") -> Plan:
         """``walking/goal`` of ``request`` with the map's boxes as its obstacles, as a :class:`Plan`."""
         request = msgspec.structs.replace(
-            request, model=self.body.robot.name, obstacles=obstacles(self.memory)
+            request,
+            model=self.body.robot.name,
+            obstacles=obstacles(self.memory),
+            double_support_s=self.config.walk_double_support_s,
         )
-        reply = self.bus.call(walk_msg.GOAL, request, PLAN_TIMEOUT_S)
+        reply = self.bus.call(walk_msg.GOAL, request, self.config.plan_timeout_s)
         goal = list(request.pose) if request.kind == "pose" else [request.angle_rad]
         return Plan(
             q=np.asarray(reply.q, dtype=float),
@@ -190,6 +142,53 @@ class Planners:
             walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="turn", angle_rad=angle_rad)
         )
 
+    # footsteps ----------------------------------------------------------------------------------------
+    def last_steps(self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray) -> tuple[Plan | None, str]:
+        """``footsteps/plan`` for the last steps before the ``hand`` reaches ``target_m`` [m] (tasks, by
+        priority: the hand at the target, the gaze on ``gaze_m``, the rest posture; the map's boxes as
+        disks no footprint may enter; paper 000 §7), then ``walking/plan`` of its footsteps. Returns
+        (the walk, or None when no step is needed, and a line saying what the planner found). Raises
+        the planners' typed errors (``infeasible`` when the tasks cannot be met)."""
+        q = self.body.plan_q()
+        c = self.config
+        request = fs_msg.PlanRequest(
+            tasks=[
+                fs_msg.Task(kind="reach", target=[float(v) for v in target_m], hand=hand),
+                fs_msg.Task(kind="gaze", target=[float(v) for v in gaze_m]),
+                fs_msg.Task(kind="posture"),
+            ],
+            model=self.body.robot.name,
+            q_start=q,
+            disks=[fs_msg.Disk(x=x, y=y, radius=r) for box in boxes(self.memory) for x, y, r in box.disks()],
+            max_steps=c.last_steps_max,
+            time_budget_s=c.last_steps_budget_s,
+        )
+        reply = self.bus.call(fs_msg.PLAN, request, c.plan_timeout_s)
+        found = (
+            f"footsteps/plan: {len(reply.footsteps)} step(s) ({reply.front_foot} foot in front), "
+            f"{reply.iterations} iterations in {reply.solve_time_s:.1f} s"
+        )
+        if not reply.footsteps:
+            return None, found
+        walk = walk_msg.PlanRequest(
+            steps=[walk_msg.Step(pose=[f.x, f.y, f.yaw], side=f.side) for f in reply.footsteps],
+            model=self.body.robot.name,
+            q_start=q,
+            left_start=list(reply.left_start),
+            right_start=list(reply.right_start),
+            double_support_s=c.walk_double_support_s,
+        )
+        walked = self.bus.call(walk_msg.PLAN, walk, c.plan_timeout_s)
+        plan = Plan(
+            q=np.asarray(walked.q, dtype=float),
+            dt_s=float(walked.dt_s),
+            n_steps=len(walked.steps),
+            planner="footsteps/plan + walking/plan",
+            goal=[float(v) for v in target_m],
+            plan_s=float(reply.solve_time_s),
+        )
+        return plan, found
+
     # reaching -------------------------------------------------------------------------------------------
     def reach(
         self,
@@ -214,7 +213,7 @@ class Planners:
             gaze=gaze,
             allow_stepping=allow_stepping,
         )
-        reply = self.bus.call(reach_msg.REACH, request, PLAN_TIMEOUT_S)
+        reply = self.bus.call(reach_msg.REACH, request, self.config.plan_timeout_s)
         return Plan(
             q=np.asarray(reply.q, dtype=float),
             dt_s=float(reply.dt_s),

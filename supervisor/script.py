@@ -149,3 +149,19 @@ def load_script(path: str | Path) -> list[Step]:
     except FileNotFoundError:
         raise InvalidRequestError(f"script {path} does not exist") from None
     return parse_script(text)
+
+
+def parse_point(text: str, n: int, what: str) -> tuple[float, ...] | None:
+    """An action argument 'x,y,z' (``n`` comma-separated numbers) -> floats, or None if ``text`` is a
+    name; InvalidRequestError naming ``what`` if it is neither."""
+    if not any(c.isdigit() for c in text) or "," not in text:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise InvalidRequestError(
+            f"{what} {text!r}: expected {n} comma-separated numbers or an object name"
+        ) from None
+    if len(values) != n:
+        raise InvalidRequestError(f"{what} {text!r}: expected {n} numbers, got {len(values)}")
+    return values

@@ -150,8 +150,8 @@ def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, 
     """The right arm swings into a crate and stops pressing on it; backing out plays the executed part
     backward (the crate may be touched until the contact breaks), after which the robot can hold still
     without touching anything."""
+    from services.errors import CollisionError
     from sim import motions
-    from supervisor.report import ActionError
 
     scene = tmp_path / "crate.yaml"
     scene.write_text(
@@ -161,10 +161,12 @@ def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, 
     )
     stack.client.call(sim_msg.RESET, sim_msg.ResetRequest(scene=str(scene)), 30)
     body = sup.actions.body
-    swing = motions.joint_motion(body.robot, body.q(), {"RARM_JOINT0": -1.2}, 1.0)
-    with pytest.raises(ActionError) as stopped:
+    from services.model import load_robot
+
+    swing = motions.joint_motion(load_robot(body.robot.name), body.q(), {"RARM_JOINT0": -1.2}, 1.0)
+    with pytest.raises(CollisionError) as stopped:
         body.execute(swing, what="swing")
-    assert stopped.value.reason == "collision" and body.interrupted is not None
+    assert stopped.value.code == "collision" and body.interrupted is not None
     assert body.interrupted.touched == ("crate",)
     executed_s = (body.interrupted.q.shape[0] - 1) * body.interrupted.dt_s
     assert executed_s < 0.5  # stopped early: backing out undoes all of it (at least 0.5 s otherwise)
@@ -193,3 +195,38 @@ def test_walk_relative_to_the_robot_and_back(sup) -> None:
     x2, y2, _ = report.reports[1].details["pose"]
     back = math.cos(yaw1) * (x2 - x1) + math.sin(yaw1) * (y2 - y1)
     assert back == pytest.approx(-0.3, abs=0.05)
+
+
+def test_the_robot_facts_come_from_the_services_and_match_the_model(sup) -> None:
+    """The supervisor loads no model: sim/robot_info, sim/kinematics and perception/look_around give it
+    the same joints, frames and kinematics as services.model (loaded here, by the test only)."""
+    from services.model import load_robot
+    from services.perception.look_around import head_joints, scan_angles
+
+    robot = sup.actions.body.robot
+    model = load_robot(robot.name)
+    assert robot.joint_names == list(model.joint_names) and robot.nq == model.nq
+    np.testing.assert_allclose(robot.q_half_sitting, model.q_half_sitting)
+    assert robot.index("RARM_JOINT0") == model.joint_index("RARM_JOINT0").idx_q
+    q = sup.actions.body.q()
+    assert robot.mid_feet_pose(q) == pytest.approx(model.mid_feet_pose(q), abs=1e-9)
+    np.testing.assert_allclose(
+        robot.grasp_position(q, "right"), model.frame_pose(q, model.frames.grasp("right")).translation
+    )
+    offset = model.held_object_offset("right", 0.04)
+    np.testing.assert_allclose(robot.held_object_offset("right", 0.04), offset)
+    placed = robot.place_on_ground(model.q_half_sitting, 1.0, -0.5, 0.3)
+    np.testing.assert_allclose(placed, model.place_on_ground(model.q_half_sitting, 1.0, -0.5, 0.3))
+    heights = robot.sole_heights(np.stack([q, placed]))
+    assert heights.shape == (2, 2) and np.all(np.abs(heights[1]) < 1e-9)
+    head = head_joints(model)
+    assert sup.actions.body.head_joints() == (head.pan, head.tilt)
+    assert robot.head.views == [list(v) for v in scan_angles(model)]
+    assert robot.head.image_size_px == [640, 480]
+    # A bad request is a typed error naming what was wrong.
+    from services.errors import InvalidRequestError
+
+    with pytest.raises(InvalidRequestError, match="nq"):
+        robot.kinematics(np.zeros(5))
+    with pytest.raises(InvalidRequestError, match="no frame"):
+        robot.frame_pose(q, "nowhere")

@@ -135,7 +135,7 @@ def test_without_the_ball_the_robot_looks_around_and_reports_not_found(stack, tm
 
 def test_a_near_goal_beside_the_robot_is_walked_to_straight(stack) -> None:
     """Half a metre to the left and 0.3 m ahead, turned by 20 deg: navigation's forward-only car-like
-    path would loop around; walking/goal walks there directly (sideways, forward and turning in the
+    path would loop around; navigation walks there directly (sideways, forward and turning in the
     same steps) and the robot stands at the goal."""
     import math
 
@@ -146,7 +146,7 @@ def test_a_near_goal_beside_the_robot_is_walked_to_straight(stack) -> None:
     x, y, yaw = body.base_xy_yaw()
     goal = (x + 0.3, y + 0.5, yaw + math.radians(20.0))
     plan = planners.goto_pose(*goal)
-    assert plan.planner.startswith("walking/goal, straight"), plan.describe()
+    assert plan.planner == "navigation/goto, straight", plan.describe()
     executed = body.execute(plan.q, what="walk")
     ex, ey, eyaw = body.base_xy_yaw(executed.q)
     assert math.hypot(ex - goal[0], ey - goal[1]) < 0.03

@@ -137,3 +137,20 @@ def test_runner_turns_typed_exceptions_into_reports_and_honours_stop() -> None:
     report = runner.run(parse_script("reach right orange_ball")).reports[0]
     assert not report.ok and report.reason in ("unavailable", "stopped")
     assert report.attempts <= 2
+
+
+def test_supervisor_config_defaults_yaml_override_and_errors(tmp_path):
+    from services.errors import InvalidRequestError
+    from supervisor.config import SupervisorConfig, load_supervisor_config
+
+    assert load_supervisor_config(None) == SupervisorConfig()
+    path = tmp_path / "stack.yaml"
+    path.write_text("bus: {}\nsupervisor:\n  far_m: 3\n  carry_m: [0.3, 0.2, 0.9]\n")
+    config = load_supervisor_config(path)
+    assert config.far_m == 3 and config.carry_m == (0.3, 0.2, 0.9) and config.near_m == 1.8
+    path.write_text("supervisor:\n  far: 3\n")
+    with pytest.raises(InvalidRequestError, match=r"unknown SupervisorConfig option.*far.*valid options"):
+        load_supervisor_config(path)
+    path.write_text("supervisor:\n  near_m: 2.5\n")
+    with pytest.raises(InvalidRequestError, match=r"near_m .* must be below far_m"):
+        load_supervisor_config(path)
