@@ -112,6 +112,12 @@ class ManipulationActions:
         allowed = [target, *self._support(target)] if parse_point(target, 3, "reach target") is None else []
         above = point + np.array([0.0, 0.0, self.config.approach_m])
         if self._last_steps(hand, above, point, f"step up to {target}"):
+            if parse_point(target, 3, "reach target") is None:
+                # Nearer now: localize it again before the hand comes down (a grasp closed on nothing
+                # when the ball had been localized a few centimetres off from farther away).
+                self.eyes.look_at(self.memory.get(target).position_m, f"look at {target}")
+                with contextlib.suppress(NotFoundError):
+                    self.eyes.locate(target)
             yaw = self._heading()
             point = self._grasp_point(hand, target, yaw)
             above = point + np.array([0.0, 0.0, self.config.approach_m])
@@ -138,6 +144,10 @@ class ManipulationActions:
         steps taken (0: none needed, or the planner found none: reaching steps then if it must)."""
         if not self.config.last_steps:
             return 0
+        # Upright first: the walk is planned from the posture the robot will be in when it starts
+        # (after a failed reach the chest leans toward the target; a walk planned from there and
+        # played after straightening starts 0.25 rad away from the chest's position).
+        self.body.straighten()
         try:
             plan, found = self.planners.last_steps(hand, target_m, gaze_m)
         except InfeasibleError as exc:
@@ -146,7 +156,6 @@ class ManipulationActions:
         if plan is None:
             self.progress(f"{what}: {found}: no step needed")
             return 0
-        self.body.straighten()
         self.progress(f"{what}: {found}; {plan.describe()}")
         self.body.execute(plan.q, what=what, allowed_contacts=allowed or [], progress=self.progress)
         return plan.n_steps
@@ -222,9 +231,10 @@ class ManipulationActions:
         )
 
     def do_put(self, step: Step) -> ActionReport:
-        """Put the held object on a place: look at the place, bring the object above it, lower it until
-        it touches the place (a guarded move: perception's estimate of a table's height is rough), open
-        the hand, withdraw it."""
+        """Put the held object on a place: look at the place, step up to it (footsteps/plan), bring the
+        object above it, lower it until it touches the place (a guarded move: perception's estimate of
+        a table's height is rough), open the hand, withdraw it. Lowered down to ``put_lowest_m``
+        without touching: raise it, localize the place again from here and try once more."""
         obj = step.args[0]
         place = step.kwargs.get("on")
         if not place:
@@ -234,31 +244,41 @@ class ManipulationActions:
         if hand is None:
             holding = ", ".join(f"{n} in the {s} hand" for s, n in held.items()) or "nothing"
             raise NotGraspedError(f"cannot put {obj}: the robot holds {holding}", {"object": obj})
-        self.do_look_at(Step(step.line, "look_at", (place,)))
-        point = self._put_point(place)
-        self._last_steps(hand, point, point, f"step up to {place}", allowed=[obj])
-        yaw = self._heading()
         allowed = [obj]
-        self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
-        self._move_hand(
-            hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
-        )
-        low = point.copy()
-        low[2] = max(self.config.put_lowest_m, point[2] - self.config.put_depth_m)
-        plan = self.planners.reach(
-            hand, low, yaw_rad=yaw if self.config.upright_hand else None, allow_stepping=False
-        )
-        what = f"lower {obj} onto {place}"
-        self.progress(f"{what}: {plan.describe()}, until it touches")
-        executed = self.body.execute(
-            plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
-        )
-        if not executed.touched:
-            raise NotFoundError(
-                f"lowered {obj} down to {low[2]:.2f} m without touching {place}: it is not "
-                f"where perception saw it; localize it again",
-                {"object": place, "reason": "no_surface"},
+        for attempt in (1, 2):
+            # Look at the place (again, on the second attempt: from nearer, with the object above it).
+            self.do_look_at(Step(step.line, "look_at", (place,)))
+            point = self._put_point(place)
+            if attempt == 1:
+                self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
+            yaw = self._heading()
+            self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
+            self._move_hand(
+                hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
             )
+            low = point.copy()
+            low[2] = max(self.config.put_lowest_m, point[2] - self.config.put_depth_m)
+            plan = self.planners.reach(
+                hand, low, yaw_rad=yaw if self.config.upright_hand else None, allow_stepping=False
+            )
+            what = f"lower {obj} onto {place}"
+            self.progress(f"{what}: {plan.describe()}, until it touches")
+            executed = self.body.execute(
+                plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
+            )
+            if executed.touched:
+                break
+            if attempt == 2:
+                raise NotFoundError(
+                    f"lowered {obj} down to {low[2]:.2f} m twice without touching {place}: it is not "
+                    f"where perception saw it, even seen again from here",
+                    {"object": place, "reason": "no_surface"},
+                )
+            self.progress(
+                f"lowered {obj} down to {low[2]:.2f} m without touching {place}: raising it and "
+                f"localizing {place} again"
+            )
+            self._move_hand(hand, point, f"raise {obj} again", allowed=allowed, stepping=False, yaw_rad=yaw)
         robot = self.body.robot
         at = robot.grasp_position(executed.q, hand)
         reply = self.body.gripper(hand, "open")

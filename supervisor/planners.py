@@ -178,7 +178,13 @@ class Planners:
             right_start=list(reply.right_start),
             double_support_s=c.walk_double_support_s,
         )
-        walked = self.bus.call(walk_msg.PLAN, walk, c.plan_timeout_s)
+        try:
+            walked = self.bus.call(walk_msg.PLAN, walk, c.plan_timeout_s)
+        except InfeasibleError as exc:
+            steps = ", ".join(
+                f"{f.side} ({f.x:.2f}, {f.y:.2f}, {math.degrees(f.yaw):.0f} deg)" for f in reply.footsteps
+            )
+            raise InfeasibleError(f"walking/plan of {found} [{steps}]: {exc.message}", exc.details) from exc
         plan = Plan(
             q=np.asarray(walked.q, dtype=float),
             dt_s=float(walked.dt_s),
