@@ -184,10 +184,10 @@ def test_goal_turn_on_the_spot_and_the_walk_it_plans():
 def test_a_turn_from_a_staggered_stance_squares_up_first_and_stays_within_the_bounds(front):
     """After a reaching step one foot is 0.2 m ahead: the rear foot first steps beside it (parallel, at the
     same lateral distance), then every step of the turn is within HRP-2's bounds."""
-    from services.walking.footsteps import FootstepLimits, validate_footsteps
+    from services.model.ground import FootstepBounds, validate_footsteps
     from services.walking.goals import turn_steps
 
-    limits = FootstepLimits()
+    limits = FootstepBounds()
     yaw = 0.7
     c, s = math.cos(yaw), math.sin(yaw)
 

@@ -18,11 +18,11 @@ from typing import Any
 import numpy as np
 
 from services.errors import InfeasibleError
+from services.model.ground import FootstepBounds, Rectangle, SolePose
 from services.navigation.footsteps_along_path import PathFootsteps
 from services.navigation.geometry import BoxObstacle, Pose2D, Scene
 from services.navigation.path import SampledPath
-from services.walking.footsteps import FootstepLimits, SolePose
-from services.walking.goals import FloorBox, check_clear, walk_to_steps
+from services.walking.goals import MapBox, check_clear, walk_to_steps
 
 SAMPLE_STEP_M = 0.02
 """Spacing of the straight path's samples [m] (as stage 1's paths)."""
@@ -51,15 +51,15 @@ class StraightWalkOptions:
         return math.hypot(goal.x_m - start.x_m, goal.y_m - start.y_m) <= self.short_walk_m
 
 
-def floor_boxes(scene: Scene) -> list[FloorBox]:
+def floor_boxes(scene: Scene) -> list[MapBox]:
     """The scene's obstacles as floor rectangles (a cylinder as its bounding square)."""
     out = []
     for o in scene.obstacles:
         if isinstance(o, BoxObstacle):
-            out.append(FloorBox(o.name, o.center_xyz_m[:2], o.size_xyz_m[:2], o.yaw_rad))
+            out.append(MapBox(o.name, o.footprint))
         else:
             d = 2.0 * o.radius_m
-            out.append(FloorBox(o.name, o.center_xyz_m[:2], (d, d), 0.0))
+            out.append(MapBox(o.name, Rectangle(o.center_xyz_m[:2], (d, d), 0.0)))
     return out
 
 
@@ -78,7 +78,7 @@ def straight_walk(
     ex, ey = goal.x_m - start.x_m, goal.y_m - start.y_m
     dx, dy = c * ex + s * ey, -s * ex + c * ey
     dyaw = math.remainder(goal.theta_rad - start.theta_rad, 2.0 * math.pi)
-    limits = FootstepLimits.from_robot(robot)
+    limits = FootstepBounds.from_robot(robot)
     try:
         sequence = walk_to_steps({"left": soles[0], "right": soles[1]}, dx, dy, dyaw, limits)
         check_clear(

@@ -20,25 +20,24 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from services.bus.schemas.walking import REASON_BLOCKED, REASON_NO_ROOM_TO_TURN
 from services.errors import InfeasibleError
 from services.model.geometry import segment_distance
-from services.walking.footsteps import (
+from services.model.ground import (
     Footstep,
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
+    Rectangle,
     SolePose,
-    fit_to_bounds,
-    footsteps_along_mid_poses,
     rectangles_overlap_depth,
     sole_corners,
-    turn_in_place,
+    sole_pose_at,
 )
+from services.walking.footsteps import fit_to_bounds, footsteps_along_mid_poses, turn_in_place
 
 #: Largest yaw of one pair of turning steps [rad]: the opening foot's bound is pi/4 (footstep paper §5).
 TURN_PER_PAIR_RAD = 0.98 * math.pi / 4
@@ -48,28 +47,16 @@ SQUARE_DX_M = 0.02
 SQUARE_DYAW_RAD = math.radians(3.0)
 
 
-@dataclass(frozen=True)
-class FloorBox:
-    """A box's footprint on the floor: ``name``, centre (x, y) [m], full extents (sx, sy) [m], yaw [rad]
-    (world frame)."""
+class MapBox(NamedTuple):
+    """A box of the map on the floor: its ``name`` and footprint ``rect`` (``services.model.ground``'s
+    one rectangle, world frame)."""
 
     name: str
-    center_xy_m: tuple[float, float]
-    size_xy_m: tuple[float, float]
-    yaw_rad: float
-
-    def corners(self) -> np.ndarray:
-        """The 4 corners (4, 2) [m], counter-clockwise."""
-        pose = SolePose(self.center_xy_m[0], self.center_xy_m[1], self.yaw_rad)
-        return sole_corners(pose, self.size_xy_m[0], self.size_xy_m[1])
+    rect: Rectangle
 
     def distance_to_point(self, x_m: float, y_m: float) -> float:
-        """Horizontal distance from (x, y) to the rectangle [m] (0 inside)."""
-        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        dx, dy = x_m - self.center_xy_m[0], y_m - self.center_xy_m[1]
-        local = np.array([c * dx + s * dy, -s * dx + c * dy])
-        excess = np.maximum(np.abs(local) - np.asarray(self.size_xy_m) / 2.0, 0.0)
-        return float(np.linalg.norm(excess))
+        """Horizontal distance from (x, y) to the footprint [m] (negative inside)."""
+        return float(self.rect.signed_distance((x_m, y_m))[0])
 
 
 def polygons_distance(a: np.ndarray, b: np.ndarray) -> float:
@@ -90,12 +77,7 @@ def polygons_distance(a: np.ndarray, b: np.ndarray) -> float:
 
 def soles_on(robot: Any, q: np.ndarray) -> dict[str, SolePose]:
     """The sole poses (x [m], y [m], yaw [rad]) on the ground of a ``services.model`` robot at ``q``."""
-    soles = {}
-    for side in ("left", "right"):
-        T = robot.sole_pose(q, side)
-        yaw = math.atan2(T.rotation[1, 0], T.rotation[0, 0])
-        soles[side] = SolePose(float(T.translation[0]), float(T.translation[1]), yaw)
-    return soles
+    return {side: sole_pose_at(robot, q, side) for side in ("left", "right")}
 
 
 def mid_feet(soles: dict[str, SolePose]) -> SolePose:
@@ -107,7 +89,7 @@ def mid_feet(soles: dict[str, SolePose]) -> SolePose:
     return SolePose(0.5 * (left.x_m + right.x_m), 0.5 * (left.y_m + right.y_m), yaw)
 
 
-def square_up(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep | None:
+def square_up(soles: dict[str, SolePose], limits: FootstepBounds) -> Footstep | None:
     """The step that brings the rear foot beside the front one (parallel, at their current lateral
     distance kept within the bounds), or None when the stance is already square.
 
@@ -132,7 +114,7 @@ def square_up(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep | 
 
 
 def walk_to_steps(
-    soles: dict[str, SolePose], dx_m: float, dy_m: float, dyaw_rad: float, limits: FootstepLimits
+    soles: dict[str, SolePose], dx_m: float, dy_m: float, dyaw_rad: float, limits: FootstepBounds
 ) -> FootstepSequence:
     """Footsteps that bring the mid-feet frame to (dx, dy [m], dyaw [rad]) in the starting mid-feet frame,
     the feet side by side at the end (a staggered start is evened out on the way).
@@ -162,7 +144,7 @@ def walk_to_steps(
         return fit_to_bounds(turn_last, 4, limits, "a straight walk, then a turn")
 
 
-def turn_steps(soles: dict[str, SolePose], angle_rad: float, limits: FootstepLimits) -> FootstepSequence:
+def turn_steps(soles: dict[str, SolePose], angle_rad: float, limits: FootstepBounds) -> FootstepSequence:
     """Turn on the spot by ``angle_rad`` (> 0: left) from the soles where they are: squared up first when
     one foot is ahead of the other (:func:`square_up`), then pairs of at most ``TURN_PER_PAIR_RAD``.
 
@@ -186,7 +168,7 @@ def turn_steps(soles: dict[str, SolePose], angle_rad: float, limits: FootstepLim
     return FootstepSequence(soles["left"], soles["right"], steps)
 
 
-def square_steps(soles: dict[str, SolePose], limits: FootstepLimits) -> FootstepSequence:
+def square_steps(soles: dict[str, SolePose], limits: FootstepBounds) -> FootstepSequence:
     """The squaring step alone (an empty sequence when the stance is square)."""
     first = square_up(soles, limits)
     return FootstepSequence(soles["left"], soles["right"], (first,) if first is not None else ())
@@ -194,7 +176,7 @@ def square_steps(soles: dict[str, SolePose], limits: FootstepLimits) -> Footstep
 
 def check_clear(
     sequence: FootstepSequence,
-    boxes: Sequence[FloorBox],
+    boxes: Sequence[MapBox],
     *,
     clearance_m: float,
     sole_margin_m: float,
@@ -249,7 +231,7 @@ def check_clear(
                     f"{need:.2f} m from the map's boxes): walk around it (navigation)",
                     {"reason": REASON_BLOCKED, "obstacle": box.name, "distance_m": d, "required_m": need},
                 )
-        corners = box.corners()
+        corners = box.rect.corners()
         sole_need = min(sole_margin_m, *(polygons_distance(s, corners) for s in start_soles)) - 0.005
         for i, step in enumerate(sequence.steps):
             sole = sole_corners(step.pose, *sole_size_m)

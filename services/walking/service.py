@@ -33,16 +33,17 @@ from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
+from services.model.ground import Rectangle
 from services.walking.footsteps import (
     SIDES,
     Footstep,
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
     SolePose,
     other_side,
 )
 from services.walking.goals import (
-    FloorBox,
+    MapBox,
     check_clear,
     mid_feet,
     soles_on,
@@ -182,7 +183,7 @@ def plan_reply(request: msg.PlanRequest, config: WalkingConfig | None = None) ->
     return _reply(robot, result, footsteps)
 
 
-def _floor_boxes(obstacles: list[Any]) -> list[FloorBox]:
+def _floor_boxes(obstacles: list[Any]) -> list[MapBox]:
     """The map's boxes of a request as floor rectangles (cylinders as their bounding squares)."""
     out = []
     for i, o in enumerate(obstacles):
@@ -196,7 +197,7 @@ def _floor_boxes(obstacles: list[Any]) -> list[FloorBox]:
             size, yaw = (2.0 * float(o.radius), 2.0 * float(o.radius)), 0.0
         else:
             raise InvalidRequestError(f"obstacles[{i}].kind must be 'box' or 'cylinder', got {o.kind!r}")
-        out.append(FloorBox(o.name, (float(o.center[0]), float(o.center[1])), size, yaw))
+        out.append(MapBox(o.name, Rectangle((float(o.center[0]), float(o.center[1])), size, yaw)))
     return out
 
 
@@ -217,7 +218,7 @@ def goal_steps(request: msg.GoalRequest, robot: Any) -> tuple[np.ndarray, Footst
             raise InvalidRequestError(f"{name} must be >= 0 m, got {value}")
     q = robot.check_q(request.q_start)
     soles = soles_on(robot, q)
-    limits = FootstepLimits.from_robot(robot)
+    limits = FootstepBounds.from_robot(robot)
     boxes = _floor_boxes(request.obstacles)
     turn_room = None
     try:
