@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from supervisor.body import Body, Progress
 from supervisor.calls import ServiceCaller
@@ -73,7 +74,7 @@ class LocomotionActions:
             try:
                 return self.planners.goto_object(target, distance + extra)
             except InfeasibleError as exc:
-                if exc.details.get("reason") != "no_free_approach_pose" or extra >= 0.3:
+                if exc.details.get("reason") != nav_msg.REASON_NO_FREE_APPROACH_POSE or extra >= 0.3:
                     raise
                 self.progress(f"no place to stand {distance + extra:.2f} m from {target}: trying farther")
         raise AssertionError("unreachable")

@@ -21,8 +21,8 @@ from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory, Sighting
 
-#: NotFoundError reasons of perception/locate that another viewpoint may fix.
-LOOK_AROUND_REASONS = ("not_in_view", "not_in_right_view", "no_disparity", "stereo_mismatch", "ambiguous", "")
+#: NotFoundError reasons of perception/locate that another viewpoint may fix ("": none given).
+LOOK_AROUND_REASONS = (*perception_msg.VIEWPOINT_REASONS, "")
 LOCATE_TIMEOUT_S = 20.0
 
 
@@ -81,7 +81,7 @@ class Eyes:
             try:
                 self.locate(name, q)
             except NotFoundError as exc:
-                if exc.details.get("reason") == "not_in_view":
+                if exc.details.get("reason") == perception_msg.REASON_NOT_IN_VIEW:
                     continue
                 try:  # close by (out of one wide camera's view, cut by the borders): the near pair
                     self.locate(name, q, camera="narrow")

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.navigation.body_extents import with_arms_of
 from services.navigation.carry import grip_from_configuration
@@ -144,7 +145,10 @@ def plan_goto(
                     path, steps = straight
         except InfeasibleError as error:
             # No car-like path in the budget: a near goal is walked straight if that is clear.
-            if error.details.get("reason") != "no_path_within_budget" or straight_options is None:
+            if (
+                error.details.get("reason") != nav_msg.REASON_NO_PATH_WITHIN_BUDGET
+                or straight_options is None
+            ):
                 raise
             for tried in error.details.get("goals", []):
                 near = Pose2D(*(float(v) for v in tried))
@@ -178,7 +182,7 @@ def plan_goto(
             timings["stage2_s"] += time.perf_counter() - t3
             # "the planner goes back to the first stage": the body's boxes were too small for the
             # dynamic motion (sway, swing); plan the path again with the margin grown by what was missing
-            if error.details.get("reason") != "body_collision" or replans >= options.max_replans:
+            if error.details.get("reason") != nav_msg.REASON_BODY_COLLISION or replans >= options.max_replans:
                 raise
             straight_options = None  # the straight line came too near: stage 1's path, with more margin
             missing = options.stage2.reshape.required_clearance_m - float(error.details["distance_m"])
