@@ -19,6 +19,7 @@ CLI_MODULES = (
     "services.ik.cli",
     "services.footsteps.cli",
     "supervisor.cli",
+    "services.viz.cli",
 )
 
 
