@@ -18,8 +18,9 @@ from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
+from services.model.ground import mid_feet
 from services.walking.footsteps import SolePose, straight_walk
-from services.walking.goals import mid_feet, soles_on, square_up
+from services.walking.goals import soles_on, square_up
 from services.walking.service import goal_reply, goal_steps, plan_reply
 
 REPO = Path(__file__).resolve().parent.parent
@@ -152,7 +153,7 @@ def _box(name: str, x: float, y: float, sx: float = 0.4, sy: float = 0.4) -> dic
 
 def _final_mid(sequence) -> SolePose:
     left, right = sequence.final_stance()
-    return mid_feet({"left": left, "right": right})
+    return mid_feet(left, right)
 
 
 def test_goal_pose_relative_to_the_robot_is_reached_within_the_bounds():
@@ -176,7 +177,8 @@ def test_goal_turn_on_the_spot_and_the_walk_it_plans():
     assert len(reply.steps) == 6 and reply.figures.worst_zmp_outside_m == 0.0  # pairs of <= 0.98 pi/4
     left, right = reply.final_left_sole, reply.final_right_sole
     assert [left[2], right[2]] == pytest.approx([math.pi / 2] * 2, abs=1e-6)
-    start = mid_feet(soles_on(robot, np.array(robot.q_half_sitting)))
+    soles = soles_on(robot, np.array(robot.q_half_sitting))
+    start = mid_feet(soles["left"], soles["right"])
     assert 0.5 * (left[0] + right[0]) == pytest.approx(start.x_m, abs=0.03)  # on the spot
 
 
@@ -239,8 +241,10 @@ def test_goal_walks_are_checked_against_the_map_boxes():
         ({"pose": [1.0, 0.0, 0.0], "frame": "moon"}, "frame must be 'robot' or 'world'"),
         ({"kind": "square"}, "already square"),
         ({"pose": [0.1, 0.0, 0.0], "clearance_m": -1.0}, "clearance_m must be >= 0 m"),
-        ({"pose": [0.1, 0.0, 0.0], "obstacles": [{"name": "b", "center": [1.0, 0.0, 0.0], "size": [1.0]}]},
-         r"obstacles\[0\]\.size"),
+        (
+            {"pose": [0.1, 0.0, 0.0], "obstacles": [{"name": "b", "center": [1.0, 0.0, 0.0], "size": [1.0]}]},
+            r"obstacles\[0\]\.size",
+        ),
     ],
 )
 def test_malformed_goal_requests_are_invalid(fields, message):

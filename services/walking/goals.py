@@ -33,6 +33,7 @@ from services.model.ground import (
     FootstepSequence,
     Rectangle,
     SolePose,
+    mid_feet,
     rectangles_overlap_depth,
     sole_corners,
     sole_pose_at,
@@ -80,22 +81,13 @@ def soles_on(robot: Any, q: np.ndarray) -> dict[str, SolePose]:
     return {side: sole_pose_at(robot, q, side) for side in ("left", "right")}
 
 
-def mid_feet(soles: dict[str, SolePose]) -> SolePose:
-    """The mid-feet frame of two soles: their middle, the mean heading."""
-    left, right = soles["left"], soles["right"]
-    yaw = math.atan2(
-        math.sin(left.yaw_rad) + math.sin(right.yaw_rad), math.cos(left.yaw_rad) + math.cos(right.yaw_rad)
-    )
-    return SolePose(0.5 * (left.x_m + right.x_m), 0.5 * (left.y_m + right.y_m), yaw)
-
-
 def square_up(soles: dict[str, SolePose], limits: FootstepBounds) -> Footstep | None:
     """The step that brings the rear foot beside the front one (parallel, at their current lateral
     distance kept within the bounds), or None when the stance is already square.
 
     After a reaching step one foot is up to 0.22 m ahead, while ``turn_in_place`` makes its steps for
     a square stance, turning about its mid-feet point."""
-    yaw = mid_feet(soles).yaw_rad
+    yaw = mid_feet(soles["left"], soles["right"]).yaw_rad
     c, s = math.cos(yaw), math.sin(yaw)
     ahead = {side: c * p.x_m + s * p.y_m for side, p in soles.items()}
     dyaw = abs(math.remainder(soles["left"].yaw_rad - soles["right"].yaw_rad, 2 * math.pi))
@@ -201,8 +193,8 @@ def check_clear(
     if not boxes:
         return
     stances = sequence.stances()
-    start = mid_feet({"left": stances[0][0], "right": stances[0][1]})
-    end = mid_feet({"left": stances[-1][0], "right": stances[-1][1]})
+    start = mid_feet(*stances[0])
+    end = mid_feet(*stances[-1])
     length = math.hypot(end.x_m - start.x_m, end.y_m - start.y_m)
     n = max(2, math.ceil(length / path_step_m) + 1)
     start_soles = [sole_corners(p, *sole_size_m) for p in stances[0]]

@@ -33,7 +33,7 @@ from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
-from services.model.ground import Rectangle
+from services.model.ground import Rectangle, mid_feet
 from services.walking.footsteps import (
     SIDES,
     Footstep,
@@ -45,7 +45,6 @@ from services.walking.footsteps import (
 from services.walking.goals import (
     MapBox,
     check_clear,
-    mid_feet,
     soles_on,
     square_steps,
     turn_steps,
@@ -227,7 +226,7 @@ def goal_steps(request: msg.GoalRequest, robot: Any) -> tuple[np.ndarray, Footst
                 raise InvalidRequestError(f"frame must be 'robot' or 'world', got {request.frame!r}")
             goal = _pose(request.pose, "pose")
             if request.frame == "world":
-                mid = mid_feet(soles)
+                mid = mid_feet(soles["left"], soles["right"])
                 dx, dy, _ = SolePose(goal.x_m, goal.y_m, 0.0).relative_to(mid)
                 dyaw = math.remainder(goal.yaw_rad - mid.yaw_rad, 2.0 * math.pi)
             else:
