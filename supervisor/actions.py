@@ -35,6 +35,7 @@ from supervisor.remedies import Remedies
 from supervisor.report import ActionReport
 from supervisor.runner import Action, Remedy
 from supervisor.script import Step
+from supervisor.stand_up import stand_up
 
 
 class Actions(LookingActions, LocomotionActions, ManipulationActions, Remedies):
@@ -63,7 +64,9 @@ class Actions(LookingActions, LocomotionActions, ManipulationActions, Remedies):
     # The tables the runner uses ---------------------------------------------------------------------
     def table(self) -> dict[str, Action]:
         names = ("detect", "localize", "goto", "turn", "walk", "reach", "grasp", "open", "put", "look_at")
-        return {name: self._timed(getattr(self, f"do_{name}")) for name in names}
+        table = {name: self._timed(getattr(self, f"do_{name}")) for name in names}
+        table["stand_up"] = self._timed(lambda step: stand_up(self.bus, self.body, self.progress, step.args))
+        return table
 
     def remedies(self) -> dict[str, Remedy]:
         return {"relocalize": self.relocalize, "replan": self.replan, "wait_service": self.wait_service}
