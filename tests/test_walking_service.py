@@ -76,7 +76,7 @@ def test_step_beyond_the_bounds_is_infeasible_and_named():
         ({"double_support_s": 0.0}, "double_support_s must be > 0 s"),
         ({"steps": []}, "no step"),
         ({"first_side": "middle"}, "first_side must be one of"),
-        ({"steps": [{"pose": [0.2, -0.095]}]}, r"steps\[0\]\.pose must be \[x, y, yaw\]"),
+        ({"steps": [{"pose": [0.2, -0.095]}]}, r"length >= 3 - at `\$\.steps\[0\]\.pose`"),
         ({"model": "nao"}, "unknown robot 'nao'"),
         ({"q_start": [0.0] * 5}, r"q must have shape \(37,\)"),
         ({"left_start": [0.0, 0.3, 0.0]}, "give both left_start and right_start"),
@@ -240,7 +240,7 @@ def test_goal_walks_are_checked_against_the_map_boxes():
         ({"pose": [1.0, 0.0]}, r"pose must be \[x, y, yaw\]"),
         ({"pose": [1.0, 0.0, 0.0], "frame": "moon"}, "frame must be 'robot' or 'world'"),
         ({"kind": "square"}, "already square"),
-        ({"pose": [0.1, 0.0, 0.0], "clearance_m": -1.0}, "clearance_m must be >= 0 m"),
+        ({"pose": [0.1, 0.0, 0.0], "clearance_m": -1.0}, r">= 0\.0 - at `\$\.clearance_m`"),
         (
             {"pose": [0.1, 0.0, 0.0], "obstacles": [{"name": "b", "center": [1.0, 0.0, 0.0], "size": [1.0]}]},
             r"obstacles\[0\]\.size",
