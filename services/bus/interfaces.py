@@ -1,0 +1,250 @@
+"""What the schemas say about each message field: type, default, units, limits, description.
+
+The schema modules document a field with a trailing comment (``x: float = 0.5  # forward [m]``) and
+may constrain it with ``Annotated[float, msgspec.Meta(ge=0)]``. This module reads both, for
+``humanoid interface`` and ``humanoid list``: the comments from the class's source (tokenize), the
+constraints from :func:`msgspec.inspect.type_info`. Nested structs are expanded once.
+"""
+
+from __future__ import annotations
+
+import inspect
+import io
+import re
+import tokenize
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+import msgspec
+
+from services.bus.spec import EndpointSpec, TopicSpec
+
+#: ``[m]``, ``[rad/s]``, ``[m, m, rad]``: units in brackets inside a field comment.
+_BRACKETS = re.compile(r"\[([^\[\]]{1,24})\]")
+_UNIT_WORDS = {"m", "s", "rad", "n", "px", "kg", "hz", "deg", "b", "nm", "%", "mm", "cm", "ms", "-", "1"}
+#: Field-name suffixes that carry the unit (CONVENTIONS: units in names).
+_SUFFIX_UNITS = {
+    "_s": "s",
+    "_m": "m",
+    "_rad": "rad",
+    "_deg": "deg",
+    "_n": "N",
+    "_kg": "kg",
+    "_px": "px",
+    "_hz": "Hz",
+    "_mm": "mm",
+    "_ms": "ms",
+    "_b": "B",
+    "_nm": "N m",
+}
+
+
+def _is_unit(text: str) -> bool:
+    """``m``, ``rad/s``, ``m, m, rad``, ``m/s^2``: every comma-separated part made of known units."""
+    for part in text.split(","):
+        tokens = re.split(r"[/*·^ ]+", part.strip().lower())
+        if not all(t in _UNIT_WORDS or t.isdigit() for t in tokens if t) or not any(
+            t in _UNIT_WORDS for t in tokens
+        ):
+            return False
+    return True
+
+
+def units_of(name: str, comment: str) -> str:
+    """The units of a field: the last bracket of its comment that holds units, else its name's suffix."""
+    found = [m.group(1) for m in _BRACKETS.finditer(comment) if _is_unit(m.group(1))]
+    if found:
+        return found[-1]
+    for suffix, unit in _SUFFIX_UNITS.items():
+        if name.endswith(suffix):
+            return unit
+    return ""
+
+
+_LIMIT_NAMES = (
+    ("ge", ">="),
+    ("gt", ">"),
+    ("le", "<="),
+    ("lt", "<"),
+    ("min_length", "len >="),
+    ("max_length", "len <="),
+)
+
+
+@dataclass(frozen=True)
+class FieldInfo:
+    """One field of a message, as ``humanoid interface`` prints it.
+
+    ``path`` is dotted for nested structs (``collisions[].robot_link``); ``default`` is the JSON text of
+    the default, or ``"required"``.
+    """
+
+    path: str
+    type: str
+    default: str
+    units: str
+    limits: str
+    doc: str
+    depth: int
+
+
+def type_text(t: Any) -> str:
+    """A short type name: ``float``, ``list[float]``, ``array``, ``Contact``, ``int | None``."""
+    text = getattr(t, "__name__", None) if not hasattr(t, "__args__") else None
+    text = text or str(t).replace("typing.", "")
+    text = re.sub(r"\b[a-z_]+\.(?:[a-z_]+\.)*([A-Z]\w*)", r"\1", text)
+    text = re.sub(r"Annotated\[([^,\]]+), [^\]]*\]", r"\1", text)
+    return text.replace("numpy.ndarray", "array").replace("NoneType", "None").replace("ndarray", "array")
+
+
+@cache
+def field_comments(struct: type) -> dict[str, str]:
+    """``{field: trailing comment}`` from the struct's source (empty when the source is not there)."""
+    try:
+        source = inspect.getsource(struct)
+    except (OSError, TypeError):
+        return {}
+    comments: dict[str, str] = {}
+    pending: list[str] = []  # comment lines above a field document it too
+    names = set(struct.__struct_fields__)
+    line_field: dict[int, str] = {}
+    for line_no, line in enumerate(source.splitlines(), start=1):
+        match = re.match(r"\s+([a-z_][a-z0-9_]*)\s*:", line)
+        if match and match.group(1) in names:
+            line_field[line_no] = match.group(1)
+    try:
+        tokens = list(tokenize.generate_tokens(io.StringIO(source).readline))
+    except (tokenize.TokenError, SyntaxError):
+        return {}
+    for tok in tokens:
+        if tok.type != tokenize.COMMENT:
+            continue
+        text = tok.string.lstrip("#").strip()
+        row = tok.start[0]
+        if row in line_field:
+            comments[line_field[row]] = " ".join([*pending, text]).strip()
+            pending = []
+        elif tok.line.strip().startswith("#"):
+            pending.append(text)
+            if row + 1 in line_field and line_field[row + 1] not in comments:
+                comments[line_field[row + 1]] = " ".join(pending)
+                pending = []
+        else:
+            pending = []
+    return comments
+
+
+def _limits(info: Any) -> str:
+    parts = []
+    for attr, sign in _LIMIT_NAMES:
+        value = getattr(info, attr, None)
+        if value is not None:
+            parts.append(f"{sign} {value:g}" if isinstance(value, float) else f"{sign} {value}")
+    if isinstance(info, msgspec.inspect.UnionType):
+        for member in info.types:
+            text = _limits(member)
+            if text:
+                parts.append(text)
+    return ", ".join(parts)
+
+
+def _nested_struct(info: Any) -> tuple[type | None, str]:
+    """The struct type inside a field (itself, list items, dict values, optional) and the path suffix."""
+    if isinstance(info, msgspec.inspect.StructType):
+        return info.cls, ""
+    if isinstance(info, msgspec.inspect.ListType | msgspec.inspect.TupleType | msgspec.inspect.VarTupleType):
+        item = getattr(info, "item_type", None)
+        if isinstance(item, msgspec.inspect.StructType):
+            return item.cls, "[]"
+    if isinstance(info, msgspec.inspect.DictType) and isinstance(info.value_type, msgspec.inspect.StructType):
+        return info.value_type.cls, "{}"
+    if isinstance(info, msgspec.inspect.UnionType):
+        for member in info.types:
+            cls, suffix = _nested_struct(member)
+            if cls is not None:
+                return cls, suffix
+    return None, ""
+
+
+def _default_text(field: Any) -> str:
+    import json
+
+    if field.required:
+        return "required"
+    default = field.default if field.default is not msgspec.NODEFAULT else field.default_factory()
+    try:
+        return json.dumps(default)
+    except TypeError:
+        return repr(default)
+
+
+def struct_fields(
+    struct: type, prefix: str = "", depth: int = 0, seen: tuple[type, ...] = ()
+) -> list[FieldInfo]:
+    """Every field of ``struct``, nested structs expanded below their field (recursion cut)."""
+    try:
+        info = msgspec.inspect.type_info(struct)
+    except TypeError:
+        info = None
+    inspected = {f.name: f for f in info.fields} if isinstance(info, msgspec.inspect.StructType) else {}
+    comments = field_comments(struct)
+    hints = msgspec.structs.fields(struct)
+    out: list[FieldInfo] = []
+    for field in hints:
+        comment = comments.get(field.name, "")
+        f_info = inspected.get(field.name)
+        limits = _limits(f_info.type) if f_info is not None else ""
+        out.append(
+            FieldInfo(
+                path=prefix + field.name,
+                type=type_text(field.type),
+                default=_default_text(field),
+                units=units_of(field.name, comment),
+                limits=limits,
+                doc=comment,
+                depth=depth,
+            )
+        )
+        if f_info is not None:
+            nested, suffix = _nested_struct(f_info.type)
+            if nested is not None and nested not in seen and nested is not struct:
+                out += struct_fields(nested, f"{prefix}{field.name}{suffix}.", depth + 1, (*seen, struct))
+    return out
+
+
+def struct_doc(struct: type) -> str:
+    """The first paragraph of a struct's docstring, on one line."""
+    doc = inspect.getdoc(struct) or ""
+    if doc.startswith(struct.__name__ + "("):  # msgspec's generated signature: no docstring
+        return ""
+    return " ".join(doc.split("\n\n")[0].split())
+
+
+def describe(spec: EndpointSpec | TopicSpec) -> dict[str, Any]:
+    """A JSON-ready description of an endpoint (request, reply) or a topic (message)."""
+    import dataclasses
+
+    def part(struct: type) -> dict[str, Any]:
+        return {
+            "type": struct.__name__,
+            "doc": struct_doc(struct),
+            "fields": [dataclasses.asdict(f) for f in struct_fields(struct)],
+        }
+
+    if isinstance(spec, EndpointSpec):
+        return {
+            "name": spec.path,
+            "kind": "endpoint",
+            "service": spec.service,
+            "doc": spec.doc,
+            "request": part(spec.request),
+            "reply": part(spec.reply),
+        }
+    return {
+        "name": spec.path,
+        "kind": "topic",
+        "service": spec.service,
+        "doc": spec.doc,
+        "message": part(spec.message),
+    }
