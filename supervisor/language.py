@@ -19,7 +19,6 @@ Nothing here touches the bus.
 
 from __future__ import annotations
 
-import difflib
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -48,6 +47,25 @@ VERBS: dict[str, str] = {
     "snatch": "take",
     "catch": "take",
     "bring": "bring",
+    "give me": "bring",
+    "hand me": "bring",
+    "pass me": "bring",
+    "give": "bring",
+    "i want": "take",
+    "i need": "take",
+    "i would like": "take",
+    "can i have": "take",
+    "could i have": "take",
+    "may i have": "take",
+    "go get": "take",
+    "go fetch": "take",
+    "go grab": "take",
+    "go pick up": "take",
+    "go and get": "take",
+    "go and fetch": "take",
+    "go and grab": "take",
+    "go and pick up": "take",
+    "come and get": "take",
     "carry": "bring",
     "deliver": "bring",
     # go
@@ -140,6 +158,10 @@ VERBS: dict[str, str] = {
     "stand": "stand",
     "rise": "stand",
     "get back up": "stand",
+    # light verbs: "make a quarter turn", "do a step to the left"
+    "make": "light",
+    "do": "light",
+    "perform": "light",
     # control
     "stop": "stop",
     "halt": "stop",
@@ -248,6 +270,10 @@ TRAILING_FILLER = (
     "then",
     "first",
 )
+#: A line of only these means "stop" (inside a line they are filler: "wait, take the ball").
+WAIT_WORDS = ("wait", "hold on", "wait a moment", "wait a second", "one moment", "hang on")
+#: A line of only these drops an open question and does nothing.
+NEVER_MIND = ("never mind", "nevermind", "forget it", "forget that", "nothing", "no", "nope")
 _CONTRACTIONS = {
     "what's": "what is",
     "where's": "where is",
@@ -340,7 +366,9 @@ class Intent:
             "release": f"release what the {self.hand} hand holds",
             "look": f"look at the {o}",
             "find": f"find the {o}",
-            "turn": f"turn {abs(self.angle_deg):g} degrees {'left' if self.angle_deg >= 0 else 'right'}",
+            "turn": "turn around (180 degrees)"
+            if self.angle_deg == 180
+            else f"turn {abs(self.angle_deg):g} degrees {'left' if self.angle_deg >= 0 else 'right'}",
             "walk": _walk_text(self.forward_m, self.left_m),
             "stand": "stand up",
         }.get(self.kind, self.kind)
@@ -447,9 +475,10 @@ def strip_filler(clause: str) -> str:
     changed = True
     while changed:
         changed = False
-        for f in LEADING_FILLER:
+        for f in LEADING_FILLER + TRAILING_FILLER:
             if words == f:
-                return words  # "wait" alone is a command
+                return ""  # only filler ("hey robot,", "wait,")
+        for f in LEADING_FILLER:
             if words.startswith(f + " "):
                 words = words[len(f) + 1 :]
                 changed = True
@@ -469,13 +498,41 @@ def _verb(clause: str) -> tuple[str, str, str]:
                 rest = f"around {rest}".strip()
             return VERBS[verb], verb, rest
     first, _, rest = clause.partition(" ")
-    close = difflib.get_close_matches(first, [v for v in VERBS if " " not in v], n=1, cutoff=0.75)
+    base = _base_form(first)
+    if base != first:
+        return _verb(f"{base} {rest}".strip())
+    close = [v for v in VERBS if " " not in v and len(first) >= 4 and _edit_distance(first, v) <= 1]
     if close:
-        raise NotUnderstoodError(
-            clause,
-            f"'{first}' is no action I know. The closest I know: '{' '.join([close[0], rest]).strip()}'",
-        )
+        suggestion = " ".join([close[0], rest]).strip()
+        raise NotUnderstoodError(clause, f"'{first}' is no action I know. The closest I know: '{suggestion}'")
     raise NotUnderstoodError(clause, "I found no action in it")
+
+
+def _base_form(word: str) -> str:
+    """The verb a gerund or third person stands for: grabbing -> grab, taking -> take, turns -> turn."""
+    single = {v for v in VERBS if " " not in v}
+    candidates = []
+    if word.endswith("ing"):
+        stem = word[:-3]
+        candidates += [stem, stem + "e", stem[:-1] if len(stem) > 2 and stem[-1] == stem[-2] else ""]
+    if word.endswith("s"):
+        candidates += [word[:-1], word[:-2] if word.endswith("es") else ""]
+    for c in candidates:
+        if c and c in single:
+            return c
+    return word
+
+
+def _edit_distance(a: str, b: str) -> int:
+    """Optimal string alignment distance (a swap of two neighbours counts 1): "tkae" -> "take" is 1."""
+    d = [[i + j if i * j == 0 else 0 for j in range(len(b) + 1)] for i in range(len(a) + 1)]
+    for i in range(1, len(a) + 1):
+        for j in range(1, len(b) + 1):
+            cost = a[i - 1] != b[j - 1]
+            d[i][j] = min(d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost)
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                d[i][j] = min(d[i][j], d[i - 2][j - 2] + 1)
+    return d[len(a)][len(b)]
 
 
 def _take_hand(rest: str) -> tuple[str, str]:
@@ -516,9 +573,18 @@ class Listener:
             reply = self._answer(pending, line)
             if reply is not None:
                 return reply
-        if not line:
-            return Understanding(text, refused=True, say="I heard nothing. " + CAN_DO + ".")
-        return self._understand(text, split_clauses(line), {})
+        clauses = [c for c in split_clauses(line) if strip_filler(c)]
+        while len(clauses) > 1 and strip_filler(clauses[0]) in ("go", "come", "come on"):
+            clauses = clauses[1:]  # "go and take the ball"
+        if line in WAIT_WORDS:
+            return Understanding(text, control="stop", understood=("stop",))
+        if line in NEVER_MIND:
+            return Understanding(text, say="OK, never mind.")
+        if strip_filler(line) == "" and re.search(r"\bthank", line):
+            return Understanding(text, say="You're welcome.")
+        if not clauses:
+            return Understanding(text, refused=True, say="I heard nothing to do. " + CAN_DO + ".")
+        return self._understand(text, clauses, {})
 
     def forget_held(self) -> None:
         """The hand is empty after all (a take failed, or the object was dropped)."""
@@ -577,7 +643,9 @@ class Listener:
             understood.append(intent.summary())
         steps: list[Step] = []
         for intent in intents:
-            steps.extend(self._steps(intent))
+            for step in self._steps(intent):
+                if not (step.action == "localize" and steps and steps[-1] == step):  # found just now
+                    steps.append(step)
         missing = sorted({s.action for s in steps if s.action not in self.actions})
         if missing:
             return Understanding(
@@ -621,12 +689,27 @@ class Listener:
     ) -> Intent:
         hand, rest = _take_hand(rest)
         hand = hand or self.hand
-        if kind == "take" and re.match(r"^(?:(?:a|an|\d+(?:\.\d+)?) )?(?:steps?|paces?)\b", rest):
-            kind, rest = "step", re.sub(r"^(?:a |an )?", "", rest)
+        step = re.match(
+            r"^(?:(?:a|an|\d+(?:\.\d+)?) )?(?P<size>(?:small|little|tiny|short|baby) )?(?:steps?|paces?)\b",
+            rest,
+        )
+        if kind == "take" and step:
+            kind = "step"
+            rest = re.sub(r"^(?:a |an )?(?:small |little |tiny |short |baby )?", "", rest)
+            if step["size"] and not re.match(r"^\d", rest):
+                rest = "a bit " + re.sub(r"^(?:steps?|paces?)\b", "", rest)
         if kind == "take" and verb == "get" and (rest.startswith("to ") or rest.startswith("over to ")):
             kind = "go"
         if kind == "go" and re.match(r"^(?:up|back up)$", rest) and verb == "get":
             kind = "stand"
+        if kind == "light":
+            if re.search(r"\b(?:turn|rotation|spin|circle)\b", rest):
+                kind = "turn"
+                rest = re.sub(r"^(?:a |an )?", "", re.sub(r"\b(?:turn|rotation|spin|circle)\b", "turn", rest))
+            elif re.search(r"\b(?:steps?|paces?)\b", rest):
+                kind, rest = "step", re.sub(r"\b(?:a |an )?(?:steps?|paces?)\b", "", rest).strip()
+            else:
+                raise NotUnderstoodError(clause, f"'{verb} {rest}' is not an action I can do")
         if kind in ("take", "bring"):
             return self._parse_take(kind, rest, clause, ctx, filled, hand)
         if kind == "go":
@@ -687,7 +770,8 @@ class Listener:
     def _parse_go(
         self, rest: str, clause: str, ctx: _Context, filled: Mapping[str, str], verb: str
     ) -> Intent:
-        m = _GOAL_PREP.match(rest)
+        sideways = re.match(r"^(?:to |towards |toward )(?:the |your |my )?(?:left|right)\b", rest)
+        m = None if sideways else _GOAL_PREP.match(rest)
         if m or (verb == "approach" and rest):
             goal = rest[m.end() :] if m else rest
             goal = re.sub(r"^(?:the )?(?:side of|front of)\s+", "", goal)
@@ -734,7 +818,10 @@ class Listener:
                 f"where should I put the {spoken(obj)}? ({', '.join('on the ' + spoken(p) for p in places)})",
                 places,
             )
-        place = self._object(place_phrase, ctx.last_place, "place", filled)
+        if place_phrase in ("itself", "it"):
+            place = obj
+        else:
+            place = self._object(place_phrase, ctx.last_place, "place", filled)
         if place == obj:
             raise NotUnderstoodError(clause, f"I cannot put the {spoken(obj)} on itself")
         return Intent("put", clause, obj=obj, place=place, hand=hand)
@@ -764,6 +851,8 @@ class Listener:
         return Intent("turn", clause, angle_deg=angle if direction == "left" else -angle)
 
     def _parse_step(self, kind: str, rest: str, clause: str) -> Intent:
+        if re.search(r"\b(?:left|right)\b", rest):
+            rest = re.sub(r"\bsideways\b", "", rest)  # "step sideways to the left"
         quantity, rest = take_quantity(rest)
         direction, rest = _take_direction(rest)
         if kind == "back":
@@ -793,6 +882,8 @@ class Listener:
         out = [intent]
         if intent.kind == "put" and intent.obj not in (ctx.held, HELD):
             out = [Intent("take", intent.clause, obj=intent.obj, hand=intent.hand), intent]
+        if intent.kind == "bring" and intent.obj == ctx.held:  # already in the hand: go and put it
+            out = [Intent("go", intent.clause, obj=intent.place), replace(intent, kind="put")]
         for i in out:
             if i.kind == "take":
                 ctx.held, ctx.last = i.obj, i.obj

@@ -106,7 +106,7 @@ class ConsoleLoop:
             if self._worker is not None:
                 self.sup.request_stop()
             return False
-        else:
+        elif command.steps:
             self._pending.append(command)
         return True
 
