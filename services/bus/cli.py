@@ -63,7 +63,13 @@ def _add_up(subparsers: Any) -> None:
         help="start the services, restart those that die, stop all on Ctrl-C",
         description="Start every service of the stack (or those named), each in its own process; wait "
         "until all are alive; print a status table; restart a service that dies; Ctrl-C or SIGTERM stops "
-        "everything within 2 s.",
+        "everything within 2 s. Each service's output goes to out/logs/<service>.log (`humanoid logs`).",
+        epilog=examples(
+            "humanoid up                                 # every service; Ctrl-C stops them",
+            "humanoid up --services sim,perception --record out/run.mcap",
+            "humanoid up --log-dir ''                    # service output in this terminal",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--services", help="comma-separated service names (default: every service found)")
     p.add_argument("--record", metavar="FILE", help="also record every message to this MCAP file")
@@ -131,6 +137,8 @@ def _add_status(subparsers: Any) -> None:
         help="the live services, their heartbeat age and requests served",
         description="List the services whose liveliness token is present, with the age of their last "
         "heartbeat (a service stuck holding the GIL keeps its token but stops beating).",
+        epilog=examples("humanoid status", "humanoid status --json | jq '.services[].service'"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--wait", type=float, default=0.8, help="seconds to listen for heartbeats (0.8)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -520,6 +528,11 @@ def _add_record(subparsers: Any) -> None:
         help="record every message on hrp/** to an MCAP file (until Ctrl-C)",
         description="Run the recorder in the foreground: every message on the bus goes to FILE (MCAP: open "
         "it in Foxglove, play it back with `humanoid replay`). Ctrl-C or SIGTERM finishes the file.",
+        epilog=examples(
+            "humanoid record out/run.mcap                # until Ctrl-C",
+            "humanoid record out/clock.mcap --duration 5 --key-expr 'hrp/hrp2/sim/clock'",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="MCAP file to write")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
@@ -695,6 +708,7 @@ class Progress:
         self.count = 0
         self._last_draw = 0.0
         self._last_tenth = -1
+        self._done = 0.0
 
     def update(self, msg: Any) -> None:
         self.count += 1
@@ -708,6 +722,7 @@ class Progress:
             self._draw(done, end="\n")
 
     def _draw(self, done: float, end: str) -> None:
+        self._done = done
         bar = "#" * round(done * self.width)
         text = (
             f"[{bar:<{self.width}}] {done * 100:5.1f} %  {done * self.total_s:7.1f} / {self.total_s:.1f} s  "
@@ -716,7 +731,7 @@ class Progress:
         print(text, end=end, file=sys.stderr, flush=True)
 
     def finish(self) -> None:
-        if self.count:
+        if self.count and (self.tty or self._done < 1.0):
             self._draw(1.0, end="\n")
         self.count = 0
         self._last_tenth = -1
@@ -736,6 +751,8 @@ def _add_log_info(subparsers: Any) -> None:
         help="channels, message counts, duration and schemas of an MCAP log",
         description="Summarise an MCAP log: duration, channels with their encodings, schema names and "
         "message counts. Works on a log whose recorder was killed (it reads what was written).",
+        epilog=examples("humanoid log-info out/demo/fetch.mcap", "humanoid log-info run.mcap --json"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="MCAP file")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -114,7 +114,7 @@ def build_graph(alive: set[str] | None = None) -> dict[str, Node]:
     for node in nodes.values():
         for items in (node.serves, node.publishes, node.calls, node.subscribes):
             items.sort()
-        if alive is not None:
+        if alive is not None and node.name in entries:  # the others declare no liveliness token
             node.alive = node.name in alive
     return nodes
 
