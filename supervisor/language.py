@@ -570,7 +570,7 @@ class Listener:
         line = normalize(text)
         if self._pending is not None:
             pending, self._pending = self._pending, None
-            reply = self._answer(pending, line)
+            reply = self._answer(pending, line, text)
             if reply is not None:
                 return reply
         clauses = [c for c in split_clauses(line) if strip_filler(c)]
@@ -595,7 +595,7 @@ class Listener:
         return self._pending is not None
 
     # ------------------------------------------------------------------------------------- answers
-    def _answer(self, pending: _Pending, line: str) -> Understanding | None:
+    def _answer(self, pending: _Pending, line: str, said: str) -> Understanding | None:
         reply = strip_filler(line.replace(",", " ").strip())
         filled = dict(pending.filled)
         if pending.what == "direction":
@@ -616,7 +616,9 @@ class Listener:
             if not value:
                 return None
         filled[pending.index] = {**filled.get(pending.index, {}), pending.what: value}
-        return self._understand(pending.text, pending.clauses, filled)
+        return self._understand(
+            f"{said.strip()} (answering: {pending.text.strip()})", pending.clauses, filled
+        )
 
     # -------------------------------------------------------------------------------- understanding
     def _understand(self, text: str, clauses: list[str], filled: dict[int, dict[str, str]]) -> Understanding:

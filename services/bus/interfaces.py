@@ -215,9 +215,8 @@ def struct_fields(
 
 def struct_doc(struct: type) -> str:
     """The first paragraph of a struct's docstring, on one line."""
-    doc = inspect.getdoc(struct) or ""
-    if doc.startswith(struct.__name__ + "("):  # msgspec's generated signature: no docstring
-        return ""
+    own = struct.__dict__.get("__doc__")  # not the docstring msgspec.Struct would lend it
+    doc = inspect.cleandoc(own) if isinstance(own, str) else ""
     return " ".join(doc.split("\n\n")[0].split())
 
 
