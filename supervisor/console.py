@@ -22,7 +22,7 @@ Command = Understanding
 EXAMPLES = (
     "take the orange ball",
     "could you bring the orange ball to the yellow table, please",
-    "grab the ball and put it on the table",
+    "grab the orange ball and put it on the table",
     "go to the green box, then turn around",
     "step back / take two steps to the left / move forward half a metre",
     "turn 45 degrees to the right / turn a bit to the left",
@@ -46,7 +46,7 @@ def explain(lines: Sequence[str], known_objects: Sequence[str], hand: str = "rig
 
 
 def help_text() -> str:
-    lines = ["Say what to do, in your own words; for example:"] + [f"  {e}" for e in EXAMPLES]
+    lines = ["Commands: say what to do, in your own words; for example:"] + [f"  {e}" for e in EXAMPLES]
     lines += [
         CAN_DO + ".",
         "  stop   (abort the running action)",
