@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -96,8 +97,33 @@ complete_line humanoid logs percep
     assert result.stdout.splitlines() == ["call", "sim/state", "sim/clock", "navigation/goto", "perception"]
 
 
-def test_zsh_completion_script_names_the_endpoints() -> None:
+def _zsh_complete(script_dir: Path, typed: str) -> str:
+    """The command line after typing ``typed`` and Tab in an interactive zsh (through zsh/zpty)."""
+    driver = f"""
+zmodload zsh/zpty
+zpty -b z 'zsh -f -i'
+zpty -w z 'PS1=""; fpath=({script_dir} $fpath); autoload -U compinit; compinit -u; humanoid() {{ :; }}'
+zpty -n -w z $'{typed}\\t'
+sleep 2
+zpty -n -w z $'\\C-a echo LINE=\\n'
+sleep 1
+zpty -r z out '*LINE=*'
+zpty -rt z rest
+print -r -- "$out$rest"
+zpty -d z
+"""
+    result = subprocess.run(["zsh", "-f", "-c", driver], capture_output=True, text=True, timeout=60)
+    lines = [ln for ln in result.stdout.replace("\r", "\n").splitlines() if ln.startswith("LINE=")]
+    assert lines, result.stdout + result.stderr
+    return lines[-1].removeprefix("LINE=").strip()
+
+
+def test_zsh_completion_completes_subcommands_and_endpoint_names(tmp_path: Path) -> None:
     result = humanoid("completion", "zsh")
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("#compdef humanoid")
-    assert "sim/state" in result.stdout and "navigation/goto" in result.stdout
+    if shutil.which("zsh") is None:
+        pytest.skip("zsh is not installed: the script is checked, not run")
+    (tmp_path / "_humanoid").write_text(result.stdout)
+    assert _zsh_complete(tmp_path, "humanoid call sim/st") == "humanoid call sim/state"
+    assert _zsh_complete(tmp_path, "humanoid interf") == "humanoid interface"
