@@ -231,6 +231,8 @@ def take_quantity(text: str) -> tuple[Quantity | None, str]:
             return Quantity(degrees=n * ANGLE_UNITS[unit], text=m.group(0)), _cut(text, m)
         if unit in ("step", "steps", "pace", "paces"):
             return Quantity(steps=n, text=m.group(0)), _cut(text, m)
+        if unit in ("turn", "turns", "revolution", "revolutions") and re.fullmatch(_NUMBER, raw):
+            return Quantity(degrees=n * 360.0, text=m.group(0)), _cut(text, m)
     m = re.search(rf"\b(?:by )?(?P<n>{_NUMBER})\b", text)
     if m:  # a bare number: its unit depends on the motion (degrees for a turn, metres for a walk)
         return Quantity(metres=float(m["n"]), degrees=float(m["n"]), text=m.group(0)), _cut(text, m)

@@ -623,12 +623,13 @@ class Listener:
     # -------------------------------------------------------------------------------- understanding
     def _understand(self, text: str, clauses: list[str], filled: dict[int, dict[str, str]]) -> Understanding:
         ctx = replace(self.ctx)
+        previous = ""  # the verb of the clause before: "take the ball, then the box" reuses it
         intents: list[Intent] = []
         understood: list[str] = []
         for index, raw in enumerate(clauses):
             clause = strip_filler(raw)
             try:
-                kind, verb, rest = _verb(clause)
+                kind, verb, rest = self._verb_or_ellipsis(clause, previous)
                 if kind in ("stop", "help", "quit"):
                     if rest and kind != "stop":
                         raise NotUnderstoodError(clause, f"'{verb}' takes nothing after it")
@@ -643,6 +644,7 @@ class Listener:
                 return self._refuse(text, exc, understood)
             intents.extend(self._expand(intent, ctx))
             understood.append(intent.summary())
+            previous = verb
         steps: list[Step] = []
         for intent in intents:
             for step in self._steps(intent):
@@ -659,6 +661,17 @@ class Listener:
             )
         self.ctx = ctx
         return Understanding(text, steps=tuple(steps), understood=tuple(understood))
+
+    def _verb_or_ellipsis(self, clause: str, previous: str) -> tuple[str, str, str]:
+        """The clause's verb; a clause that is only an object phrase repeats the verb before it."""
+        try:
+            return _verb(clause)
+        except NotUnderstoodError:
+            if previous and previous not in ("stop", "help", "quit"):
+                ref = resolve(clause, self.known)
+                if ref.name or ref.candidates:
+                    return VERBS[previous], previous, clause
+            raise
 
     def _refuse(self, text: str, exc: NotUnderstoodError, understood: list[str]) -> Understanding:
         said = f"I understood: {'; '.join(understood)}. " if understood else ""
@@ -738,6 +751,12 @@ class Listener:
             if direction in ("left", "right", "back", "around") and not left:
                 return self._parse_turn(rest, clause, filled)
             return Intent("look", clause, obj=self._object(rest, ctx.last, "obj", filled))
+        if kind == "turn" and re.match(r"^(?:to |and )?face\b", rest):  # "turn to face the table"
+            return Intent(
+                "look",
+                clause,
+                obj=self._object(re.sub(r"^(?:to |and )?face\s*", "", rest), ctx.last, "obj", filled),
+            )
         if kind == "turn":
             return self._parse_turn(rest, clause, filled)
         if kind in ("step", "back"):
@@ -772,7 +791,17 @@ class Listener:
     def _parse_go(
         self, rest: str, clause: str, ctx: _Context, filled: Mapping[str, str], verb: str
     ) -> Intent:
+        if verb == "come" and re.fullmatch(r"(?:back|here|over here|to me|back here|over)", rest):
+            raise NotUnderstoodError(clause, "I do not know where you are: name a place or an object")
         sideways = re.match(r"^(?:to |towards |toward )(?:the |your |my )?(?:left|right)\b", rest)
+        if (
+            verb in ("move", "shift", "push", "slide")
+            and not sideways
+            and re.match(r"^(?:the|it|that|this)\b", rest)
+        ) and re.search(
+            r"\s(?:to|towards|toward|onto|on to|over to)\s", f" {rest} "
+        ):  # "move the ball to the table"
+            return self._parse_take("bring", rest, clause, ctx, filled, self.hand)
         m = None if sideways else _GOAL_PREP.match(rest)
         if m or (verb == "approach" and rest):
             goal = rest[m.end() :] if m else rest
@@ -784,6 +813,8 @@ class Listener:
         direction, left = _take_direction(rest_q)
         if direction:
             return self._walk(direction, quantity, clause, left)
+        if quantity is not None and not left.strip():
+            return self._walk("forward", quantity, clause, "")  # "walk 2 meters"
         if rest and not quantity:
             # "go the table", "head for the box"
             goal = re.sub(r"^(?:for|in)\s+", "", rest)
@@ -867,7 +898,7 @@ class Listener:
 
     def _walk(self, direction: str, quantity: Quantity | None, clause: str, leftover: str) -> Intent:
         leftover = re.sub(
-            r"\b(?:by|a|an|the|of|up|more|further|away|off|yourself|to|one)\b", "", leftover
+            r"\b(?:by|a|an|the|of|up|more|further|away|off|yourself|to|one|over)\b", "", leftover
         ).strip()
         if leftover:
             raise NotUnderstoodError(clause, f"I do not know how to walk '{leftover}'")

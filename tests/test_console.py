@@ -216,6 +216,70 @@ PHRASINGS = [
     ("is there an orange ball", "localize orange_ball"),
     ("show me the green box", "localize green_box"),
     ("look for the chair", "localize chair"),
+    # a third batch, tried after the grammar was written
+    (
+        "grab the orange ball from the green box",
+        "localize orange_ball; reach right orange_ball; grasp right as held",
+    ),
+    (
+        "put the orange ball into the green box",
+        "localize orange_ball; reach right orange_ball; grasp right as held; localize green_box; put orange_ball on=green_box",
+    ),
+    ("go near the chair", "localize chair; goto chair"),
+    ("go back to the table", "localize yellow_table; goto yellow_table"),
+    (
+        "move the orange ball to the table",
+        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table; put orange_ball on=yellow_table",
+    ),
+    ("head back to the green box", "localize green_box; goto green_box"),
+    ("go forward 1 meter and then turn right", "walk 1 0; turn -90"),
+    ("turn right 90 degrees then walk 2 meters", "turn -90; walk 2 0"),
+    ("rotate counterclockwise 30 degrees", "turn 30"),
+    ("turn clockwise", "turn -90"),
+    ("take 2 steps to the right", "walk 0 -0.4"),
+    ("move half a meter left", "walk 0 0.5"),
+    ("walk a couple of steps forward", "walk 0.4 0"),
+    ("go ahead", "walk 0.2 0"),
+    ("walk straight", "walk 0.2 0"),
+    ("scoot over to the left a little", "walk 0 0.1"),
+    ("step back please", "walk -0.2 0"),
+    ("back up a bit", "walk -0.1 0"),
+    ("move back 1 foot", "walk -0.305 0"),
+    ("turn to face the table", "look_at yellow_table"),
+    (
+        "pick up the orange ball using the left hand",
+        "localize orange_ball; reach left orange_ball; grasp left as held",
+    ),
+    (
+        "get the orange ball with the left hand and put it on the chair",
+        "localize orange_ball; reach left orange_ball; grasp left as held; localize chair; put orange_ball on=chair",
+    ),
+    (
+        "please, please take the orange ball",
+        "localize orange_ball; reach right orange_ball; grasp right as held",
+    ),
+    ("OK so now go to the table", "localize yellow_table; goto yellow_table"),
+    (
+        "take the orange ball. go to the table. put it down on the table.",
+        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table; localize yellow_table; put orange_ball on=yellow_table",
+    ),
+    (
+        "Take the ORANGE ball, then the green box",
+        "localize orange_ball; reach right orange_ball; grasp right as held; localize green_box; reach right green_box; grasp right as held",
+    ),
+    (
+        "put the blue ball on the orange ball",
+        "localize blue_ball; reach right blue_ball; grasp right as held; localize orange_ball; put blue_ball on=orange_ball",
+    ),
+    ("release", "open right"),
+    ("bring the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("bring the orange ball here", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    (
+        "fetch me the orange ball from the box",
+        "localize orange_ball; reach right orange_ball; grasp right as held",
+    ),
+    ("turn 360 degrees", "turn 360"),
+    ("turn left 1 and a half turns", "turn 540"),
 ]
 
 
