@@ -53,9 +53,9 @@ def _is_unit(text: str) -> bool:
 
 def units_of(name: str, comment: str) -> str:
     """The units of a field: the last bracket of its comment that holds units, else its name's suffix."""
-    found = [m.group(1) for m in _BRACKETS.finditer(comment) if _is_unit(m.group(1))]
+    found = list(dict.fromkeys(m.group(1) for m in _BRACKETS.finditer(comment) if _is_unit(m.group(1))))
     if found:
-        return found[-1]
+        return " or ".join(found)  # "[m] reach/gaze, [rad] posture": m or rad
     for suffix, unit in _SUFFIX_UNITS.items():
         if name.endswith(suffix):
             return unit
@@ -117,14 +117,20 @@ def field_comments(struct: type) -> dict[str, str]:
         tokens = list(tokenize.generate_tokens(io.StringIO(source).readline))
     except (tokenize.TokenError, SyntaxError):
         return {}
+    last_field = ""  # the field whose trailing comment a "#   ..." line continues
     for tok in tokens:
+        if tok.type == tokenize.NAME and line_field.get(tok.start[0]) == tok.string:
+            last_field = ""  # a field without a trailing comment ends any continuation
         if tok.type != tokenize.COMMENT:
             continue
         text = tok.string.lstrip("#").strip()
         row = tok.start[0]
         if row in line_field:
             comments[line_field[row]] = " ".join([*pending, text]).strip()
+            last_field = line_field[row]
             pending = []
+        elif tok.line.strip().startswith("#") and re.match(r"#\s{2,}", tok.string) and last_field:
+            comments[last_field] = f"{comments.get(last_field, '')} {text}".strip()  # a continuation
         elif tok.line.strip().startswith("#"):
             pending.append(text)
             if row + 1 in line_field and line_field[row + 1] not in comments:
@@ -135,9 +141,62 @@ def field_comments(struct: type) -> dict[str, str]:
     return comments
 
 
+def _unwrap(info: Any) -> tuple[Any, str]:
+    """The type inside ``Annotated[..., Meta(...)]`` wrappers, and the first description they give."""
+    description = ""
+    while isinstance(info, msgspec.inspect.Metadata):
+        description = description or (info.extra_json_schema or {}).get("description", "")
+        info = info.type
+    return info, description
+
+
+def info_text(info: Any) -> str:
+    """A short type name from msgspec's type info: ``float``, ``list[float]``, ``Contact | None``."""
+    import numpy as np
+
+    info, _ = _unwrap(info)
+    ins = msgspec.inspect
+    simple = {
+        ins.FloatType: "float",
+        ins.IntType: "int",
+        ins.StrType: "str",
+        ins.BoolType: "bool",
+        ins.NoneType: "None",
+        ins.AnyType: "any",
+        ins.BytesType: "bytes",
+    }
+    for kind, text in simple.items():
+        if isinstance(info, kind):
+            return text
+    if isinstance(info, ins.ListType | ins.SetType | ins.FrozenSetType):
+        return f"{type(info).__name__.removesuffix('Type').lower()}[{info_text(info.item_type)}]"
+    if isinstance(info, ins.VarTupleType):
+        return f"tuple[{info_text(info.item_type)}, ...]"
+    if isinstance(info, ins.TupleType):
+        return f"tuple[{', '.join(info_text(t) for t in info.item_types)}]"
+    if isinstance(info, ins.DictType):
+        return f"dict[{info_text(info.key_type)}, {info_text(info.value_type)}]"
+    if isinstance(info, ins.UnionType):
+        return " | ".join(info_text(t) for t in info.types)
+    if isinstance(info, ins.LiteralType):
+        return " | ".join(repr(v) for v in info.values)
+    if isinstance(info, ins.StructType | ins.EnumType | ins.DataclassType):
+        return info.cls.__name__
+    if isinstance(info, ins.CustomType):
+        return "array" if info.cls is np.ndarray else info.cls.__name__
+    return type(info).__name__.removesuffix("Type").lower()
+
+
 def _limits(info: Any) -> str:
+    """``>= 0, <= 2.5``, ``len == 3``, ``each >= -100, <= 100`` from msgspec constraints."""
+    info, _ = _unwrap(info)
     parts = []
+    low, high = getattr(info, "min_length", None), getattr(info, "max_length", None)
+    if low is not None and low == high:
+        parts.append(f"len == {low}")
     for attr, sign in _LIMIT_NAMES:
+        if attr in ("min_length", "max_length") and low is not None and low == high:
+            continue
         value = getattr(info, attr, None)
         if value is not None:
             parts.append(f"{sign} {value:g}" if isinstance(value, float) else f"{sign} {value}")
@@ -146,19 +205,27 @@ def _limits(info: Any) -> str:
             text = _limits(member)
             if text:
                 parts.append(text)
+    item = getattr(info, "item_type", None)
+    if item is not None:
+        text = _limits(item)
+        if text:
+            parts.append(f"each {text}")
     return ", ".join(parts)
 
 
 def _nested_struct(info: Any) -> tuple[type | None, str]:
     """The struct type inside a field (itself, list items, dict values, optional) and the path suffix."""
+    info, _ = _unwrap(info)
     if isinstance(info, msgspec.inspect.StructType):
         return info.cls, ""
     if isinstance(info, msgspec.inspect.ListType | msgspec.inspect.TupleType | msgspec.inspect.VarTupleType):
-        item = getattr(info, "item_type", None)
+        item, _ = _unwrap(getattr(info, "item_type", None))
         if isinstance(item, msgspec.inspect.StructType):
             return item.cls, "[]"
-    if isinstance(info, msgspec.inspect.DictType) and isinstance(info.value_type, msgspec.inspect.StructType):
-        return info.value_type.cls, "{}"
+    if isinstance(info, msgspec.inspect.DictType):
+        value, _ = _unwrap(info.value_type)
+        if isinstance(value, msgspec.inspect.StructType):
+            return value.cls, "{}"
     if isinstance(info, msgspec.inspect.UnionType):
         for member in info.types:
             cls, suffix = _nested_struct(member)
@@ -192,13 +259,14 @@ def struct_fields(
     hints = msgspec.structs.fields(struct)
     out: list[FieldInfo] = []
     for field in hints:
-        comment = comments.get(field.name, "")
         f_info = inspected.get(field.name)
+        described = _unwrap(f_info.type)[1] if f_info is not None else ""
+        comment = comments.get(field.name, "") or described
         limits = _limits(f_info.type) if f_info is not None else ""
         out.append(
             FieldInfo(
                 path=prefix + field.name,
-                type=type_text(field.type),
+                type=info_text(f_info.type) if f_info is not None else type_text(field.type),
                 default=_default_text(field),
                 units=units_of(field.name, comment),
                 limits=limits,
