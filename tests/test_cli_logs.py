@@ -35,3 +35,29 @@ def test_a_process_output_is_rotated_and_read_back_in_order(tmp_path: Path, caps
 def test_logs_without_a_log_says_where_it_looked(tmp_path: Path, capsys) -> None:
     assert main(["logs", "--log-dir", str(tmp_path)]) == 2
     assert f"no log in {tmp_path}/" in capsys.readouterr().err
+
+
+def test_a_service_that_dies_at_start_shows_the_end_of_its_log(tmp_path: Path, monkeypatch, capsys) -> None:
+    """Its output went to its log file, not the terminal: the launcher's error quotes the log's end."""
+    from services.bus.config import BusConfig
+    from services.bus.discovery import ServiceEntry
+    from services.bus.launcher import Launcher, LauncherConfig
+    from tests.conftest import free_port
+
+    (tmp_path / "broken_service.py").write_text(
+        "import sys\nprint('loading the calibration')\n"
+        "print('no calibration file: giving up', file=sys.stderr)\nsys.exit(3)\n"
+    )
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    logs = tmp_path / "logs"
+    entry = ServiceEntry("broken", "broken_service", tmp_path / "broken_service.py")
+    config = LauncherConfig(log_dir=str(logs), ready_timeout_s=20.0)
+    launcher = Launcher(BusConfig().with_hub_port(free_port()), [entry], config, out=sys.stdout)
+    assert launcher.run() == 1
+    err = capsys.readouterr().err
+    assert f"the end of its log {logs / 'broken.log'}:" in err
+    assert "  | loading the calibration\n  | no calibration file: giving up" in err
+    assert (logs / "broken.log").read_text().splitlines() == [
+        "loading the calibration",
+        "no calibration file: giving up",
+    ]

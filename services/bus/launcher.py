@@ -225,7 +225,7 @@ class Launcher:
                     self._event(child, "died", exit_code=code, message="exited before becoming ready")
                     raise UnavailableError(
                         f"service {name!r} ({child.entry.module}) exited with {_describe_exit(code)} "
-                        "before becoming ready; its log above says why"
+                        f"before becoming ready; {self._log_tail(child)}"
                     )
                 if self.is_alive(name):
                     child.state = "ready"
@@ -271,6 +271,8 @@ class Launcher:
         cfg = self.config
         self._kill_group(child, signal.SIGKILL)  # whatever it started goes with it
         self._event(child, "died", exit_code=code, message=_describe_exit(code))
+        if child.log_file is not None:
+            print(f"{child.entry.name}: {self._log_tail(child)}", file=sys.stderr, flush=True)
         while child.restarts and now - child.restarts[0] > cfg.restart_window_s:
             child.restarts.popleft()
         if len(child.restarts) >= cfg.max_restarts:
@@ -287,6 +289,14 @@ class Launcher:
         child.state = "backoff"
         child.restart_at = now + delay
         self._event(child, "restarting", exit_code=code, message=f"in {delay:.1f} s")
+
+    def _log_tail(self, child: _Child) -> str:
+        """Where to read why a service stopped: its last log lines, or the terminal above."""
+        if child.log_file is None:
+            return "its log above says why"
+        lines = child.log_file.tail()
+        shown = "\n".join(f"  | {line}" for line in lines) if lines else "  (nothing)"
+        return f"the end of its log {child.log_file.path}:\n{shown}"
 
     # Stopping ---------------------------------------------------------------------------------------------
     def _stop_all(self) -> None:

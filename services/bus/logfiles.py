@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+from collections import deque
 from pathlib import Path
 from typing import IO
 
@@ -31,6 +32,7 @@ class RotatingLog:
         self._lock = threading.Lock()
         self._file: IO[bytes] = open(self.path, "ab")  # noqa: SIM115 (closed by close())
         self._threads: list[threading.Thread] = []
+        self._last: deque[bytes] = deque(maxlen=20)  # what the launcher shows when the service dies
 
     def follow(self, pipe: IO[bytes]) -> None:
         """Copy ``pipe`` (a child's stdout) into the log until it closes, on a daemon thread."""
@@ -50,6 +52,7 @@ class RotatingLog:
                 self._rotate()
             self._file.write(data)
             self._file.flush()
+            self._last.append(data)
 
     def _rotate(self) -> None:
         self._file.close()
@@ -69,6 +72,14 @@ class RotatingLog:
                 self.write(line)
         with contextlib.suppress(OSError):
             pipe.close()
+
+    def tail(self, lines: int = 12, timeout_s: float = 0.5) -> list[str]:
+        """The last lines written (after waiting up to ``timeout_s`` for a dead process's pipe to drain)."""
+        for thread in self._threads:
+            thread.join(timeout_s)
+        with self._lock:
+            last = list(self._last)[-lines:]
+        return [line.decode(errors="replace").rstrip("\n") for line in last]
 
     def close(self, timeout_s: float = 0.5) -> None:
         """Wait a little for the pipes to drain (their processes are gone), then close the file."""
