@@ -274,3 +274,21 @@ def test_exit_codes(stack: Stack) -> None:
     assert gone.returncode == 3 and "unavailable" in gone.stderr
     silent = humanoid(*stack.bus("hz", "diag/pong", "--wait", "1"))
     assert silent.returncode == 3 and "no message on hrp/hrp2/diag/pong" in silent.stderr
+
+
+def test_console_understands_and_runs_what_people_say(stack: Stack) -> None:
+    """Last in the module: it resets the sim to the ball-fetch scene and turns the robot."""
+    lines = "hey robot, where is the green box?\ndance for me\nturn a bit to the right, please\n"
+    result = subprocess.run(
+        [sys.executable, "-m", "services.cli", "console", "--scene", "ball_fetch", *stack.bus()],
+        input=lines,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=REPO,
+    )
+    out = result.stdout
+    assert result.returncode == 0, out + result.stderr
+    assert "> localize green_box" in out and "ok: green_box at" in out
+    assert "I did not understand 'dance': I found no action in it. I can: take X" in out
+    assert "> turn -15" in out and "ok: now facing" in out
