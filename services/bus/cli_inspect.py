@@ -33,11 +33,12 @@ def _live(args: argparse.Namespace, wait_s: float = 0.6) -> set[str]:
     """The services whose liveliness token is on the bus (listens ``wait_s`` for late tokens)."""
     from services.bus.session import alive_services, bus_session
 
-    with bus_session(_bus(args)) as session:
+    bus = _bus(args)
+    with bus_session(bus) as session:
         alive: set[str] = set()
         deadline = time.monotonic() + wait_s
         while True:
-            alive |= alive_services(session, _bus(args).robot, timeout_s=0.3)
+            alive |= alive_services(session, bus.robot, timeout_s=0.3)
             if time.monotonic() >= deadline:
                 return alive
             time.sleep(0.05)
