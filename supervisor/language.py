@@ -742,7 +742,7 @@ class Listener:
             if kind == "look" and not rest:
                 raise NotUnderstoodError(clause, "look at what? name an object")
             direction, left = _take_direction(rest)
-            if kind == "face" or (kind == "look" and direction in ("left", "right") and not left):
+            if kind == "look" and direction in ("left", "right") and not left:  # "look left": turn
                 return self._parse_turn(rest, clause, filled)
             obj = self._object(rest, ctx.last, "obj", filled)
             return Intent(kind, clause, obj=obj)
@@ -776,7 +776,7 @@ class Listener:
         if m and not _RECIPIENT.fullmatch(m.group(0).strip()):
             goal = m["goal"].strip()
             rest = (" " + rest)[: m.start()].strip()
-        recipient = bool(_RECIPIENT.search(rest))
+        # "bring me X", "X here": taken; the robot does not know where the person is, so it holds it
         rest = _RECIPIENT.sub("", rest).strip()
         rest = re.sub(r"\s+(?:on|from|off|in|at|near|beside|by)\s+.+$", "", rest)  # "the ball on the box"
         if goal and _RECIPIENT.fullmatch(goal):
@@ -785,7 +785,6 @@ class Listener:
         if goal:
             place = self._object(goal, ctx.last_place, "place", filled)
             return Intent("bring", clause, obj=obj, place=place, hand=hand)
-        _ = recipient  # "bring me X": I take it (I do not know where you are)
         return Intent("take", clause, obj=obj, hand=hand)
 
     def _parse_go(
