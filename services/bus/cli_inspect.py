@@ -117,8 +117,11 @@ def list_document(alive: set[str]) -> dict[str, list[dict[str, Any]]]:
 def cmd_list(args: argparse.Namespace) -> int:
     from services.bus.launcher import format_table
 
-    doc = list_document(_live(args, args.wait))
+    alive = _live(args, args.wait)
+    doc = list_document(alive)
     kinds = [args.kind] if args.kind else list(LIST_KINDS)
+    if not alive:
+        print(f"(no service is alive on {_bus(args).hub}: is `humanoid up` running?)", file=sys.stderr)
     if args.json:
         print(json.dumps({k: doc[k] for k in kinds}, indent=2))
         return 0
