@@ -261,6 +261,18 @@ def test_replay_shows_progress_and_takes_start_rate(stack: Stack, tmp_path: Path
     assert 0 < replayed < 400  # about the last second of two at 200 Hz
     verbose = humanoid(*stack.bus("replay", str(log), "--verbose", "--rate", "8"))
     assert verbose.stdout.count("hrp/hrp2/sim/clock  [") > 100
+    looping = subprocess.Popen(
+        [sys.executable, "-m", "services.cli", *stack.bus("replay", str(log), "--loop", "--rate", "8")],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(8)  # about 3 s to find the peers, then 0.25 s a round
+    looping.send_signal(signal.SIGINT)
+    _out, err = looping.communicate(timeout=30)
+    assert looping.returncode == 130
+    assert err.count("100.0 %") >= 2, err  # played to the end at least twice
 
 
 def test_exit_codes(stack: Stack) -> None:

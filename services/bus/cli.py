@@ -683,7 +683,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
                     break
         except KeyboardInterrupt:
             if progress is not None:
-                progress.finish()
+                progress.finish(complete=False)
             return 130
         except HumanoidError as exc:
             return _fail(exc.message)
@@ -730,9 +730,10 @@ class Progress:
         )
         print(text, end=end, file=sys.stderr, flush=True)
 
-    def finish(self) -> None:
+    def finish(self, complete: bool = True) -> None:
+        """End the bar's line: at 100 % when the log was played to its end, else where it stopped."""
         if self.count and (self.tty or self._done < 1.0):
-            self._draw(1.0, end="\n")
+            self._draw(1.0 if complete else self._done, end="\n")
         self.count = 0
         self._last_tenth = -1
 
