@@ -19,11 +19,11 @@ from pathlib import Path
 
 import msgspec
 import pytest
+from conftest import free_port
 
 from services.bus import schemas
 from services.bus.config import BusConfig
 from services.cli import main
-from tests.conftest import free_port
 
 REPO = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.integration

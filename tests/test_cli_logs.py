@@ -39,10 +39,11 @@ def test_logs_without_a_log_says_where_it_looked(tmp_path: Path, capsys) -> None
 
 def test_a_service_that_dies_at_start_shows_the_end_of_its_log(tmp_path: Path, monkeypatch, capsys) -> None:
     """Its output went to its log file, not the terminal: the launcher's error quotes the log's end."""
+    from conftest import free_port
+
     from services.bus.config import BusConfig
     from services.bus.discovery import ServiceEntry
     from services.bus.launcher import Launcher, LauncherConfig
-    from tests.conftest import free_port
 
     (tmp_path / "broken_service.py").write_text(
         "import sys\nprint('loading the calibration')\n"
