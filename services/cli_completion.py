@@ -53,10 +53,13 @@ def completion_names() -> dict[str, list[str]]:
     topics = sorted(schemas.topics())
     owners = {p.split("/", 1)[0] for p in [*endpoints, *topics]}
     services = sorted(set(discover()[0]) | owners)
+    from services.bus.interfaces import message_types
+
+    types = sorted(message_types())
     return {
         "endpoints": endpoints,
         "topics": topics,
-        "interfaces": sorted([*endpoints, *topics]),
+        "interfaces": sorted([*endpoints, *topics, *types]),
         "services": services,
     }
 

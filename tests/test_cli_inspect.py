@@ -11,6 +11,7 @@ from services.bus.cli import field_at
 from services.bus.graph import build_graph, to_dot, to_mermaid
 from services.bus.interfaces import struct_fields, units_of
 from services.bus.rates import RateMeter
+from services.cli import main
 
 
 class _Inner(msgspec.Struct, kw_only=True, frozen=True):
@@ -89,3 +90,13 @@ def test_field_paths() -> None:
         field_at(doc, "pose")
     with pytest.raises(KeyError, match=r"valid here: 0\.\.2"):
         field_at(doc, "position.3")
+
+
+def test_interface_of_a_message_type(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["interface", "JointState"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("message type sim.JointState (service sim)")
+    assert "sim_time_s" in out and "m/s, rad/s" in out
+    assert main(["interface", "PlanRequest"]) == 2  # two services have one
+    assert "footsteps.PlanRequest, walking.PlanRequest" in capsys.readouterr().err
+    assert main(["interface", "walking.PlanRequest"]) == 0

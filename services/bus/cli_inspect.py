@@ -159,18 +159,19 @@ def cmd_list(args: argparse.Namespace) -> int:
 def _add_interface(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "interface",
-        help="the fields of an endpoint's request and reply, or of a topic's message",
+        help="the fields of an endpoint's request and reply, of a topic's message, or of a message type",
         description="Show the message types of an endpoint (request, reply) or a topic: every field with "
         "its type, default, units, limits and description, nested types expanded. Read from the schemas "
         "(services/bus/schemas/); no service needs to run.",
         epilog=examples(
             "humanoid interface sim/execute",
             "humanoid interface sim/clock",
+            "humanoid interface JointState                 # a message type (or walking.PlanRequest)",
             "humanoid interface navigation/goto --json | jq '.request.fields[].path'",
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("name", help="SERVICE/NAME of an endpoint or a topic (`humanoid list`)")
+    p.add_argument("name", help="SERVICE/NAME of an endpoint or a topic (`humanoid list`), or a message type")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_interface)
 
@@ -190,23 +191,42 @@ def find_spec(name: str) -> Any:
         close = difflib.get_close_matches(name, list(specs), n=3, cutoff=0.5)
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
         raise InvalidRequestError(
-            f"no endpoint or topic {name!r}{hint}; `humanoid list` shows them all: {', '.join(sorted(specs))}"
+            f"no endpoint, topic or message type {name!r}{hint}; `humanoid list` shows the endpoints and "
+            f"topics: {', '.join(sorted(specs))}"
         )
     return spec
 
 
+def find_type(name: str) -> tuple[str, type] | None:
+    """A message type named ``Type`` or ``service.Type``; None when there is none; InvalidRequestError
+    when the bare name is several services' type."""
+    from services.bus.interfaces import message_types
+    from services.errors import InvalidRequestError
+
+    types = message_types()
+    if name in types:
+        return name, types[name]
+    matches = sorted(q for q in types if q.split(".", 1)[1] == name)
+    if len(matches) > 1:
+        raise InvalidRequestError(f"{name} is the name of several types: {', '.join(matches)}; name one")
+    return (matches[0], types[matches[0]]) if matches else None
+
+
 def cmd_interface(args: argparse.Namespace) -> int:
-    from services.bus.interfaces import describe
+    from services.bus.interfaces import describe, describe_type
     from services.errors import InvalidRequestError
 
     try:
-        doc = describe(find_spec(args.name))
+        found = find_type(args.name) if "/" not in args.name else None
+        doc = describe_type(*found) if found else describe(find_spec(args.name))
     except InvalidRequestError as exc:
         return _fail(exc.message)
     if args.json:
         print(json.dumps(doc, indent=2))
         return 0
-    print(f"{doc['kind']} {doc['name']} (service {doc['service']}): {doc['doc']}")
+    print(
+        f"{doc['kind']} {doc['name']} (service {doc['service']})" + (f": {doc['doc']}" if doc["doc"] else "")
+    )
     parts = ("request", "reply") if doc["kind"] == "endpoint" else ("message",)
     for part in parts:
         print()

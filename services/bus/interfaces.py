@@ -315,3 +315,33 @@ def describe(spec: EndpointSpec | TopicSpec) -> dict[str, Any]:
         "doc": spec.doc,
         "message": part(spec.message),
     }
+
+
+def message_types() -> dict[str, type]:
+    """Every message type of the schemas by ``<service>.<Type>`` (request, reply, topic message)."""
+    from services.bus import schemas
+
+    found: dict[str, type] = {}
+    for spec in schemas.endpoints().values():
+        found[f"{spec.service}.{spec.request.__name__}"] = spec.request
+        found[f"{spec.service}.{spec.reply.__name__}"] = spec.reply
+    for spec in schemas.topics().values():
+        found[f"{spec.service}.{spec.message.__name__}"] = spec.message
+    return found
+
+
+def describe_type(qualified: str, struct: type) -> dict[str, Any]:
+    """A JSON-ready description of one message type (``humanoid interface walking.PlanRequest``)."""
+    import dataclasses
+
+    return {
+        "name": qualified,
+        "kind": "message type",
+        "service": qualified.split(".", 1)[0],
+        "doc": struct_doc(struct),
+        "message": {
+            "type": struct.__name__,
+            "doc": struct_doc(struct),
+            "fields": [dataclasses.asdict(f) for f in struct_fields(struct)],
+        },
+    }
