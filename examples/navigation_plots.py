@@ -36,6 +36,7 @@ from services.navigation.body_extents import with_arms_of
 from services.navigation.demo_scenes import (
     BAR_BOX_TOP_M,
     BAR_TABLE_TOP_M,
+    bar_rotation_scenario,
     bar_scenario,
     bar_scenario_start,
     demo_room,
@@ -45,6 +46,7 @@ from services.navigation.geometry import BodyModel, BoxObstacle, Scene, body_mod
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto
 from services.navigation.path import PlannerConfig, SampledPath, plan_path
+from services.navigation.reshaping import ReshapeOptions
 from services.navigation.stage2 import Stage2Options
 from services.navigation.upper_body import CarriedBar, sweep_carried_object
 
@@ -133,6 +135,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--bar-out", type=Path, default=REPO / "out" / "navigation_bar_reshaping.png", help="PNG of stage 2"
     )
+    parser.add_argument(
+        "--rotation-out",
+        type=Path,
+        default=REPO / "out" / "navigation_bar_rotation.png",
+        help="PNG of stage 2 in the scenario where lifting alone does not pass (a pole beside the box)",
+    )
     parser.add_argument("--robot", default="hrp2_like", help="body model (hrp2_like, talos)")
     parser.add_argument("--turning-radius", type=float, default=0.5, help="minimum turning radius [m]")
     args = parser.parse_args(argv)
@@ -191,29 +199,89 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {args.out}")
     plot_bar_reshaping(args.robot, args.bar_out)
     print(f"wrote {args.bar_out}")
+    plot_bar_reshaping(args.robot, args.rotation_out, bar_rotation_scenario, "bar past a box and a pole")
+    print(f"wrote {args.rotation_out}")
     return 0
 
 
-def plan_bar_scenario(robot_name: str) -> GotoResult:
-    """The two-stage plan of the bar scenario: from the robot holding the bar on its stands to the goal,
-    the bar carried at 0.8 m."""
+def plan_bar_scenario(robot_name: str, scenario=bar_scenario, mode: str = "sample") -> GotoResult:
+    """The two-stage plan of a bar scenario: from the robot holding the bar on its stands to the goal,
+    the bar carried at 0.8 m, reshaped in ``mode`` ("sample": the paper's random configurations; "lift")."""
     robot = load_robot(robot_name)
-    scene, _, goal = bar_scenario()
-    options = GotoOptions(stage2=Stage2Options(carry_height_m=0.8))
+    scene, _, goal = scenario()
+    options = GotoOptions(stage2=Stage2Options(carry_height_m=0.8, reshape=ReshapeOptions(mode=mode)))
     return plan_goto(robot, scene, bar_scenario_start(robot), goal, CarriedBar(), options)
 
 
-def plot_bar_reshaping(robot_name: str, out: Path) -> None:
-    """Top view, bar height and bar-box distance over time of the reshaped bar scenario."""
-    scene, _, _ = bar_scenario()
-    result = plan_bar_scenario(robot_name)
+def _roll_yaw_deg(axis: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tilt of the bar (left end up > 0) and its yaw from ``reference`` (n, 3) axes [deg]."""
+    roll = np.degrees(np.arcsin(np.clip(axis[:, 2], -1.0, 1.0)))
+    yaw = np.arctan2(axis[:, 1], axis[:, 0]) - np.arctan2(reference[:, 1], reference[:, 0])
+    return roll, np.degrees(np.arctan2(np.sin(yaw), np.cos(yaw)))
+
+
+def _mark_key_frames(ax: Axes, motion, y: float) -> None:
+    for w in motion.windows:
+        for name, time_s, _ in w.key_frames():
+            ax.axvline(time_s, color="black", lw=0.5, ls="--")
+            ax.annotate(name.replace("_", " "), (time_s, y), rotation=90, fontsize=7, ha="right", va="bottom")
+
+
+def _front_view(ax: Axes, scene: Scene, motion, k: int) -> None:
+    """The y-z plane at the bar's centre at sample ``k``: obstacles cut there, the bar before (first
+    whole-body motion) and after reshaping."""
+    x_cut = float(motion.bar_centre_m[k, 0])
+    for o in scene.obstacles:
+        z0, z1 = o.z_range_m
+        if isinstance(o, BoxObstacle):
+            half = 0.5 * np.array(o.size_xyz_m[:2])
+            reach_x, y0, y1 = half[0], o.center_xyz_m[1] - half[1], o.center_xyz_m[1] + half[1]
+        else:
+            reach_x, y0, y1 = o.radius_m, o.center_xyz_m[1] - o.radius_m, o.center_xyz_m[1] + o.radius_m
+        if abs(o.center_xyz_m[0] - x_cut) > reach_x + 0.3:
+            continue
+        ax.add_patch(Polygon([(y0, z0), (y1, z0), (y1, z1), (y0, z1)], fc="tan", ec="black", alpha=0.6))
+        ax.annotate(o.name, (0.5 * (y0 + y1), min(z1, 1.45) - 0.03), ha="center", va="top", fontsize=8)
+    half = 0.5 * CarriedBar().length_m
+    for centre, axis, colour, label in (
+        (motion.bar_centre_first_m, motion.bar_axis_first, "tab:red", "before reshaping"),
+        (motion.bar_centre_m, motion.bar_axis, "tab:green", "after reshaping"),
+    ):
+        if centre is None:
+            continue
+        c, a = centre[k], axis[k]
+        ax.plot(
+            [c[1] - half * a[1], c[1] + half * a[1]],
+            [c[2] - half * a[2], c[2] + half * a[2]],
+            color=colour,
+            lw=3,
+            label=label,
+        )
+    ax.set_xlim(1.2, -1.2)  # seen from behind the robot: its left on the left
+    ax.set_ylim(0.0, 1.5)
+    ax.set_aspect("equal")
+    ax.set_xlabel("y [m] (left <-)")
+    ax.set_ylabel("z [m]")
+    ax.set_title(f"seen from behind at t={motion.times_s[k]:.2f} s (x={x_cut:.2f} m)")
+    ax.legend(fontsize=7, loc="lower center")
+
+
+def plot_bar_reshaping(
+    robot_name: str, out: Path, scenario=bar_scenario, title: str = "bar scenario"
+) -> None:
+    """Figure 2 regenerated: top view, front view at the collision, the bar's height and its roll/yaw over
+    time with the key frames, and the bar's distance to the obstacles before and after reshaping."""
+    scene, _, _ = scenario()
+    result = plan_bar_scenario(robot_name, scenario)
     motion = result.motion
     t = motion.times_s
-    fig = plt.figure(figsize=(15, 9))
-    grid = fig.add_gridspec(2, 2, height_ratios=(1.15, 1.0))
-    ax_top = fig.add_subplot(grid[0, :])
+    fig = plt.figure(figsize=(17, 10))
+    grid = fig.add_gridspec(2, 3, height_ratios=(1.1, 1.0))
+    ax_top = fig.add_subplot(grid[0, :2])
+    ax_front = fig.add_subplot(grid[0, 2])
     ax_h = fig.add_subplot(grid[1, 0])
-    ax_d = fig.add_subplot(grid[1, 1], sharex=ax_h)
+    ax_r = fig.add_subplot(grid[1, 1], sharex=ax_h)
+    ax_d = fig.add_subplot(grid[1, 2], sharex=ax_h)
 
     body = body_model(robot_name)
     draw_scene(ax_top, scene)
@@ -222,28 +290,43 @@ def plot_bar_reshaping(robot_name: str, out: Path) -> None:
         colour = "tab:blue" if step.side == "left" else "tab:red"
         p = step.pose
         ax_top.add_patch(Polygon(_rect(p.x_m, p.y_m, 0.12, 0.07, p.yaw_rad), fill=False, ec=colour, lw=0.8))
-    centre = motion.bar_centre_m
+    centre, axis = motion.bar_centre_m, motion.bar_axis
     half = 0.5 * CarriedBar().length_m
     norm = Normalize(vmin=float(centre[:, 2].min()), vmax=float(centre[:, 2].max()))
-    q = motion.q
     for k in range(0, len(t), 60):
-        yaw = float(
-            np.arctan2(2 * (q[k, 6] * q[k, 5] + q[k, 3] * q[k, 4]), 1 - 2 * (q[k, 4] ** 2 + q[k, 5] ** 2))
+        c, a = centre[k], axis[k]
+        ax_top.plot(
+            [c[0] - half * a[0], c[0] + half * a[0]],
+            [c[1] - half * a[1], c[1] + half * a[1]],
+            color=cm.plasma(norm(c[2])),
+            lw=0.9,
         )
-        dx, dy = -half * math.sin(yaw), half * math.cos(yaw)
-        cx, cy = centre[k, 0], centre[k, 1]
-        ax_top.plot([cx - dx, cx + dx], [cy - dy, cy + dy], color=cm.plasma(norm(centre[k, 2])), lw=0.9)
-    fig.colorbar(cm.ScalarMappable(norm=norm, cmap="plasma"), ax=ax_top, shrink=0.6, label="bar height [m]")
+    fig.colorbar(
+        cm.ScalarMappable(norm=norm, cmap="plasma"), ax=ax_top, shrink=0.6, label="bar centre height [m]"
+    )
     ax_top.set_xlim(-0.6, 3.8)
     ax_top.set_ylim(-1.4, 1.4)
     report = motion.report()
-    ax_top.set_title(
-        f"stage 2: {len(result.footsteps.sequence.steps)} footsteps, {report['iterations']} whole-body "
-        f"solutions, bar lifted over {[list(w.obstacles) for w in motion.windows]}; min clearance "
-        f"{1e3 * report['min_clearance_m']:.0f} mm,\nmultibody ZMP margin "
-        f"{1e3 * report['zmp_margin_m']:.0f} mm (bar included), "
-        f"planned in {result.timings_s['total_s']:.1f} s"
+    offsets = "; ".join(
+        f"{list(w.obstacles)}: up {w.offset.up_m:+.2f} m, left {w.offset.left_m:+.2f} m, forward "
+        f"{w.offset.forward_m:+.2f} m, roll {math.degrees(w.offset.roll_rad):+.0f} deg, yaw "
+        f"{math.degrees(w.offset.yaw_rad):+.0f} deg"
+        for w in motion.windows
     )
+    drawn = sum(st.drawn for st in motion.sampling)
+    ax_top.set_title(
+        f"{title}: {len(result.footsteps.sequence.steps)} footsteps, {report['iterations']} whole-body "
+        f"solutions, {drawn} random configurations drawn;\nheld {offsets};\nmin clearance "
+        f"{1e3 * report['min_clearance_m']:.0f} mm, multibody ZMP margin "
+        f"{1e3 * report['zmp_margin_m']:.0f} mm (bar included), "
+        f"planned in {result.timings_s['total_s']:.1f} s",
+        fontsize=9,
+    )
+    first = motion.iterations[0]
+    hits = [e for e in first.events if e.group == "bar"]
+    k_hit = int(np.argmin([e.min_distance_m for e in hits])) if hits else 0
+    k = round(hits[k_hit].t_min_s / (t[1] - t[0])) if hits else len(t) // 2
+    _front_view(ax_front, scene, motion, k)
 
     ax_h.plot(t, motion.bar_height_nominal_m, ":", color="gray", label="nominal (task space)")
     ax_h.plot(
@@ -257,47 +340,57 @@ def plot_bar_reshaping(robot_name: str, out: Path) -> None:
     ax_h.annotate("box top", (t[-1], BAR_BOX_TOP_M), ha="right", va="bottom", fontsize=8)
     ax_h.axhline(BAR_TABLE_TOP_M, color="goldenrod", lw=0.8)
     ax_h.annotate("table top", (t[-1], BAR_TABLE_TOP_M), ha="right", va="bottom", fontsize=8)
-    for w in motion.windows:
-        for time_s, label in (
-            (w.t_anticipate_s, "anticipating"),
-            (w.t_collide_s, "colliding"),
-            (w.t_collide_end_s, "collision ends"),
-            (w.t_regain_s, "regaining"),
-        ):
-            ax_h.axvline(time_s, color="black", lw=0.5, ls="--")
-            ax_h.annotate(label, (time_s, 0.74), rotation=90, fontsize=7, ha="right", va="bottom")
+    _mark_key_frames(ax_h, motion, 0.74)
     ax_h.set_xlabel("time [s]")
     ax_h.set_ylabel("bar centre height [m]")
-    ax_h.set_title("the bar's height before and after reshaping (Figure 2 (b)-(d))")
+    ax_h.set_title("(b)-(d): the bar's height, key frames, 5 ms, whole body", fontsize=9)
     ax_h.legend(fontsize=7, loc="upper left")
 
-    before = motion.iterations[0]
-    first = [e for e in before.events if e.group == "bar"]
-    box = motion.check.obstacles.index("box")
+    nominal_axis = motion.bar_axis_first if motion.bar_axis_first is not None else axis
+    for traj_axis, style, label in (
+        (motion.bar_planned.axis, "--", "planned (key frames, 5 ms)"),
+        (axis, "-", "after reshaping (whole body)"),
+    ):
+        roll, yaw = _roll_yaw_deg(traj_axis, nominal_axis)
+        ax_r.plot(t, roll, style, color="tab:purple", lw=1.1, label=f"roll, {label}")
+        ax_r.plot(t, yaw, style, color="tab:cyan", lw=1.1, label=f"yaw, {label}")
+    _mark_key_frames(ax_r, motion, -5.0)
+    ax_r.set_xlabel("time [s]")
+    ax_r.set_ylabel("bar rotation from the first motion [deg]")
+    ax_r.set_title("(b)-(d): the bar's roll (left end up) and yaw", fontsize=9)
+    ax_r.legend(fontsize=7, loc="lower right")
+
     bar_g = motion.check.groups.index("bar")
     exact_within = 0.25  # MotionChecker: distances are exact below this, lower bounds above
-    for check, colour, label in (
-        (motion.first_check, "tab:red", "before reshaping"),
-        (motion.check, "tab:green", "after reshaping"),
-    ):
-        if check is not None:
-            d = check.distance_m[:, bar_g, box]
-            ax_d.plot(t, np.where(d < exact_within, d, np.nan), color=colour, label=label)
-    if first:
+    names = sorted({o for w in motion.windows for o in w.obstacles}) or ["box"]
+    for name, ls in zip(names, ("-", "--", ":"), strict=False):
+        j = motion.check.obstacles.index(name)
+        for check, colour, label in (
+            (motion.first_check, "tab:red", "before"),
+            (motion.check, "tab:green", "after"),
+        ):
+            if check is not None:
+                d = check.distance_m[:, bar_g, j]
+                ax_d.plot(
+                    t, np.where(d < exact_within, d, np.nan), ls, color=colour, label=f"{name}, {label}"
+                )
+    if hits:
         ax_d.axvspan(
-            first[0].t_start_s, first[-1].t_end_s, color="tab:red", alpha=0.2, label="colliding before"
+            min(e.t_start_s for e in hits), max(e.t_end_s for e in hits), color="tab:red", alpha=0.15
         )
     ax_d.axhline(0.0, color="black", lw=0.6)
     ax_d.axhline(0.02, color="gray", lw=0.6, ls=":")
     ax_d.annotate("required clearance", (t[0], 0.02), fontsize=7, va="bottom")
     ax_d.set_ylim(-0.15, exact_within)
     ax_d.set_xlabel("time [s]")
-    ax_d.set_ylabel("signed distance bar - box [m]")
-    ax_d.set_title(f"bar to box; before reshaping: {1e3 * before.min_clearance_m:.0f} mm (penetration)")
+    ax_d.set_ylabel("signed distance bar - obstacle [m]")
+    ax_d.set_title(
+        f"(a): bar to obstacles; before reshaping {1e3 * first.min_clearance_m:.0f} mm", fontsize=9
+    )
     ax_d.legend(fontsize=7)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=100)
     plt.close(fig)
 
 

@@ -32,7 +32,7 @@ if str(ROOT) not in sys.path:
 
 from services.model import load_robot  # noqa: E402
 from services.walking.footsteps import (  # noqa: E402
-    FootstepLimits,
+    FootstepBounds,
     SolePose,
     arc_walk,
     side_steps,
@@ -281,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
             WalkTiming(),
             PatternOptions(),
             initial_com_m=robot.com(q0),
-            bounds=FootstepLimits.from_robot(robot),
+            bounds=FootstepBounds.from_robot(robot),
         )
         res = planner.solve(pattern, q0)
         title = f"{robot.name} {name}"

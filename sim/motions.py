@@ -11,14 +11,9 @@ import pinocchio as pin
 
 from services.errors import InfeasibleError
 from services.model import RobotModel
+from services.model.ground import smoothstep5 as smoothstep
 
 LEG_SIDES = ("left", "right")
-
-
-def smoothstep(s: np.ndarray) -> np.ndarray:
-    """Quintic 0 -> 1 with zero velocity and acceleration at both ends."""
-    s = np.clip(s, 0.0, 1.0)
-    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
 
 
 def _leg_velocity_indices(robot: RobotModel, side: str) -> np.ndarray:

@@ -20,12 +20,7 @@ from services.footsteps.constraints import (
     RootSoleOnFootprintTask,
     relative_planar_pose,
 )
-from services.footsteps.geometry import (
-    disk_signed_distance,
-    non_overlap_rows,
-    rectangles_disjoint_margin,
-    sole_pose_of,
-)
+from services.footsteps.geometry import non_overlap_rows
 from services.footsteps.planner import initial_stance, plan_footsteps
 from services.footsteps.problem import self_collision_task
 from services.footsteps.request import DiskObstacle, FootstepPlanRequest, FootstepTask, PlannerOptions
@@ -33,8 +28,14 @@ from services.ik.kinematics import compute_kinematics
 from services.ik.tasks.foot_outside_disk import FootOutsideDiskTask
 from services.ik.tasks.self_collision import SelfCollisionTask
 from services.model import load_robot
-from services.model.geometry import polygon_signed_margin
-from services.walking.footsteps import FootstepLimits, SolePose, validate_footsteps
+from services.model.ground import (
+    Rectangle,
+    rectangles_overlap_depth,
+    signed_distance,
+    sole_corners,
+    sole_pose_of,
+)
+from services.walking.footsteps import FootstepBounds, SolePose, validate_footsteps
 
 
 @pytest.fixture(scope="module")
@@ -227,6 +228,19 @@ def test_non_overlap_rows_keep_the_footprints_apart():
     assert held > 100
 
 
+def rectangles_disjoint_margin(a: SolePose, b: SolePose, length_m: float, width_m: float) -> float:
+    """Separation [m] of two footprint rectangles (> 0: disjoint): the validation counterpart of the
+    non-overlap rows."""
+    return -rectangles_overlap_depth(sole_corners(a, length_m, width_m), sole_corners(b, length_m, width_m))
+
+
+def disk_signed_distance(pose: SolePose, length_m: float, width_m: float, center_xy: np.ndarray) -> float:
+    """Signed distance [m] from a disk centre to a footprint rectangle (< 0 under the sole)."""
+    return float(
+        Rectangle((pose.x_m, pose.y_m), (length_m, width_m), pose.yaw_rad).signed_distance(center_xy)[0]
+    )
+
+
 def test_disk_signed_distance():
     pose = SolePose(1.0, 2.0, math.pi / 2)  # 0.24 along y, 0.14 along x
     assert disk_signed_distance(pose, 0.24, 0.14, np.array([1.0, 2.0])) == pytest.approx(-0.07)
@@ -242,7 +256,7 @@ def check_plan(robot, request, result):
     not overlapping, outside the disks; CoM over the final support polygon; tasks within tolerance;
     the robot standing on the last footprints."""
     seq = result.footstep_sequence()
-    limits = FootstepLimits.from_robot(robot)
+    limits = FootstepBounds.from_robot(robot)
     if seq.steps:
         validate_footsteps(seq, limits)  # bounds (relative to the stance foot) and no overlap
     length, width = robot.sole_size_m
@@ -261,7 +275,7 @@ def check_plan(robot, request, result):
         final = sole_pose_of(T)
         assert abs(T.translation[2]) < 2e-3 and T.rotation[2, 2] > math.cos(0.01)
         assert np.allclose(final.as_array()[:2], start[side].as_array()[:2], atol=2e-3)
-    margin = polygon_signed_margin(robot.support_polygon(q, data=data), robot.com(q, data))
+    margin = -float(signed_distance(robot.com(q, data)[:2], robot.support_polygon(q, data=data))[0])
     assert margin > 0.0
     for task, residual in zip(request.tasks, result.residuals, strict=True):
         assert residual.name == task.name and residual.solved and residual.value <= task.tol()

@@ -10,12 +10,12 @@ import pytest
 
 from services.bus.schemas import footsteps as msg
 from services.errors import InfeasibleError, InvalidRequestError
-from services.footsteps.geometry import disk_signed_distance
 from services.footsteps.service import plan_reply
 from services.model import load_robot
+from services.model.ground import Rectangle
 from services.walking.footsteps import (
     Footstep,
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
     SolePose,
     validate_footsteps,
@@ -57,11 +57,9 @@ def test_plan_over_the_bus_returns_footsteps_and_the_final_configuration(client,
         SolePose(*reply.right_start),
         tuple(Footstep(s.side, SolePose(s.x, s.y, s.yaw)) for s in reply.footsteps),  # type: ignore[arg-type]
     )
-    validate_footsteps(sequence, FootstepLimits.from_robot(robot))
+    validate_footsteps(sequence, FootstepBounds.from_robot(robot))
     for step in reply.footsteps:
-        distance = disk_signed_distance(
-            SolePose(step.x, step.y, step.yaw), *robot.sole_size_m, np.array([0.6, 0.0])
-        )
+        distance = Rectangle((step.x, step.y), robot.sole_size_m, step.yaw).signed_distance((0.6, 0.0))[0]
         assert distance >= 0.15 - 1e-3
     # the final configuration stands on the last footprints with the hand on the target
     hand = robot.frame_pose(reply.q_final, robot.frames.grasp("right")).translation

@@ -110,6 +110,8 @@ def tasks_for(robot, q: np.ndarray, rng: np.random.Generator) -> list:
         PostureTask(model, robot.q_half_sitting),
         PostureTask(model, robot.q_half_sitting, joint_names=all_joints),
         GazeTask(model, frames.gaze, target, axis_in_camera=(1.0, 0.0, 0.0)),
+        GazeTask(model, frames.gaze, target, axis_in_camera=(1.0, 0.0, 0.0), form="direction"),
+        GazeTask(model, frames.gaze, target, axis_in_camera=(0.3, -0.5, 1.0), form="direction"),
         SelfCollisionTask(
             model, robot.capsules, robot.collision_pairs, activation_m=100.0, max_rows_per_pair=1
         ),

@@ -13,8 +13,9 @@ import pytest
 from services.errors import InvalidRequestError
 from services.model import load_robot, robot_names
 from services.model.generate_urdf import DEFAULT_URDF_PATH, urdf_text
-from services.model.geometry import convex_hull_ccw, polygon_signed_margin, segment_distance
-from services.model.params import params_from_dict
+from services.model.geometry import segment_distance
+from services.model.ground import convex_hull_ccw, signed_distance
+from services.model.params import _BOUND_KEYS, params_from_dict
 from services.model.pybullet_robot import PybulletRobot
 
 ROBOTS = ["hrp2_like", "talos"]
@@ -133,7 +134,7 @@ def test_half_sitting_soles_flat_on_ground_and_com_over_support(name):
     assert robot.mid_feet_pose(q) == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
     polygon = robot.support_polygon(q)
     com = robot.com(q)
-    assert polygon_signed_margin(polygon, com[:2]) > 0.05
+    assert -signed_distance(com[:2], polygon)[0] > 0.05
     assert com[2] == pytest.approx(robot.params.com_height_m, abs=0.01)
 
 
@@ -385,7 +386,8 @@ def test_hrp2_gripper_holds_ball_and_bar(shape, radius_m, client):
 def test_params_validation_messages():
     robot = load_robot("hrp2_like")
     raw = {
-        "footstep_bounds": vars(robot.params.footstep_bounds) | {"dx_min_m": 0.3},
+        "footstep_bounds": {k: getattr(robot.params.footstep_bounds, k) for k in _BOUND_KEYS}
+        | {"dx_min_m": 0.3},
         "step_height_m": 0.05,
         "com_height_m": 0.75,
         "step_duration_s": 0.8,
@@ -439,7 +441,7 @@ def test_convex_hull_keeps_rectangle_corners_that_differ_by_float_noise():
         noisy = corners + rng.normal(0.0, 1e-15, corners.shape)
         hull = convex_hull_ccw(np.vstack([corners, noisy, corners.mean(axis=0)]))
         assert hull.shape == (4, 2)
-        assert all(polygon_signed_margin(hull, pt) >= -1e-12 for pt in corners)
+        assert all(-signed_distance(pt, hull)[0] >= -1e-12 for pt in corners)
 
 
 def test_geometry_helpers():
@@ -447,8 +449,8 @@ def test_geometry_helpers():
     pts = rng.uniform(-1.0, 1.0, size=(50, 2))
     hull = convex_hull_ccw(pts)
     for pt in pts:
-        assert polygon_signed_margin(hull, pt) >= -1e-12
-    assert polygon_signed_margin(hull, np.array([5.0, 0.0])) < 0.0
+        assert -signed_distance(pt, hull)[0] >= -1e-12
+    assert -signed_distance(np.array([5.0, 0.0]), hull)[0] < 0.0
     # segment distance against dense sampling
     for _ in range(20):
         a0, a1, b0, b1 = rng.normal(size=(4, 3))
@@ -459,3 +461,31 @@ def test_geometry_helpers():
         d = segment_distance(a0, a1, b0, b1)
         assert d <= brute + 1e-12
         assert d == pytest.approx(brute, abs=0.02)
+
+
+def test_ground_rectangle_and_bounds():
+    """services.model.ground: the rectangle's frame round-trips, its signed distance is the Euclidean
+    distance outside and minus the distance to the boundary inside; the robot's stepping bounds carry
+    its own sole."""
+    from services.model.ground import FootstepBounds, Rectangle, SolePose, sole_corners, sole_pose_at
+
+    rng = np.random.default_rng(3)
+    rect = Rectangle((1.0, -2.0), (0.6, 0.2), 0.7)
+    pts = rng.uniform(-3.0, 3.0, (200, 2))
+    np.testing.assert_allclose(rect.to_world(rect.to_local(pts)), pts, atol=1e-12)
+    corners = rect.corners()
+    d = rect.signed_distance(pts)
+    for pt, dist in zip(pts, d, strict=True):
+        on_edges = [
+            np.linalg.norm(pt - (a + np.clip(np.dot(pt - a, b - a) / np.dot(b - a, b - a), 0, 1) * (b - a)))
+            for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True)
+        ]
+        assert abs(dist) == pytest.approx(min(on_edges), abs=1e-12)
+        assert (dist < 0) == bool(np.all(np.abs(rect.to_local(pt)[0]) < [0.3, 0.1]))
+    np.testing.assert_array_equal(sole_corners(SolePose(1.0, -2.0, 0.7), 0.6, 0.2), corners)
+    for name in ("hrp2_like", "talos"):
+        robot = load_robot(name)
+        bounds = FootstepBounds.from_robot(robot)
+        assert (bounds.sole_length_m, bounds.sole_width_m) == tuple(robot.sole_size_m)
+        left = sole_pose_at(robot, robot.q_half_sitting, "left")
+        assert left.y_m > 0.0 and abs(left.yaw_rad) < 1e-9

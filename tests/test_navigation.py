@@ -33,7 +33,7 @@ from services.navigation.geometry import (
 from services.navigation.goals import ObjectGoal
 from services.navigation.path import PlannerConfig, SampledPath, plan_path
 from services.navigation.upper_body import CarriedBar, sweep_carried_object
-from services.walking.footsteps import FootstepLimits, wrap_angle
+from services.walking.footsteps import FootstepBounds, wrap_angle
 
 BODY = body_model("hrp2_like")
 
@@ -323,7 +323,7 @@ def test_bar_sweep_detects_the_box_on_the_table_and_clears_when_lifted() -> None
 # ---------------------------------------------------------------------------------------------- footsteps
 
 
-def _check_bounds(seq, bounds: FootstepLimits) -> None:
+def _check_bounds(seq, bounds: FootstepBounds) -> None:
     feet = {"left": seq.left_start, "right": seq.right_start}
     previous = None
     for step in seq.steps:
@@ -334,13 +334,13 @@ def _check_bounds(seq, bounds: FootstepLimits) -> None:
         sign = 1.0 if step.side == "left" else -1.0
         assert bounds.dx_min_m < dx < bounds.dx_max_m
         assert bounds.dy_min_m < sign * dy < bounds.dy_max_m
-        assert bounds.dyaw_min_rad < sign * dyaw < bounds.dyaw_max_rad
+        assert bounds.dtheta_min_rad < sign * dyaw < bounds.dtheta_max_rad
         feet[step.side] = step.pose
 
 
 @pytest.mark.parametrize("curve", ["dubins", "reeds_shepp"])
 def test_footsteps_along_path_respect_the_bounds(curve: str) -> None:
-    bounds = FootstepLimits()
+    bounds = FootstepBounds()
     for scene, start, goal in (demo_room(), random_clutter(20, seed=0)):
         path = plan_path(scene, BODY, start, goal, PlannerConfig(curve=curve))
         result = footsteps_along_path(path, bounds)

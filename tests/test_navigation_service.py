@@ -68,7 +68,10 @@ def test_goto_over_the_bus(module_bus_harness) -> None:
     for heights in (report.bar_height_nominal_m, report.bar_height_before_m, report.bar_height_planned_m):
         assert heights.shape == (n,)
     assert report.bar_height_before_m.max() < BAR_BOX_TOP_M
-    assert report.bar_height_m.max() > BAR_BOX_TOP_M + 0.012
+    # the sampled reshaping may tilt or turn the bar instead of lifting its centre over the box: its
+    # key frames bracket the collision, and the final motion keeps the clearance (above)
+    (segment,) = report.segments
+    assert segment.t_anticipate_s < segment.t_collide_s <= segment.t_collide_end_s < segment.t_regain_s
     assert set(reply.timings_s) == {"path_s", "footsteps_s", "stage2_s", "total_s"}
 
     # an enclosed goal: an error reply with the code and the enclosing obstacles, within the budget

@@ -16,10 +16,11 @@ from services.errors import InfeasibleError, InvalidRequestError
 from services.ik.kinematics import compute_kinematics
 from services.model import load_robot
 from services.navigation.bar_pickup import plan_bar_pickup
-from services.navigation.carry import HandOnBarTask, grip_from_configuration
-from services.navigation.collision3d import MotionChecker
+from services.navigation.carry import BarTrajectory, HandOnBarTask, grip_from_configuration
+from services.navigation.collision3d import MotionCheck, MotionChecker
 from services.navigation.demo_scenes import (
     BAR_BOX_TOP_M,
+    bar_rotation_scenario,
     bar_scenario,
     bar_scenario_start,
     enclosed_goal_room,
@@ -27,8 +28,16 @@ from services.navigation.demo_scenes import (
 from services.navigation.geometry import BoxObstacle, Pose2D, Scene
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto
-from services.navigation.reshaping import ReshapeOptions, make_window, merge_windows, reshaped_height
-from services.navigation.stage2 import Stage2Options, zmp_support_distance
+from services.navigation.keyframes import next_windows
+from services.navigation.reshaping import (
+    BarOffset,
+    ReshapeOptions,
+    apply_offsets,
+    make_window,
+    offsets_on_grid,
+    reshaped_trajectory,
+)
+from services.navigation.stage2 import Stage2Options
 from services.navigation.upper_body import CarriedBar
 
 ROBOT = load_robot("hrp2_like")
@@ -99,41 +108,133 @@ def test_grip_requires_a_bar_in_both_hands() -> None:
 # ------------------------------------------------------------------------------------------ the reshaping
 
 
-def test_reshaped_height_meets_the_key_frames_smoothly_within_the_bounds() -> None:
-    """Figure 2 (b)-(c): key frames joined by quintics and resampled at 5 ms; the height stays nominal
-    outside [anticipating, regaining], holds the lift between the colliding times, and its speed and
-    acceleration respect the bounds that sized the ramps."""
+def _bar_ends(centre: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """(n, 2, 3) both ends [m] of the bar posed at centre (n, 3) / axis (n, 3)."""
+    half = 0.5 * BAR.length_m
+    return np.stack([centre + half * axis, centre - half * axis], axis=1)
+
+
+def test_offsets_move_the_bar_in_the_walk_frame() -> None:
+    """BarOffset: forward is the horizontal normal of the axis, left the axis; roll > 0 raises the left
+    end, yaw turns it counter-clockwise; the axis stays a unit vector."""
+    centre = np.array([[1.0, 2.0, 0.8]])
+    axis = np.array([[0.0, 1.0, 0.0]])  # walking along +x, the bar across: left is +y
+    moved, _ = apply_offsets(centre, axis, [[0.1, 0.2, 0.3, 0.0, 0.0]])
+    assert moved[0] == pytest.approx([1.1, 2.2, 1.1])
+    roll = math.radians(20.0)
+    _, tilted = apply_offsets(centre, axis, [[0.0, 0.0, 0.0, roll, 0.0]])
+    assert tilted[0] == pytest.approx([0.0, math.cos(roll), math.sin(roll)])
+    _, turned = apply_offsets(centre, axis, [[0.0, 0.0, 0.0, 0.0, roll]])
+    assert turned[0] == pytest.approx([-math.sin(roll), math.cos(roll), 0.0])
+    rng = np.random.default_rng(1)
+    axes = rng.normal(size=(20, 3)) * [1.0, 1.0, 0.2]
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    _, any_axis = apply_offsets(np.zeros((20, 3)), axes, rng.normal(size=(20, 5)))
+    assert np.linalg.norm(any_axis, axis=1) == pytest.approx(np.ones(20))
+
+
+def test_key_frames_are_interpolated_smoothly_within_the_bounds() -> None:
+    """Figure 2 (b)-(c): the bar's configuration at the key frames (anticipating: nominal; colliding and
+    collision end: the offset; regaining: nominal) joined by quintics and resampled at 5 ms; every point of
+    the bar moves within the speed and acceleration bounds that sized the ramps, C2 at the key frames."""
     options = ReshapeOptions()
     dt = 0.005
     t = np.arange(0.0, 20.0 + dt / 2, dt)
-    nominal = np.full(t.shape, 0.8)
-    w = make_window(8.0, 10.0, 1.03, 0.8, ("box",), options, 0.0, 20.0)
+    n = t.size
+    nominal = BarTrajectory(
+        t, np.column_stack([0.3 * t, np.zeros(n), np.full(n, 0.8)]), np.tile([0.0, 1.0, 0.0], (n, 1))
+    )
+    offset = BarOffset(0.02, -0.05, 0.15, math.radians(-15.0), math.radians(10.0))
+    w = make_window(8.0, 10.0, offset, ("box",), options, 0.0, 20.0, 0.5 * BAR.length_m, 0.8)
     assert w.t_anticipate_s < w.t_collide_s == 8.0 < w.t_collide_end_s == 10.0 < w.t_regain_s
-    assert w.t_collide_s - w.t_anticipate_s == pytest.approx(options.ramp_s(0.23))
-    h = reshaped_height(t, nominal, [w])
-    for time_s, height in w.key_frames(lambda _: 0.8):
-        assert h[round(time_s / dt)] == pytest.approx(height, abs=1e-9)
+    assert w.t_collide_s - w.t_anticipate_s == pytest.approx(options.ramp_s(offset.displacement_m(0.9)))
+    assert w.height_m == pytest.approx(0.95)
+    reshaped = reshaped_trajectory(nominal, [w])
+    offsets = offsets_on_grid(t, [w])
+    for name, time_s, key in w.key_frames():
+        assert offsets[round(time_s / dt)] == pytest.approx(key.as_array(), abs=1e-9), name
     outside = (t <= w.t_anticipate_s) | (t >= w.t_regain_s)
-    assert np.all(h[outside] == 0.8)
-    assert np.all(h[(t >= 8.0) & (t <= 10.0)] == pytest.approx(1.03))
-    v = np.diff(h) / dt
-    a = np.diff(v) / dt
-    assert np.abs(v).max() <= options.max_lift_speed_m_s * 1.01
-    assert np.abs(a).max() <= options.max_lift_acc_m_s2 * 1.05
-    assert np.abs(np.diff(a)).max() / dt < 10.0  # no jump in acceleration (C2 at the key frames)
+    assert np.array_equal(reshaped.centre_m[outside], nominal.centre_m[outside])
+    held = (t >= 8.0) & (t <= 10.0)
+    assert np.allclose(offsets[held], offset.as_array())
+    relative = _bar_ends(reshaped.centre_m, reshaped.axis) - _bar_ends(nominal.centre_m, nominal.axis)
+    v = np.linalg.norm(np.diff(relative, axis=0), axis=2) / dt
+    a = np.linalg.norm(np.diff(relative, n=2, axis=0), axis=2) / dt**2
+    assert v.max() <= options.max_lift_speed_m_s * 1.01
+    assert a.max() <= options.max_lift_acc_m_s2 * 1.05
+    jerk = np.abs(np.diff(offsets, n=3, axis=0)).max(axis=0) / dt**3
+    assert jerk.max() < 10.0  # no jump in acceleration (C2 at the key frames)
 
 
-def test_overlapping_windows_merge_into_one_rise_and_fall() -> None:
-    options = ReshapeOptions()
-    a = make_window(5.0, 6.0, 1.0, 0.8, ("a",), options, 0.0, 30.0)
-    b = make_window(6.5, 7.0, 1.1, 0.8, ("b",), options, 0.0, 30.0)
-    far = make_window(20.0, 21.0, 0.9, 0.8, ("c",), options, 0.0, 30.0)
-    merged = merge_windows([far, b, a], 0.8, options, 0.0, 30.0)
-    assert len(merged) == 2
-    one, two = merged
-    assert (one.t_collide_s, one.t_collide_end_s, one.height_m, one.obstacles) == (5.0, 7.0, 1.1, ("a", "b"))
-    assert one.t_collide_s - one.t_anticipate_s == pytest.approx(options.ramp_s(0.3))
-    assert two == far
+def _check_with(distance_m: np.ndarray, obstacles: tuple[str, ...], dt: float) -> MotionCheck:
+    """A 3D check whose bar distances to ``obstacles`` are ``distance_m`` (n, len(obstacles))."""
+    n = distance_m.shape[0]
+    d = np.full((n, 4, len(obstacles)), math.inf)
+    d[:, 0, :] = distance_m
+    return MotionCheck(
+        np.arange(n) * dt,
+        ("bar", "arms", "body", "legs"),
+        obstacles,
+        d,
+        np.zeros(d.shape, int),
+        ("carried_bar",),
+    )
+
+
+def test_collisions_close_in_time_are_held_by_one_window(q_bar: np.ndarray) -> None:
+    """Mode "lift" (deterministic): two obstacles met one after the other become one rise and fall at the
+    higher clearing height; a third far away gets its own window; a collision within an applied window
+    reshapes that window again."""
+    scene = Scene(
+        (
+            BoxObstacle("a", (1.0, -0.6, 0.4), (0.3, 0.3, 0.8)),
+            BoxObstacle("b", (1.4, -0.6, 0.45), (0.3, 0.3, 0.9)),
+            BoxObstacle("c", (6.0, -0.6, 0.4), (0.3, 0.3, 0.8)),
+        ),
+        (-1.0, 8.0, -2.0, 2.0),
+    )
+    dt = 0.005
+    t = np.arange(0.0, 30.0 + dt / 2, dt)
+    n = t.size
+    dist = np.full((n, 3), 1.0)
+    dist[(t > 5.0) & (t < 6.0), 0] = -0.05
+    dist[(t > 6.5) & (t < 7.0), 1] = -0.05
+    dist[(t > 20.0) & (t < 21.0), 2] = -0.05
+    check = _check_with(dist, ("a", "b", "c"), dt)
+    grip = grip_from_configuration(ROBOT, q_bar, BAR)
+    nominal = BarTrajectory(
+        t, np.column_stack([0.3 * t, np.zeros(n), np.full(n, 0.8)]), np.tile([0.0, 1.0, 0.0], (n, 1))
+    )
+    options = ReshapeOptions(mode="lift")
+    events = check.events(options.required_clearance_m)
+    windows, _ = next_windows(
+        events, check, [], nominal.centre_m, np.zeros((n, ROBOT.nq)), nominal, scene, grip, options, None
+    )
+    assert len(windows) == 2
+    one, two = windows
+    assert one.obstacles == ("a", "b") and two.obstacles == ("c",)
+    assert one.t_collide_s == pytest.approx(5.0, abs=dt) and one.t_collide_end_s == pytest.approx(7.0, abs=dt)
+    assert one.height_m == pytest.approx(0.9 + BAR.radius_m + options.target_clearance_m)
+    assert one.offset == BarOffset(up_m=pytest.approx(one.height_m - 0.8))
+    assert not one.overlaps(two)
+    # the next motion still meets "b" a little later, within the first window: that window is redone
+    dist2 = np.full((n, 3), 1.0)
+    dist2[(t > 7.0) & (t < 7.3), 1] = 0.0
+    check2 = _check_with(dist2, ("a", "b", "c"), dt)
+    again, _ = next_windows(
+        check2.events(0.02),
+        check2,
+        windows,
+        nominal.centre_m,
+        np.zeros((n, ROBOT.nq)),
+        nominal,
+        scene,
+        grip,
+        options,
+        None,
+    )
+    assert len(again) == 2 and again[1] == two
+    assert again[0].t_collide_end_s >= 7.3 - dt and again[0].obstacles == ("a", "b")
 
 
 # -------------------------------------------------------------------------------------------- 3D check
@@ -200,15 +301,29 @@ def test_enclosed_goal_is_infeasible_within_the_budget() -> None:
     assert {"pen_north", "pen_south", "pen_east", "pen_west"} <= set(details["enclosing_obstacles"])
 
 
-def test_a_box_too_tall_to_lift_over_is_infeasible(q_bar: np.ndarray) -> None:
+@pytest.mark.parametrize(
+    ("mode", "top_m", "reason"),
+    [("lift", 1.32, "lift_too_high"), ("sample", 1.8, "no_collision_free_sample")],
+)
+def test_a_box_too_tall_to_pass_is_infeasible(
+    q_bar: np.ndarray, mode: str, top_m: float, reason: str
+) -> None:
+    """Lifting: clearing the box needs the bar above the arms' 1.25 m. Sampling: no configuration within
+    the arms' reach (lifted, tilted, turned, shifted) clears a box as high as the robot's shoulders."""
     scene, _, goal = bar_scenario()
-    tall = BoxObstacle("box", (2.0, -0.65, 1.02), (0.3, 0.3, 0.6))  # top at 1.32 m
+    height = top_m - 0.72
+    tall = BoxObstacle("box", (2.0, -0.65, 0.72 + 0.5 * height), (0.3, 0.3, height))
     scene = Scene(tuple(tall if o.name == "box" else o for o in scene.obstacles), scene.bounds_xy_m)
-    options = GotoOptions(stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M))
+    options = GotoOptions(
+        stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M, reshape=ReshapeOptions(mode=mode))
+    )
     with pytest.raises(InfeasibleError, match="box") as info:
         plan_goto(ROBOT, scene, q_bar, goal, BAR, options)
-    assert info.value.details["reason"] == "lift_too_high"
-    assert info.value.details["height_m"] > 1.32
+    assert info.value.details["reason"] == reason
+    if mode == "lift":
+        assert info.value.details["height_m"] > top_m
+    else:
+        assert info.value.details["obstacles"] == ["box"] and info.value.details["collide"] > 0
 
 
 def test_spent_reshaping_budget_is_infeasible_and_names_the_obstacle(q_bar: np.ndarray) -> None:
@@ -226,43 +341,104 @@ def test_spent_reshaping_budget_is_infeasible_and_names_the_obstacle(q_bar: np.n
 # ------------------------------------------------------------------------------------ the bar scenario
 
 
-def test_bar_scenario_is_reshaped_over_the_box(bar_plan: GotoResult, q_bar: np.ndarray) -> None:
-    """Figures 2-3: the first whole-body motion drives the bar into the box; the reshaped one lifts it over
-    the box between the anticipating and regaining times and lowers it again, collision-free, the ZMP
-    inside the support polygon."""
-    motion = bar_plan.motion
+def _bar_clearance_to(motion, name: str) -> np.ndarray:
+    """(n,) signed distance [m] of the carried bar to obstacle ``name`` along the final motion."""
+    check = motion.check
+    return check.distance_m[:, check.groups.index("bar"), check.obstacles.index(name)]
+
+
+def _assert_reshaped_smoothly(motion, q_bar: np.ndarray, obstacles: tuple[str, ...]) -> None:
+    """One window around ``obstacles`` whose key frames bracket the first motion's collisions; the
+    realised bar nominal outside it, the final motion collision-free with the ZMP inside the support
+    polygon, starting at the robot's configuration."""
     rs = ReshapeOptions()
     first = motion.iterations[0]
     hits = [e for e in first.events if e.group == "bar"]
-    assert [e.obstacle for e in hits] == ["box"] and hits[0].min_distance_m < -0.05
+    assert {e.obstacle for e in hits} == set(obstacles) and min(e.min_distance_m for e in hits) < -0.05
     assert len(motion.iterations) >= 2 and not motion.iterations[-1].events
     assert motion.check.min_clearance_m >= rs.required_clearance_m
-    # stage 1 saw it coming: the bar's sweep along the path meets the box too
-    assert bar_plan.sweep is not None and [s.obstacles for s in bar_plan.sweep.segments] == [("box",)]
-
     (window,) = motion.windows
-    assert window.obstacles == ("box",)
-    assert window.height_m >= BAR_BOX_TOP_M + BAR.radius_m + rs.target_clearance_m - 1e-9
-    assert window.t_anticipate_s < window.t_collide_s <= hits[0].t_start_s
-    assert hits[-1].t_end_s <= window.t_collide_end_s < window.t_regain_s
+    assert window.obstacles == obstacles
+    assert window.t_anticipate_s < window.t_collide_s <= min(e.t_start_s for e in hits)
+    assert max(e.t_end_s for e in hits) <= window.t_collide_end_s < window.t_regain_s
+    keys = [k for k, _, _ in window.key_frames()]
+    assert keys == ["anticipating", "colliding", "collision_end", "regaining"]
     t = motion.times_s
     realised = motion.bar_centre_m[:, 2]
-    held = (t >= window.t_collide_s) & (t <= window.t_collide_end_s)
-    assert realised[held].min() >= BAR_BOX_TOP_M + BAR.radius_m + rs.required_clearance_m
     before = (t <= window.t_anticipate_s) & (t > 1.0)
     after = t >= window.t_regain_s
     for mask in (before, after):  # nominal carry height elsewhere, as before reshaping
         assert np.abs(realised[mask] - CARRY_HEIGHT_M).max() < 0.005
         assert np.abs(motion.bar_height_first_m[mask] - realised[mask]).max() < 0.005
     assert motion.hand_error_m < rs.max_hand_error_m
-
-    # the whole-body motion starts at the robot's configuration and keeps the ZMP in the support polygon
+    # the planned pose is what the hands realise (5 ms grid, both the centre and the axis)
+    assert np.abs(motion.bar_planned.centre_m - motion.bar_centre_m).max() < rs.max_hand_error_m
+    assert (
+        np.degrees(np.arccos(np.clip(np.sum(motion.bar_planned.axis * motion.bar_axis, axis=1), -1, 1))).max()
+        < 3.0
+    )
     assert np.allclose(motion.q[0], q_bar, atol=1e-9)
-    pattern = motion.pattern
-    wb_dist = zmp_support_distance(motion.wholebody.zmp_multibody_m, pattern, *ROBOT.sole_size_m)
+    wb_dist = motion.wholebody.zmp_distance_m
     assert wb_dist.max() < 0.0 and motion.zmp_margin_m > 0.0  # without and with the bar's mass
+
+
+def test_bar_scenario_is_reshaped_around_the_box(bar_plan: GotoResult, q_bar: np.ndarray) -> None:
+    """Figures 2-3 with the paper's method: the first whole-body motion drives the bar into the box; a
+    random configuration of the bar near the collision, collision-free and within the arms' reach, is
+    held between the colliding times and the whole-body motion is solved again: collision-free, the bar
+    nominal again after the regaining time, the robot at the goal."""
+    motion = bar_plan.motion
+    _assert_reshaped_smoothly(motion, q_bar, ("box",))
+    # stage 1 saw it coming: the bar's sweep along the path meets the box too
+    assert bar_plan.sweep is not None and [s.obstacles for s in bar_plan.sweep.segments] == [("box",)]
+    assert motion.mode == "sample" and motion.sampling and motion.sampling[-1].ring >= 1
+    assert _bar_clearance_to(motion, "box").min() >= ReshapeOptions().required_clearance_m
     goal = bar_plan.goal
     assert ROBOT.mid_feet_pose(motion.q[-1]) == pytest.approx((goal.x_m, goal.y_m, goal.theta_rad), abs=2e-3)
+
+
+def test_lift_only_reshaping_passes_over_the_box(q_bar: np.ndarray) -> None:
+    """Mode "lift" (the height-only reshaping of the paper's Figure 3): the bar's centre is key-framed at
+    the box's top + its radius + 5 cm, nothing else moves."""
+    scene, _, goal = bar_scenario()
+    rs = ReshapeOptions(mode="lift")
+    options = GotoOptions(stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M, reshape=rs))
+    motion = plan_goto(ROBOT, scene, q_bar, goal, BAR, options).motion
+    _assert_reshaped_smoothly(motion, q_bar, ("box",))
+    (window,) = motion.windows
+    assert window.height_m == pytest.approx(BAR_BOX_TOP_M + BAR.radius_m + rs.target_clearance_m)
+    assert window.offset == BarOffset(up_m=pytest.approx(window.height_m - CARRY_HEIGHT_M))
+    held = (motion.times_s >= window.t_collide_s) & (motion.times_s <= window.t_collide_end_s)
+    assert motion.bar_centre_m[held, 2].min() >= BAR_BOX_TOP_M + BAR.radius_m + rs.required_clearance_m
+
+
+def test_bar_rotates_past_the_pole_where_lifting_alone_does_not_pass(q_bar: np.ndarray) -> None:
+    """A pole beside the box, within the bar's half length: lifting cannot pass over it (lift_too_high
+    names it); the sampled reshaping turns or tilts the bar (its reach across the walk shorter than the
+    pole's distance) and raises its right half over the box, collision-free."""
+    scene, _, goal = bar_rotation_scenario()
+    lift = GotoOptions(
+        stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M, reshape=ReshapeOptions(mode="lift"))
+    )
+    with pytest.raises(InfeasibleError, match="pole") as info:
+        plan_goto(ROBOT, scene, q_bar, goal, BAR, lift)
+    assert info.value.details["reason"] == "lift_too_high"
+
+    options = GotoOptions(stage2=Stage2Options(carry_height_m=CARRY_HEIGHT_M))
+    motion = plan_goto(ROBOT, scene, q_bar, goal, BAR, options).motion
+    _assert_reshaped_smoothly(motion, q_bar, ("box", "pole"))
+    (window,) = motion.windows
+    offset = window.offset
+    assert abs(offset.roll_rad) + abs(offset.yaw_rad) > math.radians(10.0)  # rotated, not only moved
+    rs = ReshapeOptions()
+    for name in ("box", "pole"):
+        assert _bar_clearance_to(motion, name).min() >= rs.required_clearance_m
+    # while held: the bar's reach to the left is inside the pole, its part over the box above the box
+    t = motion.times_s
+    held = (t >= window.t_collide_s) & (t <= window.t_collide_end_s)
+    ends = _bar_ends(motion.bar_centre_m[held], motion.bar_axis[held])
+    pole = scene.find("pole")
+    assert ends[..., 1].max() < pole.center_xyz_m[1] - pole.radius_m - BAR.radius_m
 
 
 def _sim_scene_matches(world, scene: Scene) -> None:
@@ -312,8 +488,11 @@ def test_bar_scenario_executes_in_the_sim_without_collision_or_fall() -> None:
         box = scene.find("box")
         x0, x1 = box.center_xyz_m[0] - 0.5 * box.size_xyz_m[0], box.center_xyz_m[0] + 0.5 * box.size_xyz_m[0]
 
-        def record(w) -> None:
-            x, _, z = p.getBasePositionAndOrientation(w.bodies["bar"], physicsClientId=w.client)[0]
+        def record(w) -> None:  # the bar's height above the box's middle line (it may be tilted)
+            position, quaternion = p.getBasePositionAndOrientation(w.bodies["bar"], physicsClientId=w.client)
+            axis = np.array(p.getMatrixFromQuaternion(quaternion)).reshape(3, 3)[:, 0]
+            s = (box.center_xyz_m[1] - position[1]) / axis[1]
+            x, z = position[0] + s * axis[0], position[2] + s * axis[2]
             if x0 - BAR.radius_m <= x <= x1 + BAR.radius_m:
                 over_box.append(z)
 

@@ -40,6 +40,33 @@ def test_three_sides_of_a_rectangle_give_the_rectangle_not_the_one_along_the_hyp
     assert _yaw_error(fitted_yaw, yaw, math.pi / 2) < 1e-6
 
 
+def test_sides_move_to_the_median_of_their_points_not_to_the_outermost():
+    """Outline points of a 1.0 x 0.6 m rectangle scattered across its sides (as whole-pixel disparities
+    scatter them in depth): the wrapping rectangle grows by the scatter, the footprint's sides do not."""
+    rng = np.random.default_rng(3)
+    yaw, length, width = 0.3, 1.0, 0.6
+    c, s = math.cos(yaw), math.sin(yaw)
+    along, across = np.array([c, s]), np.array([-s, c])
+    centre = np.array([2.0, -1.0])
+    t = rng.uniform(-0.5, 0.5, (4, 60))
+    sides = [
+        centre + np.outer(t[0], along * length) + 0.5 * width * across,
+        centre + np.outer(t[1], along * length) - 0.5 * width * across,
+        centre + np.outer(t[2], across * width) + 0.5 * length * along,
+        centre + np.outer(t[3], across * width) - 0.5 * length * along,
+    ]
+    xy = np.vstack(sides) + rng.normal(0.0, 0.04, (240, 2))
+    points = np.column_stack([xy, np.full(240, 0.7)])
+    wrapped = _rectangle(xy)[1]
+    fp = footprint(points, np.array([*centre, 0.35]))
+    assert fp is not None
+    assert max(wrapped) - length > 0.08  # the wrapping rectangle: grown by the scatter
+    assert abs(fp.size_m[0] - length) < 0.03 and abs(fp.size_m[1] - width) < 0.03
+    assert np.linalg.norm(np.subtract(fp.center_m, centre)) < 0.02
+    # the yaw is still the wrapping rectangle's, which the scatter turns (3 deg here)
+    assert _yaw_error(fp.yaw_rad, yaw, math.pi) < math.radians(6.0)
+
+
 def test_a_run_of_rows_occluded_in_one_image_is_dropped_and_border_edges_never_kept():
     disparity = np.full(80, 30.0) + np.linspace(0.0, 4.0, 80)  # a slanted edge: slowly varying
     disparity[30:40] += 6.0  # a ball in front of the edge in one image only

@@ -12,10 +12,12 @@ import scipy.linalg
 
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
+from services.model.ground import convex_hull_ccw as convex_hull
+from services.model.ground import signed_distance
 from services.walking.footsteps import (
     SIDES,
     Footstep,
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
     SolePose,
     arc_walk,
@@ -33,7 +35,7 @@ from services.walking.preview_control import (
     simulate,
     simulate_loop,
 )
-from services.walking.support_polygon import convex_hull, distances_to_support, signed_distance, sole_polygon
+from services.walking.support_polygon import distances_to_support, sole_polygon
 from services.walking.swing import swing_trajectory
 from services.walking.timing import DOUBLE, LEFT, RIGHT, WalkTiming
 
@@ -53,7 +55,7 @@ def _walks(robot) -> dict[str, FootstepSequence]:
     kw = {
         "left_start": SolePose(left[0], left[1], 0.0),
         "right_start": SolePose(right[0], right[1], 0.0),
-        "limits": FootstepLimits.from_robot(robot),
+        "limits": FootstepBounds.from_robot(robot),
     }
     return {
         "straight": straight_walk(10, 0.2, **kw),
@@ -206,7 +208,7 @@ def test_swing_has_zero_velocity_and_acceleration_at_liftoff_and_touchdown():
 
 
 def test_generated_walks_are_within_the_robot_bounds(robot):
-    bounds = FootstepLimits.from_robot(robot)
+    bounds = FootstepBounds.from_robot(robot)
     for name, seq in _walks(robot).items():
         validate_footsteps(seq, bounds)  # raises on failure
         assert seq.steps, name
@@ -217,7 +219,7 @@ def test_generated_walks_are_within_the_robot_bounds(robot):
 def test_step_beyond_the_bounds_is_infeasible_and_named():
     seq = straight_walk(4, 0.30, limits=None)  # 0.30 m > dx_max 0.22 m, as asked (unchecked)
     with pytest.raises(InfeasibleError) as err:
-        validate_footsteps(seq, FootstepLimits())
+        validate_footsteps(seq, FootstepBounds())
     assert "step 0 (right foot): dx=0.3000 m relative to the left sole" in err.value.message
     assert "above the bound 0.2200 m by 0.0800 m" in err.value.message
     assert err.value.details["step_index"] == 0
@@ -226,20 +228,20 @@ def test_step_beyond_the_bounds_is_infeasible_and_named():
     steps = (Footstep("right", SolePose(0.2, -0.095, 0.0)), Footstep("left", SolePose(0.4, -0.35, 0.0)))
     with pytest.raises(InfeasibleError, match=r"step 1 \(left foot\): dy="):
         validate_footsteps(
-            FootstepSequence(SolePose(0, 0.095, 0), SolePose(0, -0.095, 0), steps), FootstepLimits()
+            FootstepSequence(SolePose(0, 0.095, 0), SolePose(0, -0.095, 0), steps), FootstepBounds()
         )
     # Turning the left foot inwards beyond -0.1 rad.
     steps = (Footstep("left", SolePose(0.0, 0.095, -0.3)),)
     with pytest.raises(InfeasibleError, match=r"dyaw=-0\.3000 rad"):
         validate_footsteps(
-            FootstepSequence(SolePose(0, 0.095, 0), SolePose(0, -0.095, 0), steps), FootstepLimits()
+            FootstepSequence(SolePose(0, 0.095, 0), SolePose(0, -0.095, 0), steps), FootstepBounds()
         )
 
 
 def test_generators_split_a_walk_beyond_the_bounds_into_more_steps(robot):
     """arc_walk(1.0, pi/2, 10) turns 0.17 rad per step, beyond the 0.1 rad the outer foot may turn
     inwards (footstep paper §5): the generators now use the fewest steps that fit, for the same walk."""
-    bounds = FootstepLimits.from_robot(robot)
+    bounds = FootstepBounds.from_robot(robot)
     q0 = robot.q_half_sitting
     kw = {side + "_start": SolePose(*robot.sole_pose(q0, side).translation[:2], 0.0) for side in SIDES}
     with pytest.raises(InfeasibleError, match=r"step 1 \(right foot\): dyaw=0\.1745 rad"):
@@ -289,13 +291,13 @@ def test_overlapping_feet_and_empty_sequences_are_invalid():
     start = (SolePose(0, 0.095, 0), SolePose(0, -0.095, 0))
     steps = (Footstep("left", SolePose(0.1, -0.0, 0.0)),)  # dy = 0.095 within bounds but soles overlap
     with pytest.raises(InvalidRequestError, match=r"feet overlap after step 0 \(left foot\) by 45.0 mm"):
-        validate_footsteps(FootstepSequence(*start, steps), FootstepLimits())
+        validate_footsteps(FootstepSequence(*start, steps), FootstepBounds())
     with pytest.raises(InvalidRequestError, match="feet overlap at the start"):
         validate_footsteps(
-            FootstepSequence(SolePose(0, 0.05, 0), SolePose(0, -0.05, 0), steps), FootstepLimits()
+            FootstepSequence(SolePose(0, 0.05, 0), SolePose(0, -0.05, 0), steps), FootstepBounds()
         )
     with pytest.raises(InvalidRequestError, match="no step"):
-        validate_footsteps(FootstepSequence(*start, ()), FootstepLimits())
+        validate_footsteps(FootstepSequence(*start, ()), FootstepBounds())
     with pytest.raises(InvalidRequestError, match="n_steps must be an integer >= 1"):
         straight_walk(0, 0.2)
 
@@ -329,7 +331,7 @@ def test_footstep_sequence_round_trips_through_plain_data():
 
 
 def test_zmp_reference_and_planned_zmp_stay_inside_the_support_polygon(robot):
-    bounds = FootstepLimits.from_robot(robot)
+    bounds = FootstepBounds.from_robot(robot)
     c0 = robot.com(robot.q_half_sitting)
     for name, seq in _walks(robot).items():
         p = plan_pattern(seq, WalkTiming(), PatternOptions(), initial_com_m=c0, bounds=bounds)
@@ -342,7 +344,7 @@ def test_zmp_reference_and_planned_zmp_stay_inside_the_support_polygon(robot):
 
 
 def test_pattern_feet_and_com_end_where_planned(robot):
-    bounds = FootstepLimits.from_robot(robot)
+    bounds = FootstepBounds.from_robot(robot)
     c0 = robot.com(robot.q_half_sitting)
     seq = _walks(robot)["arc"]
     p = plan_pattern(seq, WalkTiming(), PatternOptions(), initial_com_m=c0, bounds=bounds)
@@ -483,7 +485,7 @@ def test_wholebody_multibody_zmp_stays_inside_the_polygon(planners, robot, walk)
         WalkTiming(),
         PatternOptions(),
         initial_com_m=robot.com(q0),
-        bounds=FootstepLimits.from_robot(robot),
+        bounds=FootstepBounds.from_robot(robot),
     )
     res = wb.solve(p, q0)
     assert res.q.shape == (p.n_samples, robot.nq)

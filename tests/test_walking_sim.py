@@ -19,7 +19,7 @@ import pybullet as p
 import pytest
 
 from services.walking.footsteps import (
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
     SolePose,
     arc_walk,
@@ -64,7 +64,7 @@ def make_walk(robot, name: str, q: np.ndarray) -> FootstepSequence:
         return side_steps(6, 0.05, **kw)
     if name == "arc":
         return arc_walk(1.0, math.pi / 2, 18, **kw)  # 0.1 rad per step: the bound on turning inwards
-    limits = FootstepLimits.from_robot(robot)
+    limits = FootstepBounds.from_robot(robot)
     if name == "curve":
         # Asked in 10 steps (0.17 rad per step, beyond the outer foot's 0.1 rad): 17 steps.
         seq = arc_walk(1.0, math.pi / 2, 10, limits=limits, **kw)

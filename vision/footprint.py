@@ -9,8 +9,10 @@ leftmost object pixel of the left image and that of the right image see the same
 occluding contour (as in vision.stereo's ``"edges"`` estimator), and so do the rightmost ones. Each
 matched edge is triangulated. For a box-like object (a box, a table, a chair) these contour points lie
 on its outline: the far edges of its top, its vertical edges or legs, the bottom edges in front. Their
-horizontal projection, wrapped in the minimum-area rectangle, is the object's footprint: its size and
-its yaw, which the silhouette's width alone cannot give.
+horizontal projection, wrapped in the minimum-area rectangle, gives the object's yaw, which the
+silhouette's width alone cannot give; each side of that rectangle then moves to the median of the points
+nearest to it (the rectangle wraps the outermost points, which whole-pixel disparities scatter in
+depth: 20 cm per pixel at 4 m), which gives the footprint's centre and size.
 
 Edges on the image's left or right border are skipped (the object is cut there); points farther than
 ``max_extent_m`` from the object's located centre are outliers (a mismatched row) and are dropped.
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from services.model.ground import Rectangle
 from vision.camera import StereoRig
 from vision.camshift import Window
 from vision.stereo import silhouette_rows, to_world
@@ -37,6 +40,8 @@ MIN_POINTS = 8
 CONSISTENCY_WINDOW_ROWS = 31
 CONSISTENCY_TOLERANCE_PX = 1.0
 CONSISTENCY_FRACTION = 0.04
+#: A side of the rectangle moves to the median of the points nearest to it when it has this many.
+MIN_SIDE_POINTS = 5
 #: Rectangles within this fraction of the least area compete on how well the points fit their boundary.
 AREA_SLACK = 0.1
 #: The top is the highest height [m] with at least ``TOP_SUPPORT_FRACTION`` of the points (and
@@ -129,20 +134,50 @@ def _rectangle(xy: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]
     angles = np.unique(np.round(np.arctan2(edges[:, 1], edges[:, 0]) % (math.pi / 2.0), 9))
     candidates = []
     for angle in angles:
-        c, s = math.cos(angle), math.sin(angle)
-        local = xy @ np.array([[c, -s], [s, c]])  # coordinates along (c, s) and (-s, c)
+        axes = Rectangle((0.0, 0.0), (0.0, 0.0), float(angle))  # the candidate's axes through the origin
+        local = axes.to_local(xy)  # coordinates along (c, s) and (-s, c)
         lo, hi = local.min(axis=0), local.max(axis=0)
         area = float(np.prod(hi - lo))
         to_boundary = np.minimum(np.abs(local - lo), np.abs(hi - local)).min(axis=1)
-        centre_local = 0.5 * (lo + hi)
-        centre = (c * centre_local[0] - s * centre_local[1], s * centre_local[0] + c * centre_local[1])
-        candidates.append((area, float(np.mean(to_boundary)), centre, tuple(hi - lo), float(angle)))
+        cx, cy = axes.to_world(0.5 * (lo + hi))[0]
+        candidates.append(
+            (area, float(np.mean(to_boundary)), (float(cx), float(cy)), tuple(hi - lo), float(angle))
+        )
     least = min(candidate[0] for candidate in candidates)
     _area, _fit, centre, size, yaw = min(
         (candidate for candidate in candidates if candidate[0] <= least * (1.0 + AREA_SLACK)),
         key=lambda candidate: candidate[1],
     )
     return centre, size, yaw
+
+
+def _median_sides(
+    xy: np.ndarray, centre: tuple[float, float], size: tuple[float, float], yaw: float
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The rectangle (centre, size along yaw and across) with each side moved to the median of the
+    points nearest to it (at least :data:`MIN_SIDE_POINTS` of them, else the side stays).
+
+    The outline points of a side scatter about it in depth: each matched edge has a whole-pixel
+    disparity, off by up to a pixel (20 cm at 4 m with the wide pair). The minimum-area rectangle wraps
+    the outermost of them, so it grows with the noise; the median of a side's points does not."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    R = np.array([[c, -s], [s, c]])
+    local = (xy - np.asarray(centre)) @ R  # coordinates along the yaw and across
+    half = 0.5 * np.asarray(size, dtype=float)
+    lo, hi = -half.copy(), half.copy()
+    to_side = np.abs(
+        np.stack(
+            [local[:, 0] + half[0], half[0] - local[:, 0], local[:, 1] + half[1], half[1] - local[:, 1]],
+            axis=1,
+        )
+    )
+    nearest = np.argmin(to_side, axis=1)
+    for side, (axis, bound) in enumerate(((0, lo), (0, hi), (1, lo), (1, hi))):
+        on_side = nearest == side
+        if np.count_nonzero(on_side) >= MIN_SIDE_POINTS:
+            bound[axis] = np.median(local[on_side, axis])
+    middle = R @ (0.5 * (lo + hi)) + np.asarray(centre)
+    return (float(middle[0]), float(middle[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1]))
 
 
 def _top(z_m: np.ndarray) -> float:
@@ -169,9 +204,10 @@ def footprint(
     if len(p) < MIN_POINTS:
         return None
     try:
-        (cx, cy), (w, h), yaw = _rectangle(p[:, :2])
+        centre, size, yaw = _rectangle(p[:, :2])
     except ValueError:
         return None
+    (cx, cy), (w, h) = _median_sides(p[:, :2], centre, size, yaw)
     if w < h:  # the first side along the yaw is the longer one
         w, h, yaw = h, w, yaw + math.pi / 2.0
     yaw = (yaw + math.pi / 2.0) % math.pi - math.pi / 2.0  # a rectangle's yaw is defined modulo pi

@@ -22,6 +22,11 @@ hrp2_like holding the bar on its stands to 3.2 m ahead past the table with the b
   the share of each stage alongside);
 - ``bar_iterations``: whole-body solutions computed (1 = the first motion was already collision-free).
 
+``bar_rotation_case``: the bar past the box and a pole beside it (``bar_rotation_scenario``), where
+lifting alone does not pass: the lift-only reshaping's error, then the paper's sampled reshaping with
+``--rotation-runs`` sampling seeds: reshaped or not, the held offset (up, roll, yaw), min clearance, key
+frames, wall and CPU time.
+
 Writes bench/out/navigation.json.
 """
 
@@ -41,11 +46,18 @@ from ompl import geometric as og
 
 from services.errors import HumanoidError
 from services.model import load_robot
-from services.navigation.demo_scenes import bar_scenario, bar_scenario_start, demo_room, random_clutter
+from services.navigation.demo_scenes import (
+    bar_rotation_scenario,
+    bar_scenario,
+    bar_scenario_start,
+    demo_room,
+    random_clutter,
+)
 from services.navigation.footsteps_along_path import footsteps_along_path
 from services.navigation.geometry import BodyModel, FootprintChecker, Pose2D, Scene, body_model
 from services.navigation.goto import GotoOptions, plan_goto
 from services.navigation.path import PlannerConfig, densify, make_state_space, plan_path, set_se2_state
+from services.navigation.reshaping import ReshapeOptions, SamplingOptions
 from services.navigation.stage2 import Stage2Options
 from services.navigation.upper_body import CarriedBar, sweep_carried_object
 
@@ -171,6 +183,65 @@ def bar_stage2(robot_name: str, runs: int) -> dict[str, object]:
     }
 
 
+def bar_rotation_case(robot_name: str, runs: int) -> dict[str, object]:
+    """The bar past a box and a pole (``bar_rotation_scenario``), where lifting alone does not pass: the
+    lift-only reshaping once (its error), then the paper's sampled reshaping with sampling seeds 0 ..
+    ``runs`` - 1 (reshaped, clearance, key frames, time)."""
+    robot = load_robot(robot_name)
+    scene, _, goal = bar_rotation_scenario()
+    q_start = bar_scenario_start(robot)
+
+    def options(reshape: ReshapeOptions) -> GotoOptions:
+        return GotoOptions(stage2=Stage2Options(carry_height_m=0.8, reshape=reshape))
+
+    try:
+        plan_goto(robot, scene, q_start, goal, CarriedBar(), options(ReshapeOptions(mode="lift")))
+        lift: dict[str, object] = {"reshaped": True}
+    except HumanoidError as error:
+        lift = {"reshaped": False, "reason": error.details.get("reason"), "message": error.message}
+    rows = []
+    for seed in range(runs):
+        reshape = ReshapeOptions(sampling=SamplingOptions(seed=seed))
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            result = plan_goto(robot, scene, q_start, goal, CarriedBar(), options(reshape))
+        except HumanoidError as error:
+            rows.append({"seed": seed, "reshaped": False, "reason": error.details.get("reason")})
+            continue
+        motion = result.motion
+        report = motion.report()
+        (window,) = motion.windows if len(motion.windows) == 1 else (None,)
+        rows.append(
+            {
+                "seed": seed,
+                "reshaped": True,
+                "wall_s": time.perf_counter() - t0,
+                "cpu_s": time.process_time() - c0,
+                "iterations": report["iterations"],
+                "first_min_clearance_m": motion.iterations[0].min_clearance_m,
+                "min_clearance_m": report["min_clearance_m"],
+                "zmp_margin_m": report["zmp_margin_m"],
+                "hand_error_m": report["hand_error_m"],
+                "drawn": sum(st.drawn for st in motion.sampling),
+                "windows": len(motion.windows),
+                "key_frames": report["key_frames"],
+                "roll_deg": None if window is None else math.degrees(window.offset.roll_rad),
+                "yaw_deg": None if window is None else math.degrees(window.offset.yaw_rad),
+                "up_m": None if window is None else window.offset.up_m,
+            }
+        )
+    done = [r for r in rows if r["reshaped"]]
+    return {
+        "lift_only": lift,
+        "runs": runs,
+        "reshaped": len(done),
+        "wall_s": _stats([r["wall_s"] for r in done]),
+        "cpu_s": _stats([r["cpu_s"] for r in done]),
+        "min_clearance_m": min((r["min_clearance_m"] for r in done), default=math.nan),
+        "rows": rows,
+    }
+
+
 def _table(results: dict[str, dict[str, dict[str, object]]]) -> str:
     head = (
         f"{'problem':9s} {'variant':13s} {'solved':>7s} {'ms med':>8s} {'ms p90':>8s} {'ms max':>8s} "
@@ -199,6 +270,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-peer", action="store_true", help="skip the plain-OMPL comparison")
     parser.add_argument(
         "--bar-runs", type=int, default=3, help="runs of the stage-2 bar scenario (default 3; 0: skip)"
+    )
+    parser.add_argument(
+        "--rotation-runs",
+        type=int,
+        default=3,
+        help="sampling seeds of the bar past a box and a pole (bar_rotation_case; default 3; 0: skip)",
     )
     parser.add_argument(
         "--out", type=Path, default=OUT, help=f"JSON output (default {OUT.relative_to(REPO)})"
@@ -240,6 +317,7 @@ def main(argv: list[str] | None = None) -> int:
     bar_sweep_ms = 1e3 * (time.perf_counter() - t0)
 
     bar = bar_stage2(args.robot, args.bar_runs) if args.bar_runs > 0 else None
+    rotation = bar_rotation_case(args.robot, args.rotation_runs) if args.rotation_runs > 0 else None
 
     room_ms = results["room"]["default"]["ms"]["median"]
     doc = {
@@ -264,6 +342,7 @@ def main(argv: list[str] | None = None) -> int:
             "path_samples": len(bar_path.s_m),
         },
         "bar_stage2": bar,
+        "bar_rotation_case": rotation,
         "ompl_default_planner": sorted(PLAIN_OMPL_PLANNERS),
         "machine": f"{platform.processor() or platform.machine()}, python {platform.python_version()}",
     }
@@ -289,6 +368,26 @@ def main(argv: list[str] | None = None) -> int:
             f"{1e3 * bar['first_min_clearance_m']:.0f} -> {1e3 * bar['min_clearance_m']:.0f} mm, ZMP margin "
             f"{1e3 * bar['zmp_margin_m']:.0f} mm"
         )
+    if rotation is not None:
+        lift = rotation["lift_only"]
+        print(
+            f"bar past a box and a pole: lift only -> {lift.get('reason') or 'reshaped'}; sampled "
+            f"reshaping {rotation['reshaped']}/{rotation['runs']} seeds reshaped, "
+            f"{rotation['wall_s']['median']:.2f} s wall median ({rotation['cpu_s']['median']:.2f} s CPU), "
+            f"min clearance {1e3 * rotation['min_clearance_m']:.0f} mm"
+        )
+        for r in rotation["rows"]:
+            if r["reshaped"]:
+                keys = r["key_frames"][0] if r["key_frames"] else []
+                times = ", ".join(f"{k['key_frame']} {k['t_s']:.2f}" for k in keys)
+                print(
+                    f"  seed {r['seed']}: {r['iterations']} solutions, {r['drawn']} drawn, "
+                    f"up {r['up_m']:+.2f} m, roll {r['roll_deg']:+.0f} deg, yaw {r['yaw_deg']:+.0f} deg, "
+                    f"clearance {1e3 * r['first_min_clearance_m']:.0f} -> "
+                    f"{1e3 * r['min_clearance_m']:.0f} mm; key frames [s] {times}; {r['wall_s']:.1f} s"
+                )
+            else:
+                print(f"  seed {r['seed']}: not reshaped ({r['reason']})")
     verdict = "met" if doc["meets_goals"] else "NOT met"
     print(f"goal: room path <= {GOAL_ROOM_MS:.0f} ms -> {verdict} ({room_ms:.1f} ms)")
     for problem, variants_result in results.items():

@@ -1,10 +1,13 @@
 """Perception benchmark: 3D error of the ball's localization and time per stereo pair.
 
-For 30 seeded placements of the orange ball (radius 5 cm) at each of 1.0, 1.5 and 2.5 m in front of the
-robot's wide stereo pair, localize it and compare with ground truth. Reports ``err_cm`` =
+For 30 seeded placements of the orange ball (radius 5 cm) at each of 1.0, 1.5, 2.5 and 3.5 m in front of
+the robot's wide stereo pair, localize it and compare with ground truth. Reports ``err_cm`` =
 {"1.0": {"median", "max"}, ...} and ``ms_per_pair`` (detection in both images + stereo, i.e. the
 vision.localize call; rendering excluded) for the default stereo method, and the same figures for every
-method ("centroid", "bm", "sgbm") on the same images. Writes bench/out/perception.json.
+method on the same images: centroid triangulation, the paper's pixel correlation ("bm" StereoBM, "sgbm"
+StereoSGBM on a crop around the object; "bm_full": StereoBM on the whole image, the paper's "dense 3D
+image of the current scene"), and silhouette edges. Footprints (``footprints``): the box, the table and
+the chair from 1.5, 2.5 and 4 m (centre, side length and yaw errors). Writes bench/out/perception.json.
 
 Goals (issue 8): median <= 1 cm at 1.5 m, <= 3 cm at 2.5 m, <= 20 ms per pair.
 
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from collections.abc import Iterable, Iterator
@@ -38,7 +42,43 @@ from vision.stereo import METHODS, StereoConfig
 
 REPO = Path(__file__).resolve().parents[2]
 OUT = REPO / "bench" / "out" / "perception.json"
-DISTANCES_M = (1.0, 1.5, 2.5)
+DISTANCES_M = (1.0, 1.5, 2.5, 3.5)
+FOOTPRINT_DISTANCES_M = (1.5, 2.5, 4.0)
+#: The footprint scene: the demo's box, table and chair (ball_fetch sizes) 12 m apart, so none hides
+#: another from 4 m.
+FOOTPRINT_SCENE = {
+    "name": "footprint_bench",
+    "description": "the green box, the yellow table and the chair, far apart",
+    "robot": {"x": -6.0, "y": -6.0, "yaw": 0.0},
+    "floor": {"colour": "light_grey", "friction": 1.0},
+    "objects": [
+        {
+            "name": "green_box",
+            "kind": "box",
+            "size": [0.5, 0.6, 0.7],
+            "colour": "green",
+            "xy": [0.0, 0.0],
+            "yaw": 0.2,
+        },
+        {
+            "name": "yellow_table",
+            "kind": "table",
+            "size": [1.0, 0.6, 0.72],
+            "colour": "yellow",
+            "xy": [12.0, 0.0],
+            "yaw": 0.3,
+        },
+        {
+            "name": "chair",
+            "kind": "chair",
+            "size": [0.45, 0.45, 0.45],
+            "back_height": 0.45,
+            "colour": "brown",
+            "xy": [0.0, 12.0],
+            "yaw": 2.0,
+        },
+    ],
+}
 GOALS_CM = {"1.5": 1.0, "2.5": 3.0}
 GOAL_MS = 20.0
 DEFAULT_METHOD = StereoConfig().method
@@ -87,6 +127,19 @@ def learn_synthetic_ball_model(seed: int = 12345, supersample: int = 2) -> Objec
     return learn_model("orange_ball", [render.image_bgr], [mask], shape="sphere", source="synthetic render")
 
 
+FULL_FRAME = ("bm_full", "sgbm_full")
+"""Dense correlation of the whole image (the paper's "dense 3D image of the current scene"), then the
+median disparity of the object's pixels: the same estimator as "bm"/"sgbm" on a crop, at full cost."""
+BENCH_METHODS = (*METHODS, "bm_full")
+
+
+def stereo_config(name: str) -> StereoConfig:
+    """The stereo configuration of a benchmark variant: a vision.stereo method, or "bm_full"/"sgbm_full"."""
+    if name in FULL_FRAME:
+        return StereoConfig(method=name.removesuffix("_full"), dense_full_frame=True)
+    return StereoConfig(method=name)
+
+
 def _stats(values: list[float]) -> dict[str, float]:
     a = np.asarray(values, float)
     if a.size == 0:
@@ -95,7 +148,7 @@ def _stats(values: list[float]) -> dict[str, float]:
 
 
 def run(
-    image_source: Iterable[StereoSample], ball_model: ObjectModel, methods: Iterable[str] = METHODS
+    image_source: Iterable[StereoSample], ball_model: ObjectModel, methods: Iterable[str] = BENCH_METHODS
 ) -> dict:
     """Localize the ball in every sample with every stereo method; errors [cm] and times [ms]."""
     methods = list(methods)
@@ -107,7 +160,7 @@ def run(
         rig = StereoRig(sample.intrinsics, sample.baseline_m)
         key = f"{sample.distance_m:.1f}"
         for method in methods:
-            config = LocalizeConfig(stereo=StereoConfig(method=method))
+            config = LocalizeConfig(stereo=stereo_config(method))
             t0 = time.perf_counter()
             try:
                 loc = locate(
@@ -132,6 +185,100 @@ def run(
             "estimator_used": used[method],
         }
     return result
+
+
+def _yaw_error(a: float, b: float, period: float) -> float:
+    """|a - b| modulo ``period`` [rad] (a rectangle's yaw is defined modulo pi, a square's modulo pi/2)."""
+    d = (a - b) % period
+    return min(d, period - d)
+
+
+def footprint_case(n_per_distance: int, seed: int, config: LocalizeConfig) -> dict:
+    """Footprints of the box, the table and the chair seen by the sim's wide pair from 1.5, 2.5 and 4 m
+    at ``n_per_distance`` seeded bearings each (the robot facing the object, the head tilted toward its
+    middle): centre error [cm], side errors [cm] (measured - true, longer and shorter side), yaw error
+    [deg], and how often no footprint came out."""
+    import cv2
+
+    from services.perception.locate import head_stereo, locate_object
+    from services.perception.look_around import head_joints
+    from sim.scene import parse_scene
+    from sim.world import World
+
+    models = load_models()
+    rows: dict[str, dict[str, list[float]]] = {}
+    missing: dict[str, list[str]] = {}
+    with World("hrp2_like", parse_scene(FOOTPRINT_SCENE, "footprint_bench")) as world:
+        robot = world.robot
+        head = head_joints(robot, "wide")
+        q0 = world.state().q.copy()
+        for distance in FOOTPRINT_DISTANCES_M:
+            key = f"{distance:.1f}"
+            cell = rows.setdefault(key, {"centre_cm": [], "long_cm": [], "short_cm": [], "yaw_deg": []})
+            rng = np.random.default_rng([seed, round(distance * 1000)])
+            for name in ("green_box", "yellow_table", "chair"):
+                obj = world.layout.object(name)
+                sx, sy = obj.spec.size_m[:2]
+                true_yaw = obj.yaw_rad if sx >= sy else obj.yaw_rad + math.pi / 2
+                length, width = max(sx, sy), min(sx, sy)
+                period = math.pi / 2 if abs(sx - sy) < 0.05 else math.pi
+                for _ in range(n_per_distance):
+                    bearing = rng.uniform(-math.pi, math.pi)
+                    centre = np.asarray(obj.position[:2])
+                    base = centre + distance * np.array([math.cos(bearing), math.sin(bearing)])
+                    yaw = bearing + math.pi
+                    q = q0.copy()
+                    q[0:2] = base
+                    q[3:7] = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+                    tilt = head.tilt_sign * math.atan2(1.0, distance)
+                    q[robot.joint_index(head.tilt).idx_q] = float(np.clip(tilt, *head.tilt_limits))
+                    world.pyrobot.reset(q)
+                    left, right = world.render("wide", 640, 480)
+                    stereo = head_stereo(robot, world.state().q, "wide", 640, 480)
+                    bgr = [cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in (left, right)]
+                    try:
+                        fp = locate_object(models, name, stereo, *bgr, config).footprint
+                    except NotFoundError as e:
+                        missing.setdefault(key, []).append(
+                            f"{name} at {math.degrees(bearing):.0f} deg: {e.message}"
+                        )
+                        continue
+                    if fp is None:
+                        missing.setdefault(key, []).append(
+                            f"{name} at {math.degrees(bearing):.0f} deg: no footprint"
+                        )
+                        continue
+                    cell["centre_cm"].append(100.0 * float(np.linalg.norm(np.subtract(fp.center_m, centre))))
+                    cell["long_cm"].append(100.0 * (fp.size_m[0] - length))
+                    cell["short_cm"].append(100.0 * (fp.size_m[1] - width))
+                    cell["yaw_deg"].append(math.degrees(_yaw_error(fp.yaw_rad, true_yaw, period)))
+    out: dict = {}
+    for key, cell in rows.items():
+        out[key] = {
+            name: {
+                "median": round(float(np.median(v)), 2) if v else float("nan"),
+                "max_abs": round(float(np.max(np.abs(v))), 2) if v else float("nan"),
+                "n": len(v),
+            }
+            for name, v in cell.items()
+        }
+        out[key]["no_footprint"] = missing.get(key, [])
+    return out
+
+
+def _footprint_table(result: dict) -> str:
+    head = (
+        f"{'distance':>9}{'centre cm med/max':>20}{'long side cm':>17}{'short side cm':>17}"
+        f"{'yaw deg med/max':>18}{'none':>6}"
+    )
+    lines = [head, "-" * len(head)]
+    for key, cell in result.items():
+        cells = "".join(
+            f"{cell[name]['median']:>10.1f} / {cell[name]['max_abs']:<5.1f}"
+            for name in ("centre_cm", "long_cm", "short_cm", "yaw_deg")
+        )
+        lines.append(f"{key + ' m':>9}{cells}{len(cell['no_footprint']):>6}")
+    return "\n".join(lines)
 
 
 def _table(result: dict) -> str:
@@ -159,8 +306,9 @@ def _table(result: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="scripts/bench perception",
-        description="3D localization error of the ball at 1.0/1.5/2.5 m and ms per stereo pair "
-        "(sim renders by default); writes bench/out/perception.json.",
+        description="3D localization error of the ball at 1.0/1.5/2.5/3.5 m and ms per stereo pair "
+        "for every stereo method, and footprint errors at 1.5/2.5/4 m (sim renders by default); writes "
+        "bench/out/perception.json.",
     )
     parser.add_argument(
         "--source",
@@ -176,15 +324,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--noise", type=float, default=2.0, help="synthetic: sensor noise std [grey levels] (default 2)"
     )
-    parser.add_argument("--methods", default=",".join(METHODS), help=f"comma list of {METHODS}")
+    parser.add_argument(
+        "--methods", default=",".join(BENCH_METHODS), help=f"comma list of {(*METHODS, *FULL_FRAME)}"
+    )
+    parser.add_argument(
+        "--footprints",
+        type=int,
+        default=4,
+        help="bearings per object and distance of the footprint case (sim; default 4, 0: skip)",
+    )
     parser.add_argument(
         "--out", type=Path, default=OUT, help=f"JSON output (default {OUT.relative_to(REPO)})"
     )
     args = parser.parse_args(argv)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    bad = [m for m in methods if m not in METHODS]
+    bad = [m for m in methods if m not in (*METHODS, *FULL_FRAME)]
     if bad:
-        parser.error(f"unknown method {bad[0]!r}; choose from {METHODS}")
+        parser.error(f"unknown method {bad[0]!r}; choose from {(*METHODS, *FULL_FRAME)}")
     if DEFAULT_METHOD not in methods:
         methods.insert(0, DEFAULT_METHOD)
 
@@ -211,6 +367,7 @@ def main(argv: list[str] | None = None) -> int:
             f"supersample {args.supersample}, noise {args.noise}, seed {args.seed}"
         )
     result = run(source, model, methods)
+    footprints = footprint_case(args.footprints, args.seed, LocalizeConfig()) if args.footprints > 0 else None
     default = result["methods"][DEFAULT_METHOD]
     doc = {
         "err_cm": default["err_cm"],
@@ -226,6 +383,7 @@ def main(argv: list[str] | None = None) -> int:
         "image_source": args.source,
         "source": description,
         **{k: v for k, v in result.items()},
+        "footprints": footprints,
     }
     print(f"source: {description}")
     print(_table(result))
@@ -233,6 +391,12 @@ def main(argv: list[str] | None = None) -> int:
         f"goals: median <= 1 cm at 1.5 m, <= 3 cm at 2.5 m, <= {GOAL_MS:.0f} ms per pair -> "
         f"{'met' if doc['meets_goals'] else 'NOT met'}"
     )
+    if footprints is not None:
+        print(
+            f"footprints (sim wide pair, box/table/chair, {args.footprints} bearings each; side errors "
+            "measured - true, median / max |.|):"
+        )
+        print(_footprint_table(footprints))
     for name, m in result["methods"].items():
         for f in m["failures"][:3]:
             print(f"  {name} failure: {f}", file=sys.stderr)

@@ -67,7 +67,7 @@ def _walk(robot):
 
 
 def bench_ours(robot, repeats: int) -> dict:
-    from services.walking.footsteps import FootstepLimits
+    from services.walking.footsteps import FootstepBounds
     from services.walking.pattern import PatternOptions, plan_pattern
     from services.walking.preview_control import preview_gains
     from services.walking.timing import WalkTiming
@@ -82,7 +82,7 @@ def bench_ours(robot, repeats: int) -> dict:
     )
     q0 = robot.q_half_sitting
     c0 = robot.com(q0)
-    bounds = FootstepLimits.from_robot(robot)
+    bounds = FootstepBounds.from_robot(robot)
     preview_gains.cache_clear()
     t0 = time.perf_counter()
     pattern = plan_pattern(seq, timing, PatternOptions(), initial_com_m=c0, bounds=bounds)

@@ -44,8 +44,9 @@ import numpy as np
 import pinocchio as pin
 
 from services.errors import InvalidRequestError
-from services.footsteps.geometry import compose, relative_pose, se3_of, sole_pose_of
+from services.footsteps.geometry import compose, relative_pose, se3_of
 from services.model import FootstepBounds, RobotModel
+from services.model.ground import sole_pose_of
 from services.walking.footsteps import Side, SolePose, other_side
 
 FREE_FLYER_NQ = 7

@@ -28,6 +28,7 @@ import pinocchio as pin
 from services.footsteps.chain import VirtualChain
 from services.footsteps.geometry import non_overlap_rows_many
 from services.ik.task import Task
+from services.model.ground import yaw_of
 
 LOCAL = pin.ReferenceFrame.LOCAL
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -305,7 +306,7 @@ class FootprintDisksTask(Task):
         np.cumsum(moves, axis=0, out=origins[1:])
         T_front = data.oMf[self.front_fid]
         R_front = T_front.rotation
-        yaw_front = math.atan2(R_front[1, 0], R_front[0, 0])
+        yaw_front = yaw_of(R_front)
         # the movable footprints F_1 .. F_{p-1}, then the front sole
         fp_origin = np.empty((n + 1, 2))
         fp_origin[:n] = origins[1:]

@@ -27,7 +27,7 @@ from services.ik.tasks.frame_pose import FramePoseTask
 from services.ik.tasks.frame_position import FramePositionTask
 from services.ik.tasks.posture import PostureTask
 from services.model import RobotModel
-from services.model.geometry import polygon_signed_margin
+from services.model.ground import signed_distance, smoothstep5
 from services.walking.timing import WalkTiming
 from services.walking.wholebody import WholeBodyResult, plan_walk
 
@@ -59,11 +59,6 @@ class FootstepExecution:
     @property
     def duration_s(self) -> float:
         return float(self.times_s[-1])
-
-
-def _quintic(s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
 def _support_level(robot: RobotModel, q_stance: np.ndarray, com_margin_m: float) -> Level:
@@ -151,7 +146,7 @@ def reaching_motion(
     q = q_from.copy()
     q_knots = [q.copy()]
     for k in knots[1:]:
-        s = _quintic(k * dt_s / duration)
+        s = float(smoothstep5(k * dt_s / duration))
         posture.set_rest(pin.interpolate(model, q_from, q_to, s))
         for task, path in zip(hands, paths.values(), strict=True):
             task.set_target(_along(path, s))
@@ -174,7 +169,9 @@ def reaching_motion(
             drift = max(
                 drift, float(np.linalg.norm(data.oMf[model.getFrameId(f)].translation - T.translation))
             )
-        margin = min(margin, polygon_signed_margin(robot.support_polygon(qk, data=data), robot.com(qk, data)))
+        margin = min(
+            margin, -float(signed_distance(robot.com(qk, data)[:2], robot.support_polygon(qk, data=data))[0])
+        )
     return out, drift, margin
 
 

@@ -1,5 +1,6 @@
-"""Planar geometry of footprints: poses on the ground, relative poses of two footprints, and the
-non-overlap rows of Fig. 5 of the footstep paper (Kanoun, Laumond, Yoshida) with their derivatives.
+"""Planar geometry of the virtual chain's footprints: relative poses of two footprints and the
+non-overlap rows of Fig. 5 of the footstep paper (Kanoun, Laumond, Yoshida) with their derivatives. Sole
+poses, rectangles and their distances are the ground geometry of :mod:`services.model.ground`.
 
 A footprint is a sole rectangle of length ``L`` (along the sole x axis) and width ``W`` (along y) centred
 on its sole frame, flat on the ground z = 0, posed by (x [m], y [m], yaw [rad]) in the world frame.
@@ -12,18 +13,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from services.walking.footsteps import SolePose, wrap_angle
-
-
-def sole_pose_of(T_world_sole: pin.SE3) -> SolePose:
-    """Ground footprint (x, y, yaw) of a sole frame: its origin projected on the ground and the heading
-    of its x axis."""
-    R = T_world_sole.rotation
-    return SolePose(
-        float(T_world_sole.translation[0]),
-        float(T_world_sole.translation[1]),
-        math.atan2(float(R[1, 0]), float(R[0, 0])),
-    )
+from services.model.ground import SolePose, wrap_angle
 
 
 def se3_of(pose: SolePose) -> pin.SE3:
@@ -43,15 +33,6 @@ def compose(parent: SolePose, Q: np.ndarray) -> SolePose:
     """The footprint at relative pose Q = (dx, dy, dtheta) from ``parent`` (inverse of
     :func:`relative_pose`)."""
     return parent.compose(float(Q[0]), float(Q[1]), float(Q[2]))
-
-
-def rectangle_corners(pose: SolePose, length_m: float, width_m: float) -> np.ndarray:
-    """The 4 corners (4, 2) [m] of the footprint rectangle in the world, counter-clockwise from the
-    front-left one."""
-    hl, hw = 0.5 * length_m, 0.5 * width_m
-    local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    return local @ np.array([[c, s], [-s, c]]) + np.array([pose.x_m, pose.y_m])
 
 
 def non_overlap_rows(
@@ -102,34 +83,6 @@ def non_overlap_rows_many(
     dG[:, 2:, 1] = -sigma * c
     dG[:, 2:, 2] = -sigma * (c * ex + s * ey)
     return G, dG
-
-
-def rectangles_disjoint_margin(a: SolePose, b: SolePose, length_m: float, width_m: float) -> float:
-    """Separation [m] of two footprint rectangles along their best separating axis (> 0: disjoint,
-    < 0: penetration depth) — the validation counterpart of :func:`non_overlap_rows`."""
-    pa = rectangle_corners(a, length_m, width_m)
-    pb = rectangle_corners(b, length_m, width_m)
-    best = -math.inf
-    for poly in (pa, pb):
-        edges = np.roll(poly, -1, axis=0) - poly
-        normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
-        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        proj_a, proj_b = pa @ normals.T, pb @ normals.T
-        gap = np.maximum(proj_b.min(0) - proj_a.max(0), proj_a.min(0) - proj_b.max(0))
-        best = max(best, float(gap.max()))
-    return best
-
-
-def disk_signed_distance(pose: SolePose, length_m: float, width_m: float, center_xy: np.ndarray) -> float:
-    """Signed distance [m] from a disk centre to the footprint rectangle (negative when under the sole)."""
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    d = np.asarray(center_xy, dtype=float)[:2] - np.array([pose.x_m, pose.y_m])
-    local = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
-    h = np.array([0.5 * length_m, 0.5 * width_m])
-    outside = np.maximum(np.abs(local) - h, 0.0)
-    if np.any(outside > 0.0):
-        return float(np.linalg.norm(outside))
-    return -float(np.min(h - np.abs(local)))
 
 
 def same_pose(a: SolePose, b: SolePose, tol_m: float = 1e-3, tol_rad: float = 1e-3) -> bool:

@@ -18,7 +18,7 @@ import pinocchio as pin
 
 from services.errors import InfeasibleError, InvalidRequestError
 from services.footsteps.chain import Stance, VirtualChain
-from services.footsteps.geometry import same_pose, sole_pose_of
+from services.footsteps.geometry import same_pose
 from services.footsteps.problem import build_levels, joint_limits, robot_rest
 from services.footsteps.request import (
     FootstepPlanRequest,
@@ -29,6 +29,7 @@ from services.footsteps.request import (
 )
 from services.ik.solver import HierarchicalSolver, SolverConfig
 from services.model import FootstepBounds, RobotModel, load_robot
+from services.model.ground import sole_pose_of
 from services.walking.footsteps import Side, SolePose
 
 POLISH_ITERATIONS = 30
@@ -305,7 +306,15 @@ def step_bounds(
     dx = shrink(b.dx_min_m, b.dx_max_m, inset[0])
     dy = shrink(b.dy_min_m, b.dy_max_m, inset[0])
     dth = shrink(b.dtheta_min_rad, b.dtheta_max_rad, inset[1])
-    return FootstepBounds(dx[0], dx[1], dy[0], dy[1], dth[0], dth[1])
+    return replace(
+        b,
+        dx_min_m=dx[0],
+        dx_max_m=dx[1],
+        dy_min_m=dy[0],
+        dy_max_m=dy[1],
+        dtheta_min_rad=dth[0],
+        dtheta_max_rad=dth[1],
+    )
 
 
 def _preference(request: FootstepPlanRequest, out: _Outcome, alternative: tuple) -> tuple:

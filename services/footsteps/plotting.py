@@ -17,16 +17,16 @@ import pinocchio as pin
 from matplotlib.patches import Circle, Polygon
 
 from services.errors import InvalidRequestError
-from services.footsteps.geometry import rectangle_corners
 from services.footsteps.request import FootstepPlanRequest, FootstepPlanResult
 from services.model import RobotModel
+from services.model.ground import sole_corners
 from services.walking.footsteps import SolePose
 
 _SIDE_COLOUR = {"left": "tab:blue", "right": "tab:red"}
 
 
 def _draw_footprint(ax, side: str, x: float, y: float, yaw: float, size: tuple[float, float], **kw) -> None:
-    corners = rectangle_corners(SolePose(x, y, yaw), *size)
+    corners = sole_corners(SolePose(x, y, yaw), *size)
     ax.add_patch(Polygon(corners, closed=True, edgecolor=_SIDE_COLOUR[side], **kw))
 
 

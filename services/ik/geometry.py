@@ -1,31 +1,9 @@
-"""Small geometric kernels for the tasks: 2-D convex hulls and closest points between segments."""
+"""Small geometric kernels for the tasks: closest points between segments (the ground geometry, convex
+hulls included, is :mod:`services.model.ground`)."""
 
 from __future__ import annotations
 
 import numpy as np
-
-
-def convex_hull_2d(points: np.ndarray) -> np.ndarray:
-    """Indices of the convex hull of ``points`` (k x 2), counter-clockwise, without collinear points
-    (Andrew's monotone chain, in plain Python: k is small, the corners of one or two soles)."""
-    xy = points.tolist()
-    order = sorted(range(len(xy)), key=lambda i: (xy[i][0], xy[i][1]))
-
-    def turns_left(o: int, a: int, b: int) -> bool:
-        (ox, oy), (ax, ay), (bx, by) = xy[o], xy[a], xy[b]
-        return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox) > 1e-12
-
-    lower: list[int] = []
-    for i in order:
-        while len(lower) >= 2 and not turns_left(lower[-2], lower[-1], i):
-            lower.pop()
-        lower.append(i)
-    upper: list[int] = []
-    for i in reversed(order):
-        while len(upper) >= 2 and not turns_left(upper[-2], upper[-1], i):
-            upper.pop()
-        upper.append(i)
-    return np.array(lower[:-1] + upper[:-1], dtype=int)
 
 
 def closest_points_segments(

@@ -5,11 +5,11 @@ cameras and per-robot parameters; ``services.model.pybullet_robot`` loads the sa
 See services/model/README.md.
 """
 
+from services.model.ground import FootstepBounds
 from services.model.robot_model import RobotModel, load_robot, robot_names
 from services.model.specs import (
     CameraSpec,
     Capsule,
-    FootstepBounds,
     GripperSpec,
     JointIndex,
     RobotFrames,

@@ -9,7 +9,8 @@ from typing import Any
 import yaml
 
 from services.errors import InvalidRequestError
-from services.model.specs import FootstepBounds, GripperSpec, RobotParams
+from services.model.ground import FootstepBounds
+from services.model.specs import GripperSpec, RobotParams
 
 _TOP_KEYS = {
     "footstep_bounds",

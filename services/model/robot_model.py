@@ -3,6 +3,7 @@ sole rectangles, capsules, cameras and per-robot parameters, for ``hrp2_like`` a
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import xml.etree.ElementTree as ET
@@ -13,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from services.errors import InvalidRequestError
-from services.model.geometry import convex_hull_ccw, yaw_of
+from services.model.ground import convex_hull_ccw, yaw_of
 from services.model.params import load_params
 from services.model.robots import DESCRIPTIONS, RobotDescription, collision_pairs_for
 from services.model.specs import (
@@ -134,8 +135,12 @@ class RobotModel:
             np.concatenate([np.full(FREE_FLYER_NV, np.inf), np.array(model.effortLimit)[FREE_FLYER_NV:]])
         )
 
-        self.params: RobotParams = load_params(desc.params_path)
         self.sole_size_m: tuple[float, float] = desc.sole_size_m
+        params = load_params(desc.params_path)
+        # The stepping bounds carry the sole rectangle that must not overlap the other one.
+        length_m, width_m = (float(v) for v in desc.sole_size_m)
+        bounds = dataclasses.replace(params.footstep_bounds, sole_length_m=length_m, sole_width_m=width_m)
+        self.params: RobotParams = dataclasses.replace(params, footstep_bounds=bounds)
         # pybullet only: flat sole box thickness [m] replacing the foot collision shapes (None: keep the
         # URDF's), and the constraint-solver iterations the robot needs in pybullet.
         self.pybullet_sole_box_m: float | None = desc.pybullet_sole_box_m

@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from services.errors import InvalidRequestError
+from services.model.ground import FootstepBounds
 
 SIDES = ("left", "right")
 
@@ -117,36 +118,6 @@ class StereoPair:
     left: str
     right: str
     baseline_m: float
-
-
-@dataclass(frozen=True)
-class FootstepBounds:
-    """Bounds of the left sole pose in the right sole frame (footstep paper §4; the right sole in the
-    left sole frame is mirrored: dy and dtheta change sign) [m, rad]."""
-
-    dx_min_m: float
-    dx_max_m: float
-    dy_min_m: float
-    dy_max_m: float
-    dtheta_min_rad: float
-    dtheta_max_rad: float
-
-    def for_swing(
-        self, swing_side: str
-    ) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
-        """((dx_min, dx_max), (dy_min, dy_max), (dtheta_min, dtheta_max)) of ``swing_side`` sole in the
-        frame of the other sole."""
-        if check_side(swing_side) == "left":
-            return (
-                (self.dx_min_m, self.dx_max_m),
-                (self.dy_min_m, self.dy_max_m),
-                (self.dtheta_min_rad, self.dtheta_max_rad),
-            )
-        return (
-            (self.dx_min_m, self.dx_max_m),
-            (-self.dy_max_m, -self.dy_min_m),
-            (-self.dtheta_max_rad, -self.dtheta_min_rad),
-        )
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,8 @@
   `001_771c0ce3779b0683.txt` (Figure 2 and 3), laid out as the sim's ``bar_carry`` scene: the robot walks
   past a table with a box on it; the 1.8 m bar held across the walking direction overhangs the table and
   meets the box;
+- :func:`bar_rotation_scenario`: the bar scenario with a pole on the left, level with the box, where
+  lifting alone does not pass;
 - :func:`enclosed_goal_room`: the demo room with a closed pen around the goal;
 - :func:`random_clutter`: ``n`` seeded random boxes and cylinders in an 8 x 8 m area.
 """
@@ -82,6 +84,25 @@ def bar_scenario() -> tuple[Scene, Pose2D, Pose2D]:
     box = BoxObstacle("box", (2.0, -0.65, BAR_TABLE_TOP_M + 0.5 * box_height), (0.3, 0.3, box_height))
     scene = Scene((*stands, table, box), (-0.5, 4.5, -1.5, 1.5))
     return scene, Pose2D(0.0, 0.0, 0.0), Pose2D(BAR_GOAL_X_M, 0.0, 0.0)
+
+
+BAR_POLE_XY_M = (2.0, 0.93)
+BAR_POLE_RADIUS_M = 0.04
+BAR_POLE_HEIGHT_M = 1.8
+
+
+def bar_rotation_scenario() -> tuple[Scene, Pose2D, Pose2D]:
+    """The bar scenario with a pole beside the walking line, level with the box: the pole (1.8 m high,
+    out of lifting range) stands 0.89 m left of the line (its near side), inside the 0.9 m half length
+    of the bar, and the box on the table stands under the bar's right half. Lifting alone does not pass
+    (the pole is too high to lift over, and the arms shift the bar at most 5 cm sideways
+    (``SamplingOptions.max_left_m``): its left end must come 9 cm in); the bar must rotate (yaw, or
+    tilt: both shorten its reach across the walk) and its right half rise over the box: the case of
+    the smooth reshaping over the bar's pose ("Smooth Motion Reshaping", `001_771c0ce3779b0683.txt`)."""
+    scene, start, goal = bar_scenario()
+    x, y = BAR_POLE_XY_M
+    pole = CylinderObstacle("pole", (x, y, 0.5 * BAR_POLE_HEIGHT_M), BAR_POLE_RADIUS_M, BAR_POLE_HEIGHT_M)
+    return Scene((*scene.obstacles, pole), scene.bounds_xy_m), start, goal
 
 
 BAR_ON_STANDS_CENTRE_M = (0.42, 0.0, 0.762)

@@ -29,7 +29,7 @@ from services.navigation.geometry import BodyModel
 from services.navigation.path import SampledPath
 from services.walking.footsteps import (
     Footstep,
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
     Side,
     SolePose,
@@ -110,7 +110,7 @@ class _Walker:
     def __init__(
         self,
         path: SampledPath,
-        bounds: FootstepLimits,
+        bounds: FootstepBounds,
         options: FootstepOptions,
         start_soles: tuple[SolePose, SolePose] | None = None,
     ) -> None:
@@ -232,7 +232,7 @@ class _Walker:
 
 def footsteps_along_path(
     path: SampledPath,
-    bounds: FootstepLimits | None = None,
+    bounds: FootstepBounds | None = None,
     options: FootstepOptions | None = None,
     start_soles: tuple[SolePose, SolePose] | None = None,
 ) -> PathFootsteps:
@@ -245,7 +245,7 @@ def footsteps_along_path(
     start pose), default: on the start pose ``feet_spacing_m`` apart. Raises InfeasibleError when a turn is
     too sharp for the bounds.
     """
-    bounds = bounds or FootstepLimits()
+    bounds = bounds or FootstepBounds()
     options = options or FootstepOptions()
     walker = _Walker(path, bounds, options, start_soles)
     # first moving foot: the inner one of the first turn (it may turn pi/4 relative to the other)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from services.errors import InvalidRequestError, NotFoundError
+from services.model.ground import Rectangle
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,15 @@ class BoxObstacle:
     def bounding_radius_xy_m(self) -> float:
         """Radius [m] of the smallest disc around the centre containing the floor projection."""
         return 0.5 * math.hypot(self.size_xyz_m[0], self.size_xyz_m[1])
+
+    @property
+    def footprint(self) -> Rectangle:
+        """The floor projection: a rectangle of the x and y sizes, turned by the yaw."""
+        return Rectangle(
+            (self.center_xyz_m[0], self.center_xyz_m[1]),
+            (self.size_xyz_m[0], self.size_xyz_m[1]),
+            self.yaw_rad,
+        )
 
 
 @dataclass(frozen=True)
@@ -231,7 +241,8 @@ def body_model(robot: str) -> BodyModel:
 
 @dataclass(frozen=True)
 class _Rect2D:
-    """Oriented rectangle: centre, half extents along its own axes, cos/sin of its yaw."""
+    """Oriented rectangle: centre, half extents along its own axes, cos/sin of its yaw (the box's
+    ``footprint`` in plain floats, for the validity callback)."""
 
     name: str
     cx: float
@@ -240,6 +251,7 @@ class _Rect2D:
     hy: float
     c: float
     s: float
+    footprint: Rectangle
 
 
 @dataclass(frozen=True)
@@ -282,15 +294,13 @@ def _rect_circle_overlap(
 def _distance_grid(shapes: list[_Rect2D | _Circle2D], xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """Exact Euclidean distance [m] from each grid node to the nearest shape (0 inside), shape (ny, nx)."""
     X, Y = np.meshgrid(xs, ys)
+    nodes = np.column_stack([X.ravel(), Y.ravel()])
     dist = np.full(X.shape, np.inf)
     for o in shapes:
-        dx, dy = X - o.cx, Y - o.cy
         if isinstance(o, _Rect2D):
-            qx = np.maximum(np.abs(dx * o.c + dy * o.s) - o.hx, 0.0)
-            qy = np.maximum(np.abs(-dx * o.s + dy * o.c) - o.hy, 0.0)
-            d = np.hypot(qx, qy)
+            d = np.maximum(o.footprint.signed_distance(nodes), 0.0).reshape(X.shape)
         else:
-            d = np.maximum(np.hypot(dx, dy) - o.r, 0.0)
+            d = np.maximum(np.hypot(X - o.cx, Y - o.cy) - o.r, 0.0)
         np.minimum(dist, d, out=dist)
     return dist
 
@@ -326,7 +336,9 @@ class FootprintChecker:
             cx, cy = o.center_xyz_m[0], o.center_xyz_m[1]
             if isinstance(o, BoxObstacle):
                 hx, hy = 0.5 * o.size_xyz_m[0], 0.5 * o.size_xyz_m[1]
-                self._shapes.append(_Rect2D(o.name, cx, cy, hx, hy, math.cos(o.yaw_rad), math.sin(o.yaw_rad)))
+                self._shapes.append(
+                    _Rect2D(o.name, cx, cy, hx, hy, math.cos(o.yaw_rad), math.sin(o.yaw_rad), o.footprint)
+                )
             else:
                 self._shapes.append(_Circle2D(o.name, cx, cy, o.radius_m))
         xmin, xmax, ymin, ymax = scene.bounds_xy_m

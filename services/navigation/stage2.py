@@ -35,6 +35,7 @@ import pinocchio as pin
 
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import Level
+from services.navigation.bar_sampling import ArmReach, BarPoseSampler, SampleStats
 from services.navigation.carry import (
     BarGrip,
     BarTrajectory,
@@ -45,19 +46,13 @@ from services.navigation.carry import (
 )
 from services.navigation.collision3d import RESHAPABLE_GROUPS, CollisionEvent, MotionCheck, MotionChecker
 from services.navigation.geometry import Scene
-from services.navigation.reshaping import (
-    LiftWindow,
-    ReshapeOptions,
-    make_window,
-    merge_windows,
-    reshaped_height,
-)
+from services.navigation.keyframes import next_windows
+from services.navigation.reshaping import ReshapeOptions, ReshapeWindow, reshaped_trajectory
 from services.navigation.upper_body import CarriedBar
-from services.walking.footsteps import FootstepLimits, FootstepSequence
-from services.walking.multibody_zmp import multibody_zmp
-from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
-from services.walking.support_polygon import convex_hull, signed_distance, sole_polygon
-from services.walking.timing import LEFT, RIGHT, WalkTiming
+from services.walking.footsteps import FootstepSequence
+from services.walking.pattern import WalkPattern
+from services.walking.timing import WalkTiming
+from services.walking.two_stage import SupportSamples, robot_pattern
 from services.walking.wholebody import WholeBodyOptions, WholeBodyPlanner, WholeBodyResult
 from services.walking.zmp_reference import smoothstep5
 
@@ -107,13 +102,15 @@ class Stage2Options:
 @dataclass(frozen=True)
 class ReshapeIteration:
     """One whole-body solution of the loop: its smallest clearance [m], the events found (closer than the
-    required clearance) and the lift windows it was solved with."""
+    required clearance) and the windows it was solved with; ``rejected``: why the whole-body IK could not
+    follow these windows (mode ``"sample"``: they are sampled again), else empty."""
 
     index: int
     min_clearance_m: float
     events: tuple[CollisionEvent, ...]
-    windows: tuple[LiftWindow, ...]
+    windows: tuple[ReshapeWindow, ...]
     wall_time_s: float
+    rejected: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,14 +125,17 @@ class WholeBodyMotion:
     the first, unreshaped, whole-body solution (whose 3D check is ``first_check``); ``hand_error_m`` the
     largest distance between the bar's planned and realised centre or between the hands [m].
     ``zmp_margin_m`` is the smallest distance [m] of the multibody ZMP (bar's mass included) inside the
-    support polygon (< 0: outside).
+    support polygon (< 0: outside). ``bar_axis`` (n, 3) the bar's realised axis (``bar_centre_first_m``,
+    ``bar_axis_first`` (n, 3): centre [m] and axis in the first solution), ``bar_planned`` the
+    reshaped task-space trajectory (key frames interpolated at 5 ms), ``sampling`` what each random
+    sampling did (mode ``"sample"``), ``mode`` the reshaping mode.
     """
 
     times_s: np.ndarray
     q: np.ndarray
     wholebody: WholeBodyResult
     check: MotionCheck
-    windows: tuple[LiftWindow, ...]
+    windows: tuple[ReshapeWindow, ...]
     iterations: tuple[ReshapeIteration, ...]
     zmp_margin_m: float
     wall_time_s: float
@@ -145,6 +145,12 @@ class WholeBodyMotion:
     bar_centre_m: np.ndarray | None = None
     hand_error_m: float = 0.0
     first_check: MotionCheck | None = None
+    bar_axis: np.ndarray | None = None
+    bar_centre_first_m: np.ndarray | None = None
+    bar_axis_first: np.ndarray | None = None
+    bar_planned: BarTrajectory | None = None
+    sampling: tuple[SampleStats, ...] = ()
+    mode: str = "sample"
 
     @property
     def pattern(self) -> WalkPattern:
@@ -170,6 +176,12 @@ class WholeBodyMotion:
                 }
                 for w in self.windows
             ],
+            "mode": self.mode,
+            "key_frames": [
+                [{"key_frame": name, "t_s": t_s, **offset.__dict__} for name, t_s, offset in w.key_frames()]
+                for w in self.windows
+            ],
+            "samples": [s.__dict__ for s in self.sampling],
             "min_clearance_m": self.check.min_clearance_m,
             "zmp_margin_m": self.zmp_margin_m,
             "hand_error_m": self.hand_error_m,
@@ -208,31 +220,6 @@ def _with_bar_mass(model: pin.Model, grip: BarGrip) -> pin.Model:
     return out
 
 
-def zmp_support_distance(
-    zmp_m: np.ndarray, pattern: WalkPattern, sole_length_m: float, sole_width_m: float
-) -> np.ndarray:
-    """Signed distance (n,) [m] of the ZMP (n, 2) to the support polygon of each sample (< 0 inside).
-
-    As ``services.walking.support_polygon.distances_to_support``, with the sole corners rounded to 1 nm
-    before the convex hull: its monotone chain drops a corner when two corners differ by float noise
-    (1e-17 m, after a yaw of 1e-16 rad), which shrinks the double-support polygon to a triangle."""
-    n = zmp_m.shape[0]
-    left = pattern.left_sole[:, [0, 1, 3]]
-    right = pattern.right_sole[:, [0, 1, 3]]
-    key = np.column_stack([pattern.phase.astype(float), left, right])
-    key[pattern.phase == LEFT, 4:] = 0.0
-    key[pattern.phase == RIGHT, 1:4] = 0.0
-    change = np.ones(n, dtype=bool)
-    change[1:] = np.any(np.abs(np.diff(key, axis=0)) > 1e-12, axis=1)
-    starts = np.flatnonzero(change)
-    out = np.empty(n)
-    for a, b in zip(starts, np.append(starts[1:], n), strict=True):
-        soles = {LEFT: [left[a]], RIGHT: [right[a]]}.get(int(pattern.phase[a]), [left[a], right[a]])
-        corners = np.vstack([sole_polygon(sole, sole_length_m, sole_width_m) for sole in soles])
-        out[a:b] = signed_distance(zmp_m[a:b], convex_hull(np.round(corners, 9)))
-    return out
-
-
 def _nominal_heights(pattern: WalkPattern, start_height_m: float, carry_height_m: float | None) -> np.ndarray:
     """Bar height (n,) [m]: from the starting height to the carry height during the standing start
     (quintic), then constant."""
@@ -246,18 +233,38 @@ def _nominal_heights(pattern: WalkPattern, start_height_m: float, carry_height_m
     return start_height_m + s * (carry_height_m - start_height_m)
 
 
-def _clear_height(
-    event: CollisionEvent, scene: Scene, grip: BarGrip, current_m: float, options: ReshapeOptions
-) -> float:
-    """Bar-centre height [m] that passes ``event``'s part over its obstacle: for the bar, the obstacle's
-    top + the bar's radius + the target clearance; for an arm, the current height raised by what the arm
-    misses; never lower than the current height raised by the missing clearance."""
-    missing = options.target_clearance_m - event.min_distance_m
-    raised = current_m + max(missing, 0.0)
-    if event.group == "bar":
-        top = scene.find(event.obstacle).z_range_m[1]
-        return max(top + grip.bar.radius_m + options.target_clearance_m, raised)
-    return raised
+def _check_hands(
+    robot: Any,
+    grip: BarGrip,
+    q: np.ndarray,
+    trajectory: BarTrajectory,
+    options: ReshapeOptions,
+    windows: list[ReshapeWindow],
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The bar's realised centre (n, 3) [m], axis (n, 3) along the motion ``q`` (n, nq) and the hands'
+    largest error [m] from its planned ``trajectory``; InfeasibleError (``bar_out_of_reach``) when that
+    error is above ``max_hand_error_m``."""
+    centre, axis, grip_err = bar_poses(robot, grip, q)
+    hand_error = float(max(np.abs(centre - trajectory.centre_m).max(), grip_err.max()))
+    if hand_error > options.max_hand_error_m:
+        worst = max(windows, key=lambda w: w.offset.displacement_m(0.5 * grip.bar.length_m), default=None)
+        raise InfeasibleError(
+            f"the arms do not hold the bar where the reshaped motion puts it: "
+            f"{1e3 * hand_error:.0f} mm off (at most {1e3 * options.max_hand_error_m:.0f} mm)"
+            + (
+                f" while moving it to {worst.height_m:.2f} m (roll {math.degrees(worst.offset.roll_rad):.0f}"
+                f" deg, yaw {math.degrees(worst.offset.yaw_rad):.0f} deg) near {list(worst.obstacles)}"
+                if worst
+                else ""
+            )
+            + ": lower max_bar_height_m, or go around the obstacle",
+            {
+                "reason": "bar_out_of_reach",
+                "hand_error_m": hand_error,
+                "obstacles": sorted({o for w in windows for o in w.obstacles}),
+            },
+        )
+    return centre, axis, hand_error
 
 
 def plan_motion(
@@ -285,23 +292,15 @@ def plan_motion(
     lowering = options.com_lowering_m
     if lowering is None:
         lowering = CARRY_COM_LOWERING_M if bar is not None else 0.0
-    pattern = plan_pattern(
-        footsteps,
-        options.timing,
-        PatternOptions(
-            step_height_m=float(robot.params.step_height_m),
-            com_height_m=float(robot.com(q_start)[2]) - lowering if lowering > 0.0 else None,
-        ),
-        initial_com_m=robot.com(q_start),
-        bounds=FootstepLimits.from_robot(robot),
-    )
+    pattern = robot_pattern(robot, footsteps, q_start, options.timing, com_lowering_m=lowering)
     planner = WholeBodyPlanner(robot, options.wholebody)
     grip = grip_from_configuration(robot, q_start, bar) if bar is not None else None
     checker = MotionChecker(robot, scene, grip)
     times = pattern.times_s
-    t_first, t_last = float(times[0]), float(times[-1])
 
-    nominal = first_heights = first_check = None
+    nominal = first_heights = first_check = nominal_bar = sampler = None
+    first_pose: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+    stats: list[SampleStats] = []
     extra: list[Level] = []
     update = None
     tasks: dict[str, HandOnBarTask] = {}
@@ -319,31 +318,54 @@ def plan_motion(
             for side in ("left", "right")
         }
         extra = [Level((tasks["left"], tasks["right"]), name="hands_on_bar")]
+        nominal_bar = nominal_bar_trajectory(pattern, grip, nominal)
+        if rs.mode == "sample":
+            reach = ArmReach(
+                robot, planner.model, grip, planner.reduce_q, planner.expand_q, rs.sampling.ik_iterations
+            )
+            rng = np.random.default_rng(rs.sampling.seed)
+            sampler = BarPoseSampler(scene, grip, rs, reach, rng, checker)
 
-    windows: list[LiftWindow] = []
+    windows: list[ReshapeWindow] = []
     history: list[ReshapeIteration] = []
+    last: tuple | None = None  # the last checked motion's (events, check, windows, centre, q)
+    rejected: list[ReshapeWindow] = []
     for iteration in range(rs.max_iterations):
         t_it = time.perf_counter()
         trajectory: BarTrajectory | None = None
-        if grip is not None:
-            heights = reshaped_height(times, nominal, windows)
-            trajectory = nominal_bar_trajectory(pattern, grip, heights)
+        if nominal_bar is not None:
+            trajectory = reshaped_trajectory(nominal_bar, windows)
 
             def update(k: int, t_s: float, com_ref: np.ndarray, traj: BarTrajectory = trajectory) -> None:
                 for side, task in tasks.items():
                     task.set_target(traj.held_point(grip, side, k), traj.axis[k])
 
-        result = planner.solve(pattern, q_start, extra_levels=extra, update_extra=update)
+        try:
+            result = planner.solve(pattern, q_start, extra_levels=extra, update_extra=update)
+            centre = hand_error = bar_axis = None
+            if grip is not None and trajectory is not None:
+                centre, bar_axis, hand_error = _check_hands(robot, grip, result.q, trajectory, rs, windows)
+        except InfeasibleError as error:
+            # "an IK solver is applied to ensure the geometric constraints": the arms cannot follow the
+            # sampled configuration (too fast, too far): sample other ones
+            if last is None or rs.mode != "sample" or iteration == rs.max_iterations - 1:
+                raise
+            rejected.extend(w for w in windows if w not in last[2])
+            history.append(
+                ReshapeIteration(
+                    iteration, math.nan, (), tuple(windows), time.perf_counter() - t_it, error.message
+                )
+            )
+            windows, sampled = next_windows(*last, nominal_bar, scene, grip, rs, sampler, rejected=rejected)
+            stats.extend(sampled)
+            continue
         check = checker.check(
             result.q, pattern.dt_s, release_m=rs.required_clearance_m, stride=options.check_stride
         )
         events = check.events(rs.required_clearance_m)
-        centre = hand_error = None
-        if grip is not None and trajectory is not None:
-            centre, _, grip_err = bar_poses(robot, grip, result.q)
-            hand_error = float(max(np.abs(centre - trajectory.centre_m).max(), grip_err.max()))
-            if iteration == 0:
-                first_heights = centre[:, 2].copy()
+        if centre is not None and iteration == 0:
+            first_heights = centre[:, 2].copy()
+            first_pose = (centre, bar_axis)
         if iteration == 0:
             first_check = check
         history.append(
@@ -351,23 +373,6 @@ def plan_motion(
                 iteration, check.min_clearance_m, tuple(events), tuple(windows), time.perf_counter() - t_it
             )
         )
-        if hand_error is not None and hand_error > rs.max_hand_error_m:
-            worst = max(windows, key=lambda w: w.height_m) if windows else None
-            raise InfeasibleError(
-                f"the arms do not hold the bar where the reshaped motion puts it: "
-                f"{1e3 * hand_error:.0f} mm off (at most {1e3 * rs.max_hand_error_m:.0f} mm)"
-                + (
-                    f" while lifting it to {worst.height_m:.2f} m over {list(worst.obstacles)}"
-                    if worst
-                    else ""
-                )
-                + ": lower max_bar_height_m, or go around the obstacle",
-                {
-                    "reason": "bar_out_of_reach",
-                    "hand_error_m": hand_error,
-                    "obstacles": sorted({o for w in windows for o in w.obstacles}),
-                },
-            )
         if not events:
             break
         blocking = [e for e in events if e.group not in RESHAPABLE_GROUPS or grip is None]
@@ -387,39 +392,12 @@ def plan_motion(
                     "distance_m": e.min_distance_m,
                 },
             )
-        if iteration == rs.max_iterations - 1 or nominal is None or centre is None or grip is None:
+        if iteration == rs.max_iterations - 1 or nominal_bar is None or centre is None or grip is None:
             break  # budget spent (without a grip every event was blocking: raised above)
-        new_windows = []
-        for e in events:
-            k0, k1 = check.near_interval(e.group, e.obstacle, e.k_start, e.k_end, rs.target_clearance_m)
-            current = float(centre[k0 : k1 + 1, 2].max())
-            height = _clear_height(e, scene, grip, current, rs)
-            if rs.max_bar_height_m is not None and height > rs.max_bar_height_m:
-                top = scene.find(e.obstacle).z_range_m[1]
-                raise InfeasibleError(
-                    f"clearing {e.obstacle!r} (top at {top:.2f} m) with the {e.group} needs the bar's "
-                    f"centre at {height:.2f} m, above the {rs.max_bar_height_m:.2f} m the arms may hold "
-                    f"it: go around {e.obstacle!r}",
-                    {
-                        "reason": "lift_too_high",
-                        "obstacle": e.obstacle,
-                        "height_m": height,
-                        "max_bar_height_m": rs.max_bar_height_m,
-                    },
-                )
-            new_windows.append(
-                make_window(
-                    float(times[k0]),
-                    float(times[k1]),
-                    height,
-                    float(nominal[k0]),
-                    (e.obstacle,),
-                    rs,
-                    t_first,
-                    t_last,
-                )
-            )
-        windows = merge_windows(windows + new_windows, float(nominal[-1]), rs, t_first, t_last)
+        # Figure 2 (a)-(b): the key frames of the next solution (keyframes.py, bar_sampling.py)
+        last = (events, check, windows, centre, result.q)
+        windows, sampled = next_windows(*last, nominal_bar, scene, grip, rs, sampler, rejected=rejected)
+        stats.extend(sampled)
     if events:
         e = min(events, key=lambda e: e.min_distance_m)
         raise InfeasibleError(
@@ -435,8 +413,7 @@ def plan_motion(
             },
         )
     zmp_model = _with_bar_mass(robot.model, grip) if grip is not None else robot.model
-    mb = multibody_zmp(zmp_model, result.q, pattern.dt_s)
-    dist = zmp_support_distance(mb.zmp_m, pattern, *robot.sole_size_m)
+    _, dist = SupportSamples.of_pattern(pattern, robot.sole_size_m).zmp_distance(zmp_model, result.q)
     zmp_margin = float(-dist.max())
     if zmp_margin < options.min_zmp_margin_m:
         k = int(np.argmax(dist))
@@ -456,9 +433,15 @@ def plan_motion(
         zmp_margin_m=zmp_margin,
         wall_time_s=time.perf_counter() - t_wall,
         bar_height_nominal_m=nominal,
-        bar_height_planned_m=None if grip is None else reshaped_height(times, nominal, windows),
+        bar_height_planned_m=None if trajectory is None else trajectory.centre_m[:, 2].copy(),
         bar_height_first_m=first_heights,
         bar_centre_m=centre,
         hand_error_m=0.0 if hand_error is None else hand_error,
         first_check=first_check,
+        bar_axis=bar_axis,
+        bar_centre_first_m=first_pose[0],
+        bar_axis_first=first_pose[1],
+        bar_planned=trajectory,
+        sampling=tuple(stats),
+        mode=rs.mode,
     )

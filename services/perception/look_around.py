@@ -28,6 +28,7 @@ import numpy as np
 
 from services.errors import InvalidRequestError
 from services.model import RobotModel
+from services.model.ground import smoothstep5
 from services.perception.locate import stereo_pair
 
 #: Default gaze depressions of the scan rows [rad]: 20 deg sees tables and boxes from 1.3 m to far away,
@@ -175,7 +176,7 @@ def head_trajectory(
     duration = max(0.1, 1.875 * float(np.abs(delta).max()) / max_speed_rad_s)
     n = math.ceil(duration / dt_s) + 1
     s = np.linspace(0.0, 1.0, n)
-    blend = s**3 * (10.0 - 15.0 * s + 6.0 * s**2)  # minimum jerk, zero velocity/acceleration at both ends
+    blend = smoothstep5(s)  # minimum jerk, zero velocity/acceleration at both ends
     q = np.repeat(q0[None, :], n, axis=0)
     q[:, ip] = q0[ip] + blend * delta[0]
     q[:, it] = q0[it] + blend * delta[1]

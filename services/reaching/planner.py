@@ -30,6 +30,7 @@ import pinocchio as pin
 
 from services.errors import InfeasibleError, InternalError
 from services.model import load_robot
+from services.model.ground import sole_pose_at
 from services.reaching.envelope import ReachEnvelope, measure_envelope
 from services.reaching.monitors import MonitorSeries, Violation
 from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
@@ -39,12 +40,11 @@ from services.reaching.request import ReachRequest
 from services.reaching.result import Attempt, ReachResult
 from services.reaching.support_polygon import StepPlan, SupportPolygonPlanner, mid_pose
 from services.reaching.tracker import DT_S, ReachTracker, TrackResult
-from services.walking.footsteps import FootstepLimits, SolePose
-from services.walking.multibody_zmp import multibody_zmp
-from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
-from services.walking.preview_control import preview_gains, second_stage_correction, settle_at_end
-from services.walking.support_polygon import distances_to_support
+from services.walking.footsteps import SolePose
+from services.walking.pattern import PatternOptions, WalkPattern
+from services.walking.preview_control import preview_gains
 from services.walking.timing import DOUBLE, LEFT, RIGHT, WalkTiming
+from services.walking.two_stage import SupportSamples, correct_multibody_zmp, robot_pattern
 from services.walking.zmp_reference import smoothstep5
 
 # One reshaping step is tried when it brings the target this much [m] inside the reach envelope, at most
@@ -77,7 +77,6 @@ class ReachPlanner:
             dt_s=DT_S,
         )
         self.pattern_options = PatternOptions(step_height_m=float(params.step_height_m))
-        self.bounds = FootstepLimits.from_robot(robot)
         self._envelopes: dict[str, ReachEnvelope] = {}
 
     # ---------------------------------------------------------------------------------------- plan
@@ -94,7 +93,7 @@ class ReachPlanner:
         req = request.validated(robot)
         q0 = req.q_start
         data = robot.new_data()
-        left, right = (_sole_pose(robot, q0, side, data) for side in ("left", "right"))
+        left, right = (sole_pose_at(robot, q0, side, data) for side in ("left", "right"))
         attempts: list[Attempt] = []
 
         spec0 = self._standing_spec(req, left, right)
@@ -119,13 +118,7 @@ class ReachPlanner:
             )
         last_violation = violation
         for plan in candidates:
-            pattern = plan_pattern(
-                plan.footsteps,
-                self.timing,
-                self.pattern_options,
-                initial_com_m=robot.com(q0),
-                bounds=self.bounds,
-            )
+            pattern = robot_pattern(robot, plan.footsteps, q0, self.timing, self.pattern_options)
             spec = self._stepping_spec(req, pattern)
             track = self.tracker.track(spec, q0, req.hand)
             attempts.append(Attempt(plan.kind, plan.n_steps, track.violation, track.wall_time_s))
@@ -145,7 +138,7 @@ class ReachPlanner:
         the first violation (the "without reshaping" curve of Fig. 7): (trajectory (n, nq), monitors)."""
         req = request.validated(self.robot)
         data = self.robot.new_data()
-        left, right = (_sole_pose(self.robot, req.q_start, side, data) for side in ("left", "right"))
+        left, right = (sole_pose_at(self.robot, req.q_start, side, data) for side in ("left", "right"))
         track = self.tracker.track(
             self._standing_spec(req, left, right), req.q_start, req.hand, stop_at_violation=False
         )
@@ -262,28 +255,31 @@ class ReachPlanner:
             raise InternalError("a motion kept by the planner has no trajectory")
         com_z = float(robot.com(req.q_start)[2])
         gains = spec.pattern.gains if spec.pattern is not None else preview_gains(DT_S, com_z)
-        window = _correction_window(spec)
-        offset = np.zeros((spec.n_samples, 2))
-        corrections = 0
-        while True:
-            mb = multibody_zmp(robot.model, q, DT_S)
-            distance = distances_to_support(
-                mb.zmp_m, spec.phase, spec.left_sole, spec.right_sole, *robot.sole_size_m
-            )
-            if distance.max() <= -opt.zmp_margin_m or corrections >= opt.max_corrections:
-                break
-            # Second preview stage (Kajita 2003, IV-B): CoM correction from p_ref - p_multibody.
-            error = window[:, None] * (spec.zmp_reference_m - mb.zmp_m)
-            corr = second_stage_correction(gains, error, np.zeros_like(error))
-            corr = settle_at_end(
-                corr, round(self.options.final_hold_s / DT_S), DT_S, gains.com_height_m, np.zeros(2)
-            )
-            candidate = self.tracker.track(spec, req.q_start, req.hand, com_offset_xy_m=offset + corr.com_m)
+        kept = [track]
+
+        def retrack(com_offset_xy_m: np.ndarray) -> np.ndarray | None:
+            candidate = self.tracker.track(spec, req.q_start, req.hand, com_offset_xy_m=com_offset_xy_m)
             if candidate.violation is not None:
-                break
-            offset = offset + corr.com_m
-            track, q = candidate, candidate.q
-            corrections += 1
+                return None
+            kept.append(candidate)
+            return candidate.q
+
+        # Second preview stage (Kajita 2003, IV-B): CoM correction from p_ref - p_multibody.
+        support = SupportSamples(
+            spec.phase, spec.left_sole, spec.right_sole, robot.sole_size_m, DT_S, spec.zmp_reference_m
+        )
+        out = correct_multibody_zmp(
+            robot.model,
+            q,
+            support,
+            gains,
+            retrack,
+            window=_correction_window(spec),
+            settle_samples=round(self.options.final_hold_s / DT_S),
+            margin_m=opt.zmp_margin_m,
+            max_corrections=opt.max_corrections,
+        )
+        track, q, mb, distance, corrections = kept[-1], out.q, out.zmp, out.distance_m, out.corrections
         slide = _max_sole_slide(robot, q, spec)
         hand_final = robot.frame_pose(q[-1], robot.frames.grasp(req.hand)).translation
         return ReachResult(
@@ -327,13 +323,6 @@ class ReachPlanner:
                 **details,
             },
         )
-
-
-def _sole_pose(robot: Any, q: np.ndarray, side: str, data: pin.Data) -> SolePose:
-    T = robot.sole_pose(q, side, data)
-    return SolePose(
-        float(T.translation[0]), float(T.translation[1]), math.atan2(T.rotation[1, 0], T.rotation[0, 0])
-    )
 
 
 def _in_body(point: np.ndarray, body_xy: np.ndarray, yaw: float) -> np.ndarray:

@@ -31,7 +31,7 @@ import numpy as np
 from services.errors import HumanoidError
 from services.walking.footsteps import (
     Footstep,
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
     SolePose,
     other_side,
@@ -58,18 +58,18 @@ class StepPlan:
         return len(self.footsteps.steps)
 
 
-def shrunk_limits(limits: FootstepLimits, ratio: float) -> FootstepLimits:
+def shrunk_limits(limits: FootstepBounds, ratio: float) -> FootstepBounds:
     """``limits`` with a margin for the pattern generator and the sim: the forward and yaw ranges scaled
     towards zero by ``ratio``, the lateral range shrunk about its middle to ``ratio`` of its width (the
     sole size is kept)."""
     mid, half = 0.5 * (limits.dy_min_m + limits.dy_max_m), 0.5 * (limits.dy_max_m - limits.dy_min_m) * ratio
-    return FootstepLimits(
+    return FootstepBounds(
         dx_min_m=limits.dx_min_m * ratio,
         dx_max_m=limits.dx_max_m * ratio,
         dy_min_m=mid - half,
         dy_max_m=mid + half,
-        dyaw_min_rad=limits.dyaw_min_rad * ratio,
-        dyaw_max_rad=limits.dyaw_max_rad * ratio,
+        dtheta_min_rad=limits.dtheta_min_rad * ratio,
+        dtheta_max_rad=limits.dtheta_max_rad * ratio,
         sole_length_m=limits.sole_length_m,
         sole_width_m=limits.sole_width_m,
     )
@@ -81,7 +81,7 @@ def mid_pose(left: SolePose, right: SolePose) -> tuple[float, float, float]:
     return 0.5 * (left.x_m + right.x_m), 0.5 * (left.y_m + right.y_m), yaw
 
 
-def _is_valid(seq: FootstepSequence, limits: FootstepLimits) -> bool:
+def _is_valid(seq: FootstepSequence, limits: FootstepBounds) -> bool:
     """``seq`` within ``limits`` and without overlapping soles (cheap bound test first)."""
     feet = {"left": seq.left_start, "right": seq.right_start}
     bounds = {side: limits.limits_for(side) for side in ("left", "right")}
@@ -110,7 +110,7 @@ class SupportPolygonPlanner:
 
     def __init__(self, robot: Any, step_bound_ratio: float = 0.9, comfort_reach_ratio: float = 0.55) -> None:
         self.robot = robot
-        self.limits = shrunk_limits(FootstepLimits.from_robot(robot), step_bound_ratio)
+        self.limits = shrunk_limits(FootstepBounds.from_robot(robot), step_bound_ratio)
         self.comfort_reach_ratio = comfort_reach_ratio
         q = robot.q_half_sitting
         data = robot.forward(q, robot.new_data())
@@ -225,7 +225,7 @@ class SupportPolygonPlanner:
         c, s = math.cos(yaw0), math.sin(yaw0)
         gx, gy = goal_mid[0] - x0, goal_mid[1] - y0
         rel = (c * gx + s * gy, -s * gx + c * gy, wrap_angle(goal_mid[2] - yaw0))
-        n_turn_min = max(1, math.ceil(abs(rel[2]) / self.limits.dyaw_max_rad - 1e-9))
+        n_turn_min = max(1, math.ceil(abs(rel[2]) / self.limits.dtheta_max_rad - 1e-9))
         for pairs in range(self.steps_needed(left, right, goal_mid) // 2, max_steps // 2 + 1):
             for n_turn in range(min(n_turn_min, pairs), min(n_turn_min + 1, pairs) + 1):
                 for lag in sorted({0, n_turn // 2, n_turn} - {pairs}):
@@ -241,7 +241,7 @@ class SupportPolygonPlanner:
         x0, y0, yaw0 = mid_pose(left, right)
         distance = math.hypot(goal_mid[0] - x0, goal_mid[1] - y0)
         turn = abs(wrap_angle(goal_mid[2] - yaw0))
-        pairs = max(distance / max(self.limits.dx_max_m, 1e-6), turn / max(self.limits.dyaw_max_rad, 1e-6))
+        pairs = max(distance / max(self.limits.dx_max_m, 1e-6), turn / max(self.limits.dtheta_max_rad, 1e-6))
         return 2 * max(1, math.ceil(pairs - 1e-9))
 
     def _walk_sequence(

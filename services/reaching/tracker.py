@@ -31,11 +31,11 @@ from services.ik import (
     FrameOrientationTask,
     FramePoseTask,
     FramePositionTask,
+    GazeTask,
     HierarchicalSolver,
     Level,
     link_mass_weights,
 )
-from services.reaching.gaze import GazeDirectionTask
 from services.reaching.monitors import ArmMonitor, KnotValues, MonitorSeries, Violation, first_violation
 from services.reaching.motion import MotionSpec
 from services.reaching.options import ReachingOptions
@@ -51,6 +51,7 @@ DT_S = 0.005  # the trajectory grid [s]
 # of reach) stays where the linearization holds instead of being thrown by a huge step.
 MAX_HAND_STEP_M = 0.03
 MAX_GAZE_STEP = 0.1  # [-]: sine of the gaze direction error
+GAZE_AXIS = (1.0, 0.0, 0.0)  # the robot's ``gaze`` frame looks along its x axis
 # Damping of the hand level (damped least squares, in the level's metric): near the arm's singularity
 # the step stays bounded instead of flipping the arm; away from it the knot iterations remove the bias.
 HAND_DAMPING = 1e-3
@@ -180,7 +181,15 @@ class ReachTracker:
         ]
         tasks: dict[str, Any] = {"feet": feet, "com": com, "hand": hand_task, "waist": waist}
         if spec.gaze_ref_m is not None:
-            gaze = GazeDirectionTask(m, frames.gaze, spec.gaze_ref_m[0], max_step=MAX_GAZE_STEP, name="gaze")
+            gaze = GazeTask(
+                m,
+                frames.gaze,
+                spec.gaze_ref_m[0],
+                axis_in_camera=GAZE_AXIS,
+                max_step=MAX_GAZE_STEP,
+                name="gaze",
+                form="direction",
+            )
             levels.append(Level((gaze,), name="gaze", weights=W, lock_near_limits_rad=S_l))
             tasks["gaze"] = gaze
         levels.append(Level((waist,), name="waist", weights=W))

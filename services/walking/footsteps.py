@@ -1,274 +1,67 @@
-"""Footstep sequences on flat ground, their validation against a robot's stepping bounds, and generators.
+"""Footstep generators on flat ground: straight walks, turns in place, side steps and arcs, each split
+into more steps when it would break the robot's stepping bounds.
 
-A :class:`FootstepSequence` holds the two starting sole poses and the ordered list of :class:`Footstep`
-landings. Each footstep says which foot moves and where its sole lands (x, y, yaw in the world frame,
-on the flat ground z = 0). The stance foot of a step is the other foot, at its latest pose.
-
-The stepping bounds are those of section 5 of the footstep paper (000, Kanoun et al.): the left sole
-expressed in the right sole frame must satisfy ``-0.22 < dx < 0.22 m``, ``0.07 < dy < 0.25 m``,
-``-0.1 < dtheta < pi/4 rad``; the right sole in the left sole frame satisfies the mirrored bounds
-(``-0.25 < dy < -0.07``, ``-pi/4 < dtheta < 0.1``). The bounds are checked inclusive of the limit
-itself, up to ``BOUND_TOLERANCE`` (0.1 mm, 1e-4 rad): a 90-degree turn in 4 steps (pi/4 per opening
-step) is admissible, also from soles measured on a standing robot (the simulated robot stands with its
-soles yawed by a few 1e-5 rad, which puts such a turn 2e-5 rad "beyond" the bound).
+The footstep sequences, the bounds type and their validation are the ground geometry of
+:mod:`services.model.ground` (re-exported here: ``SolePose``, ``Footstep``, ``FootstepSequence``,
+``FootstepBounds``, ``validate_footsteps``...); this module only generates sequences.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from typing import Any, Literal
 
 import numpy as np
 
 from services.errors import InfeasibleError, InvalidRequestError
+from services.model.ground import (
+    BOUND_TOLERANCE,
+    SIDES,
+    Footstep,
+    FootstepBounds,
+    FootstepSequence,
+    Side,
+    SolePose,
+    other_side,
+    rectangles_overlap_depth,
+    sole_corners,
+    validate_footsteps,
+    wrap_angle,
+)
 
-Side = Literal["left", "right"]
-SIDES: tuple[Side, Side] = ("left", "right")
-BOUND_TOLERANCE = 1e-4
-"""Tolerance of the bounds check [m or rad]: measurement noise, not a relaxation of the bounds."""
+__all__ = [
+    "BOUND_TOLERANCE",
+    "DEFAULT_LIMITS",
+    "SIDES",
+    "Footstep",
+    "FootstepBounds",
+    "FootstepLimits",
+    "FootstepSequence",
+    "Side",
+    "SolePose",
+    "arc_walk",
+    "fit_to_bounds",
+    "footsteps_along_mid_poses",
+    "other_side",
+    "rectangles_overlap_depth",
+    "side_steps",
+    "sole_corners",
+    "straight_walk",
+    "turn_in_place",
+    "validate_footsteps",
+    "wrap_angle",
+]
 
-
-def wrap_angle(angle_rad: float) -> float:
-    """Wrap an angle to [-pi, pi) [rad]."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def other_side(side: Side) -> Side:
-    """The other foot."""
-    return "right" if side == "left" else "left"
-
-
-@dataclass(frozen=True)
-class SolePose:
-    """A sole frame on the flat ground: position [m] and yaw [rad] in the world frame (z = 0)."""
-
-    x_m: float
-    y_m: float
-    yaw_rad: float
-
-    def relative_to(self, other: SolePose) -> tuple[float, float, float]:
-        """(dx [m], dy [m], dyaw [rad]) of this sole expressed in the frame of ``other``."""
-        c, s = math.cos(other.yaw_rad), math.sin(other.yaw_rad)
-        ex, ey = self.x_m - other.x_m, self.y_m - other.y_m
-        return c * ex + s * ey, -s * ex + c * ey, wrap_angle(self.yaw_rad - other.yaw_rad)
-
-    def compose(self, dx_m: float, dy_m: float, dyaw_rad: float) -> SolePose:
-        """The pose reached by moving (dx, dy) in this frame and turning by dyaw."""
-        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        return SolePose(
-            self.x_m + c * dx_m - s * dy_m, self.y_m + s * dx_m + c * dy_m, self.yaw_rad + dyaw_rad
-        )
-
-    def as_array(self) -> np.ndarray:
-        """[x, y, yaw] as a float array."""
-        return np.array([self.x_m, self.y_m, self.yaw_rad])
-
-
-@dataclass(frozen=True)
-class Footstep:
-    """One step: foot ``side`` lifts off and lands with its sole at ``pose`` (world frame)."""
-
-    side: Side
-    pose: SolePose
-
-
-@dataclass(frozen=True)
-class FootstepSequence:
-    """Starting sole poses and the ordered landings. ``steps[0].side`` is the first moving foot."""
-
-    left_start: SolePose
-    right_start: SolePose
-    steps: tuple[Footstep, ...]
-
-    @property
-    def first_moving_side(self) -> Side:
-        """The foot that moves first."""
-        if not self.steps:
-            raise InvalidRequestError("the footstep sequence has no step")
-        return self.steps[0].side
-
-    def stances(self) -> list[tuple[SolePose, SolePose]]:
-        """(left, right) sole poses before the first step and after each step (len = n_steps + 1)."""
-        left, right = self.left_start, self.right_start
-        out = [(left, right)]
-        for step in self.steps:
-            if step.side == "left":
-                left = step.pose
-            else:
-                right = step.pose
-            out.append((left, right))
-        return out
-
-    def final_stance(self) -> tuple[SolePose, SolePose]:
-        """(left, right) sole poses after the last step."""
-        return self.stances()[-1]
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (for messages and the placo worker)."""
-
-        def pose(p: SolePose) -> list[float]:
-            return [p.x_m, p.y_m, p.yaw_rad]
-
-        return {
-            "left_start": pose(self.left_start),
-            "right_start": pose(self.right_start),
-            "steps": [{"side": s.side, "pose": pose(s.pose)} for s in self.steps],
-        }
-
-    @staticmethod
-    def from_dict(data: dict[str, Any]) -> FootstepSequence:
-        """Inverse of :meth:`to_dict`; raises InvalidRequestError on a malformed dict."""
-        try:
-            steps = []
-            for i, s in enumerate(data["steps"]):
-                if s["side"] not in SIDES:
-                    raise InvalidRequestError(f"step {i}: side {s['side']!r} is not one of {SIDES}")
-                steps.append(Footstep(s["side"], SolePose(*map(float, s["pose"]))))
-            return FootstepSequence(
-                SolePose(*map(float, data["left_start"])),
-                SolePose(*map(float, data["right_start"])),
-                tuple(steps),
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InvalidRequestError(
-                f"malformed footstep sequence ({exc!r}); expected keys left_start=[x,y,yaw], "
-                "right_start=[x,y,yaw], steps=[{side: left|right, pose: [x,y,yaw]}]"
-            ) from exc
-
-
-@dataclass(frozen=True)
-class FootstepLimits:
-    """Admissible pose of the left sole in the right sole frame (mirrored for the right foot) [m, rad],
-    and the sole rectangle used for the overlap test [m] (centred on the sole frame)."""
-
-    dx_min_m: float = -0.22
-    dx_max_m: float = 0.22
-    dy_min_m: float = 0.07
-    dy_max_m: float = 0.25
-    dyaw_min_rad: float = -0.1
-    dyaw_max_rad: float = math.pi / 4
-    sole_length_m: float = 0.24
-    sole_width_m: float = 0.14
-
-    @staticmethod
-    def from_robot(robot: Any) -> FootstepLimits:
-        """Bounds of a ``services.model`` robot (``params.footstep_bounds``, ``sole_size_m``)."""
-        fb = robot.params.footstep_bounds
-        length, width = (float(v) for v in robot.sole_size_m)
-        return FootstepLimits(
-            dx_min_m=float(fb.dx_min_m),
-            dx_max_m=float(fb.dx_max_m),
-            dy_min_m=float(fb.dy_min_m),
-            dy_max_m=float(fb.dy_max_m),
-            dyaw_min_rad=float(fb.dtheta_min_rad),
-            dyaw_max_rad=float(fb.dtheta_max_rad),
-            sole_length_m=length,
-            sole_width_m=width,
-        )
-
-    def limits_for(self, side: Side) -> dict[str, tuple[float, float]]:
-        """Limits of (dx, dy, dyaw) of foot ``side`` in the other sole frame (mirrored for the right)."""
-        if side == "left":
-            return {
-                "dx": (self.dx_min_m, self.dx_max_m),
-                "dy": (self.dy_min_m, self.dy_max_m),
-                "dyaw": (self.dyaw_min_rad, self.dyaw_max_rad),
-            }
-        return {
-            "dx": (self.dx_min_m, self.dx_max_m),
-            "dy": (-self.dy_max_m, -self.dy_min_m),
-            "dyaw": (-self.dyaw_max_rad, -self.dyaw_min_rad),
-        }
-
-
-def sole_corners(pose: SolePose, length_m: float, width_m: float) -> np.ndarray:
-    """The 4 corners (4, 2) [m] of the sole rectangle centred on the sole frame, counter-clockwise."""
-    hl, hw = 0.5 * length_m, 0.5 * width_m
-    local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    R = np.array([[c, -s], [s, c]])
-    return local @ R.T + np.array([pose.x_m, pose.y_m])
-
-
-def rectangles_overlap_depth(a: np.ndarray, b: np.ndarray) -> float:
-    """Penetration depth [m] of two convex polygons (separating axis test); <= 0 when they do not overlap."""
-    depth = math.inf
-    for poly in (a, b):
-        edges = np.roll(poly, -1, axis=0) - poly
-        normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
-        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        pa, pb = a @ normals.T, b @ normals.T
-        overlap = np.minimum(pa.max(0), pb.max(0)) - np.maximum(pa.min(0), pb.min(0))
-        depth = min(depth, float(overlap.min()))
-    return depth
-
-
-def validate_footsteps(seq: FootstepSequence, bounds: FootstepLimits) -> None:
-    """Check a sequence: at least one step, finite poses, no overlapping soles, and every landing within
-    the stepping bounds relative to the stance foot.
-
-    Raises:
-        InvalidRequestError: empty sequence, non-finite value, overlapping feet (at the start or after
-            a step).
-        InfeasibleError: a landing outside the bounds; the message names the step, the quantity, the
-            bound and the excess, and ``details`` carries them.
-    """
-    if not seq.steps:
-        raise InvalidRequestError("the footstep sequence has no step; give at least one footstep")
-    for name, pose in (("left_start", seq.left_start), ("right_start", seq.right_start)):
-        if not np.all(np.isfinite(pose.as_array())):
-            raise InvalidRequestError(f"{name} has a non-finite value: {pose}")
-    for i, step in enumerate(seq.steps):
-        if step.side not in SIDES:
-            raise InvalidRequestError(f"step {i}: side {step.side!r} is not one of {SIDES}")
-        if not np.all(np.isfinite(step.pose.as_array())):
-            raise InvalidRequestError(f"step {i} ({step.side} foot) has a non-finite pose: {step.pose}")
-
-    L, W = bounds.sole_length_m, bounds.sole_width_m
-    stances = seq.stances()
-    for i, (left, right) in enumerate(stances):
-        depth = rectangles_overlap_depth(sole_corners(left, L, W), sole_corners(right, L, W))
-        if depth > 1e-6:
-            where = "at the start" if i == 0 else f"after step {i - 1} ({seq.steps[i - 1].side} foot)"
-            raise InvalidRequestError(
-                f"the feet overlap {where} by {1000 * depth:.1f} mm (soles {L:.3f} x {W:.3f} m): "
-                f"left sole at ({left.x_m:.3f}, {left.y_m:.3f}, {left.yaw_rad:.3f} rad), "
-                f"right sole at ({right.x_m:.3f}, {right.y_m:.3f}, {right.yaw_rad:.3f} rad)",
-                {"step_index": i - 1, "overlap_m": depth},
-            )
-
-    for i, step in enumerate(seq.steps):
-        left, right = stances[i]
-        stance = right if step.side == "left" else left
-        rel = dict(zip(("dx", "dy", "dyaw"), step.pose.relative_to(stance), strict=True))
-        for name, (lo, hi) in bounds.limits_for(step.side).items():
-            value = rel[name]
-            unit = "rad" if name == "dyaw" else "m"
-            if value < lo - BOUND_TOLERANCE or value > hi + BOUND_TOLERANCE:
-                bound, excess = (lo, lo - value) if value < lo else (hi, value - hi)
-                word = "below" if value < lo else "above"
-                raise InfeasibleError(
-                    f"step {i} ({step.side} foot): {name}={value:.4f} {unit} relative to the "
-                    f"{other_side(step.side)} sole is {word} the bound {bound:.4f} {unit} by {excess:.4f} "
-                    f"{unit} (admissible {lo:.4f} .. {hi:.4f} {unit})",
-                    {
-                        "step_index": i,
-                        "side": step.side,
-                        "quantity": name,
-                        "value": value,
-                        "bound": bound,
-                        "excess": excess,
-                    },
-                )
+FootstepLimits = FootstepBounds
+"""Former name of :class:`services.model.ground.FootstepBounds` (the same class), kept while callers
+outside the algorithm packages move to the one name."""
 
 
 # ----------------------------------------------------------------------------------------------- generators
 
-DEFAULT_LIMITS = FootstepLimits()
+DEFAULT_LIMITS = FootstepBounds()
 """HRP-2's bounds (footstep paper §5) and sole: what the generators check by default. Pass
-``FootstepLimits.from_robot(robot)`` for another robot, or ``limits=None`` for the raw geometry."""
+``FootstepBounds.from_robot(robot)`` for another robot, or ``limits=None`` for the raw geometry."""
 MAX_SPLIT_FACTOR = 8
 """The generators try up to this many times the requested number of steps before giving up."""
 
@@ -276,7 +69,7 @@ MAX_SPLIT_FACTOR = 8
 def fit_to_bounds(
     make: Callable[[int], FootstepSequence],
     n_steps: int,
-    limits: FootstepLimits | None,
+    limits: FootstepBounds | None,
     what: str,
     *,
     increment: int = 1,
@@ -370,7 +163,7 @@ def straight_walk(
     left_start: SolePose | None = None,
     right_start: SolePose | None = None,
     feet_spacing_m: float = 0.19,
-    limits: FootstepLimits | None = DEFAULT_LIMITS,
+    limits: FootstepBounds | None = DEFAULT_LIMITS,
 ) -> FootstepSequence:
     """``n_steps`` straight steps: step k (1-based) lands ``k * step_length_m`` ahead of the start, each
     foot landing one step length ahead of the other. With ``close_feet`` the last step brings the
@@ -407,7 +200,7 @@ def turn_in_place(
     sole_size_m: tuple[float, float] = (0.24, 0.14),
     clearance_m: float = 0.005,
     max_outward_m: float = 0.06,
-    limits: FootstepLimits | None = DEFAULT_LIMITS,
+    limits: FootstepBounds | None = DEFAULT_LIMITS,
 ) -> FootstepSequence:
     """Turn by ``angle_rad`` (> 0: to the left) in ``n_steps`` steps about the starting mid-feet point P.
 
@@ -483,7 +276,7 @@ def side_steps(
     left_start: SolePose | None = None,
     right_start: SolePose | None = None,
     feet_spacing_m: float = 0.19,
-    limits: FootstepLimits | None = DEFAULT_LIMITS,
+    limits: FootstepBounds | None = DEFAULT_LIMITS,
 ) -> FootstepSequence:
     """Side steps of ``step_width_m`` (> 0: to the left): the foot on that side opens by the width and
     the other foot closes, so every pair of steps moves the robot sideways by ``step_width_m``.
@@ -513,7 +306,7 @@ def arc_walk(
     left_start: SolePose | None = None,
     right_start: SolePose | None = None,
     feet_spacing_m: float = 0.19,
-    limits: FootstepLimits | None = DEFAULT_LIMITS,
+    limits: FootstepBounds | None = DEFAULT_LIMITS,
 ) -> FootstepSequence:
     """Walk forward along a circular arc of ``radius_m`` (the mid-feet path) turning by ``angle_rad``
     (> 0: to the left, centre on the left) in ``n_steps`` steps, the inner foot moving first. With

@@ -17,7 +17,7 @@ import numpy as np
 
 from services.errors import InvalidRequestError
 from services.walking.footsteps import (
-    FootstepLimits,
+    FootstepBounds,
     FootstepSequence,
     SolePose,
     validate_footsteps,
@@ -191,13 +191,13 @@ def plan_pattern(
     options: PatternOptions | None = None,
     *,
     initial_com_m: np.ndarray | None = None,
-    bounds: FootstepLimits | None = None,
+    bounds: FootstepBounds | None = None,
     ground_z_m: float = 0.0,
 ) -> WalkPattern:
     """Plan the CoM / ZMP / sole / waist trajectories of a walk (first stage of Kajita 2003).
 
     Args:
-        footsteps: the sole landings; validated against ``bounds`` (default :class:`FootstepLimits`).
+        footsteps: the sole landings; validated against ``bounds`` (default :class:`FootstepBounds`).
         timing: phase durations and the sampling period (default :class:`WalkTiming`).
         options: see :class:`PatternOptions`.
         initial_com_m: the CoM of the robot's starting configuration [m] (world); the CoM starts there
@@ -213,7 +213,7 @@ def plan_pattern(
     """
     timing = timing or WalkTiming()
     options = options or PatternOptions()
-    bounds = bounds or FootstepLimits()
+    bounds = bounds or FootstepBounds()
     validate_footsteps(footsteps, bounds)
     if not (math.isfinite(options.step_height_m) and options.step_height_m >= 0):
         raise InvalidRequestError(f"step_height_m must be >= 0 m, got {options.step_height_m}")

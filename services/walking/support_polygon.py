@@ -1,4 +1,5 @@
-"""Support polygons on flat ground: convex hull of the soles in contact, and signed distances to it.
+"""Support polygons on flat ground: convex hull of the soles in contact, and signed distances to it (the
+hull and the distance are :mod:`services.model.ground`'s).
 
 Sign convention: the signed distance of a point is > 0 outside the polygon (its Euclidean distance to
 the polygon) and < 0 inside (minus its distance to the boundary). A ZMP "inside with 10 mm margin" has a
@@ -9,32 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from services.model.geometry import convex_hull_ccw
-from services.walking.footsteps import SolePose, sole_corners
+from services.model.ground import SolePose, convex_hull_ccw, signed_distance, sole_corners
 from services.walking.timing import DOUBLE, LEFT, RIGHT
-
-
-def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Convex hull (h, 2) [m] of points (m, 2), counter-clockwise, without repeated or collinear points:
-    :func:`services.model.geometry.convex_hull_ccw` (monotone chain on points snapped to 1e-9 m, so that
-    corners differing only by float noise neither split nor drop a vertex)."""
-    return convex_hull_ccw(points)
-
-
-def signed_distance(points: np.ndarray, hull: np.ndarray) -> np.ndarray:
-    """Signed distance [m] of points (n, 2) (or one point (2,)) to a convex CCW polygon (h >= 3, 2)."""
-    P = np.atleast_2d(np.asarray(points, dtype=float))
-    a = hull
-    b = np.roll(hull, -1, axis=0)
-    e = b - a  # (h, 2)
-    ap = P[:, None, :] - a[None, :, :]  # (n, h, 2)
-    t = np.clip(np.einsum("nhk,hk->nh", ap, e) / np.einsum("hk,hk->h", e, e), 0.0, 1.0)
-    closest = a[None] + t[..., None] * e[None]
-    dist = np.linalg.norm(P[:, None, :] - closest, axis=2).min(axis=1)
-    cross = e[None, :, 0] * ap[..., 1] - e[None, :, 1] * ap[..., 0]
-    inside = np.all(cross >= 0.0, axis=1)
-    out = np.where(inside, -dist, dist)
-    return out if np.ndim(points) > 1 else out[:1]
 
 
 def sole_polygon(pose_xy_yaw: np.ndarray, length_m: float, width_m: float) -> np.ndarray:
@@ -53,7 +30,7 @@ def support_hull(
         return sole_polygon(right_xy_yaw, length_m, width_m)
     if phase != DOUBLE:
         raise ValueError(f"unknown support phase code {phase}")
-    return convex_hull(
+    return convex_hull_ccw(
         np.vstack(
             [sole_polygon(left_xy_yaw, length_m, width_m), sole_polygon(right_xy_yaw, length_m, width_m)]
         )

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from services.errors import InvalidRequestError
-from services.walking.footsteps import SolePose, wrap_angle
+from services.model.ground import SolePose, smoothstep5_derivatives, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -24,15 +24,6 @@ class SwingTrajectory:
     pose: np.ndarray  # (n, 4): x, y, z, yaw
     vel: np.ndarray  # (n, 4) [m/s, rad/s]
     acc: np.ndarray  # (n, 4) [m/s^2, rad/s^2]
-
-
-def _quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """smoothstep5 and its first two derivatives with respect to tau (tau clipped to [0, 1])."""
-    t = np.clip(tau, 0.0, 1.0)
-    s = t**3 * (10 - 15 * t + 6 * t * t)
-    ds = 30 * t * t * (1 - t) ** 2
-    dds = 60 * t * (1 - t) * (1 - 2 * t)
-    return s, ds, dds
 
 
 def _bump(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -71,7 +62,7 @@ def swing_trajectory(
     tau = times / duration_s
     r = horizontal_delay_ratio
     span = 1.0 - 2.0 * r
-    s, ds, dds = _quintic((tau - r) / span)
+    s, ds, dds = smoothstep5_derivatives((tau - r) / span)
     inside = (tau > r) & (tau < 1 - r)
     ds = np.where(inside, ds, 0.0) / (span * duration_s)
     dds = np.where(inside, dds, 0.0) / (span * duration_s) ** 2

@@ -41,12 +41,11 @@ from services.ik import (
     Level,
     PostureTask,
 )
-from services.walking.footsteps import SIDES, FootstepLimits, FootstepSequence
-from services.walking.multibody_zmp import MultibodyZmp, multibody_zmp
-from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
-from services.walking.preview_control import second_stage_correction, settle_at_end
-from services.walking.support_polygon import distances_to_support
+from services.walking.footsteps import FootstepSequence
+from services.walking.multibody_zmp import MultibodyZmp
+from services.walking.pattern import PatternOptions, WalkPattern
 from services.walking.timing import WalkTiming
+from services.walking.two_stage import SupportSamples, correct_multibody_zmp, robot_pattern
 from services.walking.upper_body import GazeTarget, HandTarget, TaskError, UpperBody
 from services.walking.zmp_reference import smoothstep5
 
@@ -222,40 +221,32 @@ class WholeBodyPlanner:
         robot = self.robot
         q_start = robot.check_q(q_start)
         self._check_start(pattern, q_start)
-        com_ref = np.array(pattern.com_m, dtype=float)
-        window = _correction_window(pattern)
-        history: list[dict[str, float]] = []
-        corrections = 0
-        while True:
-            qs_red = self._track(pattern, com_ref, q_start, extra_levels, update_extra)
-            qs = self.expand_q(qs_red, q_start)
+        com_pattern = np.array(pattern.com_m, dtype=float)
+
+        def track(com_offset_xy_m: np.ndarray) -> np.ndarray:
+            com_ref = com_pattern.copy()
+            com_ref[:, :2] += com_offset_xy_m
+            qs = self.expand_q(self._track(pattern, com_ref, q_start, extra_levels, update_extra), q_start)
             self._check_joint_motion(qs, pattern.dt_s, bool(extra_levels))
-            mb = multibody_zmp(robot.model, qs, pattern.dt_s, ground_z_m=pattern.ground_z_m)
-            dist = distances_to_support(
-                mb.zmp_m, pattern.phase, pattern.left_sole, pattern.right_sole, *robot.sole_size_m
-            )
-            history.append(
-                {
-                    "pass": float(len(history)),
-                    "worst_outside_mm": 1e3 * max(0.0, float(dist.max())),
-                    "min_margin_mm": -1e3 * float(dist.max()),
-                    "max_zmp_error_mm": 1e3 * float(np.abs(mb.zmp_m - pattern.zmp_ref_m).max()),
-                    # where the second stage acts (outside the standing start and the final hold)
-                    "max_zmp_error_walking_mm": 1e3
-                    * float(np.abs(mb.zmp_m - pattern.zmp_ref_m)[window >= 1.0].max(initial=0.0)),
-                }
-            )
-            if dist.max() <= -self.options.zmp_margin_m or corrections >= self.options.max_corrections:
-                break
-            # Second preview stage (Kajita 2003 IV-B): CoM correction from dp = p_ref - p_multibody,
-            # faded in over the standing start (a correction cannot act before t = 0) and brought to
-            # rest at zero over the final segment (the robot stops there).
-            error = window[:, None] * (pattern.zmp_ref_m - mb.zmp_m)
-            corr = second_stage_correction(pattern.gains, error, np.zeros_like(error))
-            last = pattern.schedule.segments[-1]
-            corr = settle_at_end(corr, last.n + 1, pattern.dt_s, pattern.com_height_m, np.zeros(2))
-            com_ref[:, :2] += corr.com_m
-            corrections += 1
+            return qs
+
+        # Second preview stage (Kajita 2003 IV-B): CoM correction from dp = p_ref - p_multibody, faded
+        # in over the standing start (a correction cannot act before t = 0) and brought to rest at zero
+        # over the final segment (the robot stops there).
+        out = correct_multibody_zmp(
+            robot.model,
+            track(np.zeros((pattern.n_samples, 2))),
+            SupportSamples.of_pattern(pattern, robot.sole_size_m),
+            pattern.gains,
+            track,
+            window=_correction_window(pattern),
+            settle_samples=pattern.schedule.segments[-1].n + 1,
+            margin_m=self.options.zmp_margin_m,
+            max_corrections=self.options.max_corrections,
+        )
+        qs, mb, dist, corrections = out.q, out.zmp, out.distance_m, out.corrections
+        com_ref = com_pattern.copy()
+        com_ref[:, :2] += out.com_offset_m
         sole_err, com_err = self._tracking_errors(pattern, qs, mb, com_ref)
         wall = time.perf_counter() - t_start
         return WholeBodyResult(
@@ -271,7 +262,7 @@ class WholeBodyPlanner:
             max_sole_error_m=sole_err,
             max_com_error_m=com_err,
             wall_time_s=wall,
-            history=tuple(history),
+            history=out.history,
         )
 
     def _check_joint_motion(self, qs: np.ndarray, dt_s: float, has_extra_levels: bool) -> None:
@@ -478,19 +469,8 @@ def plan_walk(
 
     ``hands`` and ``gaze`` add the upper-body tasks of :mod:`services.walking.upper_body` below
     ``extra_levels``; their largest errors over the trajectory are in ``result.task_errors``."""
-    if options is None:
-        options = PatternOptions(step_height_m=float(robot.params.step_height_m))
     q_start = robot.check_q(q_start)
-    data = robot.new_data()
-    ground_z_m = 0.5 * sum(float(robot.sole_pose(q_start, side, data).translation[2]) for side in SIDES)
-    pattern = plan_pattern(
-        footsteps,
-        timing or WalkTiming(),
-        options,
-        initial_com_m=robot.com(q_start),
-        bounds=FootstepLimits.from_robot(robot),
-        ground_z_m=ground_z_m,
-    )
+    pattern = robot_pattern(robot, footsteps, q_start, timing, options)
     planner = planner or WholeBodyPlanner(robot, wholebody_options)
     if not hands and gaze is None:
         return planner.solve(pattern, q_start, extra_levels=extra_levels, update_extra=update_extra)

@@ -15,14 +15,11 @@ import math
 
 import numpy as np
 
+from services.model.ground import smoothstep5
 from services.walking.footsteps import FootstepSequence, Side, SolePose, other_side
 from services.walking.timing import Schedule
 
-
-def smoothstep5(tau: np.ndarray) -> np.ndarray:
-    """Quintic 0 -> 1 on tau in [0, 1] with zero first and second derivatives at both ends."""
-    t = np.clip(tau, 0.0, 1.0)
-    return t * t * t * (10.0 + t * (-15.0 + 6.0 * t))
+__all__ = ["smoothstep5", "support_point", "zmp_reference"]
 
 
 def support_point(pose: SolePose, side: Side, offset_m: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:

@@ -8,9 +8,9 @@ import numpy as np
 import pinocchio as pin
 
 from services.errors import InvalidRequestError
-from services.ik.geometry import convex_hull_2d
 from services.ik.kinematics import frame_id, frame_jacobian
 from services.ik.task import Task
+from services.model.ground import convex_hull_indices
 
 _ROT90 = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -79,7 +79,7 @@ class ComSupportPolygonTask(Task):
             raise InvalidRequestError(
                 f"task {self.name!r}: polygon_world_xy must be k >= 3 finite (x, y) rows"
             )
-        hull = convex_hull_2d(points)
+        hull = convex_hull_indices(points)
         if hull.shape[0] < 3:
             raise InvalidRequestError(f"task {self.name!r}: the support polygon is degenerate (zero area)")
         self.polygon_world_xy = points[hull]
@@ -92,7 +92,7 @@ class ComSupportPolygonTask(Task):
         if self.polygon_world_xy is not None:
             return self.polygon_world_xy
         points = self._sole_corners(data)
-        return points[convex_hull_2d(points[:, :2]), :2]
+        return points[convex_hull_indices(points[:, :2]), :2]
 
     def _sole_corners(self, data: pin.Data) -> np.ndarray:
         """World corners of every sole (4 per sole frame, 3-D) [m]."""
@@ -140,7 +140,7 @@ class ComSupportPolygonTask(Task):
                 return G, -normals.dot(data.Jcom[:2])
             return G[keep], -normals[keep].dot(data.Jcom[:2])
         points, origins = self._sole_corners_and_origins(data)
-        hull = convex_hull_2d(points[:, :2])
+        hull = convex_hull_indices(points[:, :2])
         polygon = points[hull, :2]
         normals, offsets, tangents, starts, lengths = _edges(polygon)
         G = self.margin_m - (normals.dot(c) - offsets)
