@@ -25,6 +25,7 @@ CLI_MODULES = (
     "services.ik.cli",
     "services.footsteps.cli",
     "supervisor.cli",
+    "services.viz.cli",
     "services.cli_completion",
 )
 

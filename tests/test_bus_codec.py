@@ -79,7 +79,7 @@ def test_config_defaults_stay_on_this_machine_and_yaml_overrides(tmp_path):
     assert bus.mode == "peer" and not bus.multicast_scouting
     assert all(e.startswith("tcp/127.0.0.1:") for e in (*bus.listen, bus.hub))
     path = tmp_path / "stack.yaml"
-    path.write_text("bus:\n  robot: talos\n  connect: [tcp/10.0.0.2:7447]\nrecord:\n  chunk_period_s: 0.5\n")
+    path.write_text("bus:\n  robot: talos\n  connect: [tcp/10.0.0.2:7447]\nrecord:\n  state_every: 4\n")
     loaded = load_bus_config(path, hub="tcp/127.0.0.1:9000")
     assert (loaded.robot, loaded.connect, loaded.hub) == (
         "talos",
@@ -88,7 +88,7 @@ def test_config_defaults_stay_on_this_machine_and_yaml_overrides(tmp_path):
     )
     from services.bus.recorder import RecorderConfig
 
-    assert load_section(path, "record", RecorderConfig).chunk_period_s == 0.5
+    assert load_section(path, "record", RecorderConfig).state_every == 4
     path.write_text("bus:\n  robt: talos\n")
     with pytest.raises(InvalidRequestError, match=r"unknown BusConfig option.*robt.*valid options: robot"):
         load_bus_config(path)

@@ -74,6 +74,14 @@ def _add_up(subparsers: Any) -> None:
     p.add_argument("--services", help="comma-separated service names (default: every service found)")
     p.add_argument("--record", metavar="FILE", help="also record every message to this MCAP file")
     p.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="also serve the live view to Foxglove on ws://127.0.0.1:PORT (8765): the viz service",
+    )
+    p.add_argument(
         "--log-dir",
         help="each service's output to LOG_DIR/<service>.log, rotated (default out/logs, or the config's "
         "launcher.log_dir; '' for this terminal); read them with `humanoid logs SERVICE`",
@@ -89,7 +97,7 @@ def cmd_up(args: argparse.Namespace) -> int:
     import dataclasses
 
     from services.bus.config import load_section
-    from services.bus.discovery import RECORDER, discover
+    from services.bus.discovery import RECORDER, VIZ, discover
     from services.bus.launcher import Launcher, LauncherConfig, format_table, run_up
     from services.bus.logfiles import DEFAULT_LOG_DIR
     from services.bus.service import configure_logging
@@ -98,7 +106,7 @@ def cmd_up(args: argparse.Namespace) -> int:
     found, problems = discover()
     for problem in problems:
         print(f"warning: {problem}", file=sys.stderr)
-    startable = {name: e for name, e in found.items() if name != RECORDER}
+    startable = {name: e for name, e in found.items() if name not in (RECORDER, VIZ)}
     if args.list:
         rows = [(name, e.module) for name, e in sorted(startable.items())]
         print(format_table(("SERVICE", "MODULE"), rows))
@@ -108,11 +116,14 @@ def cmd_up(args: argparse.Namespace) -> int:
         unknown = [n for n in names if n not in startable]
         if unknown:
             hint = " (the recorder starts with --record FILE)" if RECORDER in unknown else ""
+            hint += " (the live view starts with --foxglove [PORT])" if VIZ in unknown else ""
             known = ", ".join(sorted(startable))
             return _fail(f"unknown service(s) {', '.join(unknown)}{hint}; services found: {known}")
     else:
         names = sorted(startable)
     entries = [startable[n] for n in names] + [found[RECORDER]]
+    if args.foxglove is not None and VIZ in found:
+        entries.append(found[VIZ])
     bus = _bus(args)
     config = load_section(args.config, "launcher", LauncherConfig)
     if args.ready_timeout is not None:
@@ -123,8 +134,9 @@ def cmd_up(args: argparse.Namespace) -> int:
     if config.log_dir:
         print(f"service logs: {config.log_dir}/<service>.log (humanoid logs SERVICE -f)", flush=True)
     launcher = Launcher(
-        bus, entries, config, config_path=args.config, record=args.record, duration_s=args.duration
-    )
+        bus, entries, config, config_path=args.config, record=args.record, duration_s=args.duration,
+        foxglove_port=args.foxglove,
+    )  # fmt: skip
     return run_up(launcher)
 
 
@@ -602,6 +614,14 @@ def _add_replay(subparsers: Any) -> None:
         "--requests", action="store_true", help="re-send the recorded requests and compare replies"
     )
     p.add_argument("--timeout", type=float, default=30.0, help="--requests: seconds per request (30)")
+    p.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="serve the log to Foxglove on ws://127.0.0.1:PORT (8765) instead of publishing on the bus",
+    )
     p.add_argument("--verbose", action="store_true", help="a line per message instead of the progress bar")
     p.add_argument("--quiet", action="store_true", help="neither progress nor a line per message")
     _bus_options(p)
@@ -618,11 +638,32 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from services.errors import HumanoidError
 
     patterns = [p.strip() for arg in args.topics or [] for p in arg.split(",") if p.strip()] or None
+    if args.foxglove is not None:
+        from services.viz.player import serve_log
+
+        def ready(port: int) -> None:
+            print(
+                f"Foxglove: open a connection to ws://127.0.0.1:{port} (playing on the first subscription; "
+                "Ctrl-C to stop)"
+            )
+
+        try:
+            stats = serve_log(
+                args.file, port=args.foxglove, speed=args.speed, on_ready=ready, wait_for_viewer_s=600,
+                linger_s=600,
+            )  # fmt: skip
+        except KeyboardInterrupt:
+            return 130
+        except HumanoidError as exc:
+            return _fail(exc.message)
+        print(f"served {stats.messages} messages on {stats.channels} channels in {stats.duration_s:.2f} s")
+        return 0
     try:
         reader = LogReader(args.file)
     except HumanoidError as exc:
         return _fail(exc.message)
     bus = _bus(args)
+    progress: Progress | None = None
     with bus_session(bus) as session:
         _wait_for_peers(session)
         try:
@@ -749,15 +790,29 @@ def _wait_for_peers(session: Any, timeout_s: float = 3.0) -> None:
 def _add_log_info(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "log-info",
-        help="channels, message counts, duration and schemas of an MCAP log",
-        description="Summarise an MCAP log: duration, channels with their encodings, schema names and "
-        "message counts. Works on a log whose recorder was killed (it reads what was written).",
+        help="channels, message counts, bytes, rates, duration and schemas of an MCAP log",
+        description="Summarise an MCAP log: duration, channels with their encodings, schema names, "
+        "message counts, bytes (before chunk compression) and rates. A log whose recorder was killed is "
+        "reported as truncated and read up to its last complete chunk.",
         epilog=examples("humanoid log-info out/demo/fetch.mcap", "humanoid log-info run.mcap --json"),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="MCAP file")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_log_info)
+
+
+def _human_bytes(n: int) -> str:
+    """``812 B``, ``3.4 kB``, ``12.5 MB`` (bytes of messages before chunk compression)."""
+    for unit, size in (("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{n} B"
+
+
+def _log_info_row(c: Any) -> tuple[str, ...]:
+    size, rate = _human_bytes(c.bytes), f"{c.rate_hz:.1f}"
+    return (c.topic, c.role, c.message_encoding, c.schema_name or "-", str(c.messages), size, rate)
 
 
 def cmd_log_info(args: argparse.Namespace) -> int:
@@ -776,9 +831,13 @@ def cmd_log_info(args: argparse.Namespace) -> int:
         doc["duration_s"] = info.duration_s
         print(json.dumps(doc, indent=2))
         return 0
-    state = "complete" if info.complete else "no summary (recorder stopped abruptly)"
+    state = (
+        "complete"
+        if info.complete
+        else "truncated: no summary (the recorder was stopped abruptly); read up to its last complete chunk"
+    )
     if info.unreadable_tail:
-        state += ", last chunk cut off"
+        state += ", the cut-off rest skipped"
     print(f"file:      {info.path} ({info.size_bytes / 1e6:.2f} MB, {state})")
     print(f"duration:  {info.duration_s:.3f} s")
     if info.messages:
@@ -786,8 +845,6 @@ def cmd_log_info(args: argparse.Namespace) -> int:
         print(f"start:     {start}")
     print(f"messages:  {info.messages}")
     print(f"channels:  {len(info.channels)}")
-    rows = [
-        (c.topic, c.role, c.message_encoding, c.schema_name or "-", str(c.messages)) for c in info.channels
-    ]
-    print(format_table(("TOPIC", "ROLE", "ENCODING", "SCHEMA", "MESSAGES"), rows))
+    rows = [_log_info_row(c) for c in info.channels]
+    print(format_table(("TOPIC", "ROLE", "ENCODING", "SCHEMA", "MESSAGES", "BYTES", "HZ"), rows))
     return 0

@@ -18,6 +18,8 @@ import services
 SERVICE_FILES = ("services/*/service.py", "sim/service.py", "supervisor/service.py", "services/bus/diag.py")
 #: Not started by ``humanoid up`` unless asked for (``--record``).
 RECORDER = "record"
+#: The live Foxglove view (services/viz): started by ``humanoid up --foxglove [PORT]`` only.
+VIZ = "viz"
 
 
 @dataclass(frozen=True)

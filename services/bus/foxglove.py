@@ -1,166 +1,183 @@
-"""Foxglove's well-known ``foxglove.RawImage`` schema, written by hand as protobuf.
+"""What Foxglove can read of the bus's messages: JSON Schemas its reader accepts, and the reader's rules.
 
-Foxglove shows an MCAP channel as an image when its schema is ``foxglove.RawImage``. Of the
-encodings Foxglove reads, protobuf keeps the pixels as raw bytes (JSON would need base64), and the
-schema record is a serialized ``google.protobuf.FileDescriptorSet``. Both the descriptor and the
-messages are small enough to encode here with a few lines of the protobuf wire format
-(https://protobuf.dev/programming-guides/encoding/), so no protobuf package is needed.
+Foxglove decodes a JSON channel of an MCAP log with the channel's JSON Schema, parsed by its
+``parseJsonSchema`` (foxglove/studio ``packages/mcap-support/src/parseJsonSchema.ts``; the same rules in
+its successors). Those rules, which :func:`schema_problems` checks and :func:`message_schema` obeys:
 
-The ``.proto`` it encodes (from foxglove/schemas, ``RawImage.proto``)::
+* every object schema has ``"type": "object"`` and a ``properties`` mapping (the root too);
+* every property has a ``type`` among ``boolean``, ``string`` (no ``contentEncoding`` or ``base64``),
+  ``number``, ``integer``, ``object`` (recursively) and ``array``; ``null``, a list of types, ``anyOf``
+  and a missing type are rejected; ``oneOf`` only as numeric constants (an enum);
+* an array's ``items`` is one schema whose ``type`` is ``boolean``, ``string`` (no contentEncoding),
+  ``number``, ``integer`` or ``object``: an array of arrays is rejected.
 
-    syntax = "proto3";
-    import "google/protobuf/timestamp.proto";
-    package foxglove;
-    message RawImage {
-      google.protobuf.Timestamp timestamp = 1;
-      string frame_id = 7;
-      fixed32 width = 2;
-      fixed32 height = 3;
-      string encoding = 4;   // rgb8, rgba8, mono8, 16UC1, 32FC1, ...
-      fixed32 step = 5;      // bytes per row
-      bytes data = 6;
-    }
+So a message type becomes a schema with: ``Optional[T]`` as ``T`` (the value may be null, which
+Foxglove shows as empty), a ``dict`` as an object without declared properties (its keys still show in
+the raw message), a numpy array as :data:`ARRAY_SCHEMA` (the form :mod:`services.bus.mcaplog` writes
+arrays in), and a list of lists as an array of ``{"values": [...]}`` objects (:data:`NESTED_KEY`, the
+form the log writes nested lists in; :func:`nested_list_paths` says where).
 """
 
 from __future__ import annotations
 
-import struct
+import functools
+from typing import Any
 
+import msgspec
 import numpy as np
 
-SCHEMA_NAME = "foxglove.RawImage"
-SCHEMA_ENCODING = "protobuf"
-MESSAGE_ENCODING = "protobuf"
+#: A numpy array in a log: dtype (numpy ``str``, e.g. ``<f8``), shape, and the raw bytes in base64.
+ARRAY_SCHEMA: dict[str, Any] = {
+    "type": "object",
+    "description": "numpy array: raw C-order bytes (base64) of the given dtype and shape",
+    "properties": {
+        "dtype": {"type": "string"},
+        "shape": {"type": "array", "items": {"type": "integer"}},
+        "data": {"type": "string", "contentEncoding": "base64"},
+    },
+}
+#: The key under which each inner list of a list of lists is kept in a log (``[[1, 2]]`` ->
+#: ``[{"values": [1, 2]}]``): Foxglove's reader has no arrays of arrays.
+NESTED_KEY = "values"
 
-_VARINT, _I64, _LEN, _I32 = 0, 1, 2, 5
-# google.protobuf.FieldDescriptorProto enums
-_LABEL_OPTIONAL = 1
-_TYPE_INT64, _TYPE_INT32, _TYPE_FIXED32, _TYPE_STRING, _TYPE_MESSAGE, _TYPE_BYTES = 3, 5, 7, 9, 11, 12
-
-
-def _varint(value: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte = value & 0x7F
-        value >>= 7
-        if value:
-            out.append(byte | 0x80)
-        else:
-            out.append(byte)
-            return bytes(out)
+_SCALARS = ("boolean", "string", "number", "integer")
+_ITEM_TYPES = (*_SCALARS, "object")
 
 
-def _tag(number: int, wire_type: int) -> bytes:
-    return _varint((number << 3) | wire_type)
+def _hook(type_: Any) -> dict[str, Any]:
+    if type_ is np.ndarray:
+        return {"x-hrp-ndarray": True}
+    raise NotImplementedError(f"no JSON schema for {type_!r}")
 
 
-def _len_field(number: int, data: bytes) -> bytes:
-    return _tag(number, _LEN) + _varint(len(data)) + data
+@functools.lru_cache(maxsize=512)
+def message_schema(type_: Any) -> dict[str, Any]:
+    """The JSON Schema of message type ``type_`` that Foxglove's reader accepts (see the module doc)."""
+    schema = msgspec.json.schema(type_, schema_hook=_hook)
+    defs = schema.pop("$defs", {})
+    out = _convert(schema, defs, ())
+    if out.get("type") != "object":  # a message is an object; anything else is wrapped
+        out = {"type": "object", "properties": {"value": out}}
+    title = getattr(type_, "__name__", "")
+    return {"title": title, **out} if title else out
 
 
-def _str_field(number: int, text: str) -> bytes:
-    return _len_field(number, text.encode())
+def _convert(node: Any, defs: dict[str, Any], seen: tuple[str, ...]) -> dict[str, Any]:
+    if not isinstance(node, dict):
+        return {"type": "object", "properties": {}}
+    ref = node.get("$ref")
+    if isinstance(ref, str):
+        name = ref.rsplit("/", 1)[-1]
+        if name in seen or name not in defs:  # a recursive type: an open object
+            return {"type": "object", "properties": {}, "title": name}
+        return _convert(defs[name], defs, (*seen, name))
+    doc = {k: node[k] for k in ("title", "description") if isinstance(node.get(k), str)}
+    if node.get("x-hrp-ndarray"):
+        return dict(ARRAY_SCHEMA)
+    for union in ("anyOf", "oneOf"):
+        if isinstance(node.get(union), list):
+            options = [o for o in node[union] if not (isinstance(o, dict) and o.get("type") == "null")]
+            return {**doc, **_convert(options[0] if options else {}, defs, seen)}
+    kind = node.get("type")
+    if isinstance(kind, list):  # ["number", "null"]
+        kinds = [k for k in kind if k != "null"]
+        return _convert({**node, "type": kinds[0] if kinds else "string"}, defs, seen)
+    if "enum" in node and kind is None:
+        values = node["enum"]
+        kind = (
+            "integer" if all(isinstance(v, int) for v in values)
+            else "number" if all(isinstance(v, int | float) for v in values)
+            else "string"
+        )  # fmt: skip
+    if kind in _SCALARS:
+        return {**doc, "type": kind}
+    if kind == "array":
+        items = node.get("items")
+        if items is None and isinstance(node.get("prefixItems"), list) and node["prefixItems"]:
+            items = node["prefixItems"][0]  # a tuple: typed by its first element
+        item = _convert(items if items is not None else {"type": "string"}, defs, seen)
+        if item.get("type") == "array":  # a list of lists: lists of {"values": [...]}
+            item = {"type": "object", "properties": {NESTED_KEY: item}}
+        return {**doc, "type": "array", "items": item}
+    if kind == "object" or "properties" in node or "additionalProperties" in node or not node:
+        props = node.get("properties", {}) if isinstance(node.get("properties"), dict) else {}
+        return {
+            **doc,
+            "type": "object",
+            "properties": {name: _convert(sub, defs, seen) for name, sub in props.items()},
+        }
+    return {**doc, "type": "string"}
 
 
-def _int_field(number: int, value: int) -> bytes:
-    return _tag(number, _VARINT) + _varint(value)
+@functools.lru_cache(maxsize=512)
+def nested_list_paths(type_: Any) -> tuple[tuple[str, ...], ...]:
+    """Where ``type_``'s messages hold lists of lists, as field paths (``"[]"`` steps into a list's
+    items): the log writes each inner list there as ``{"values": [...]}``. Empty for most types."""
+    found: list[tuple[str, ...]] = []
+
+    def walk(node: dict[str, Any], path: tuple[str, ...]) -> None:
+        kind = node.get("type")
+        if kind == "object":
+            for name, sub in node.get("properties", {}).items():
+                walk(sub, (*path, name))
+        elif kind == "array":
+            item = node["items"]
+            props = item.get("properties", {})
+            if (
+                item.get("type") == "object"
+                and list(props) == [NESTED_KEY]
+                and props[NESTED_KEY].get("type") == "array"
+            ):
+                found.append(path)
+            walk(item, (*path, "[]"))
+
+    walk(message_schema(type_), ())
+    return tuple(found)
 
 
-def _fixed32_field(number: int, value: int) -> bytes:
-    return _tag(number, _I32) + struct.pack("<I", value)
+def schema_problems(schema: Any, name: str = "") -> list[str]:
+    """Why Foxglove's JSON-schema reader would reject ``schema`` (the rules of the module doc); [] if
+    it accepts it. Each problem names the field path."""
+    problems: list[str] = []
 
+    def obj(node: Any, path: str) -> None:
+        if not isinstance(node, dict) or node.get("type") != "object":
+            problems.append(f'{path or "(root)"}: expected "type": "object"')
+            return
+        props = node.get("properties")
+        if not isinstance(props, dict):
+            problems.append(f'{path or "(root)"}: an object needs a "properties" mapping')
+            return
+        for field, sub in props.items():
+            where = f"{path}.{field}" if path else field
+            if not isinstance(sub, dict):
+                problems.append(f"{where}: not a schema")
+                continue
+            if isinstance(sub.get("oneOf"), list):
+                options = sub["oneOf"]
+                numbers = [isinstance(o, dict) and isinstance(o.get("const"), int | float) for o in options]
+                if not all(numbers):
+                    problems.append(f"{where}: oneOf alternatives must have number values")
+                continue
+            kind = sub.get("type")
+            if kind == "string":
+                if sub.get("contentEncoding") not in (None, "base64"):
+                    problems.append(f"{where}: unsupported contentEncoding {sub.get('contentEncoding')!r}")
+            elif kind in ("boolean", "number", "integer"):
+                pass
+            elif kind == "object":
+                obj(sub, where)
+            elif kind == "array":
+                item = sub.get("items")
+                item_kind = item.get("type") if isinstance(item, dict) else None
+                if item_kind not in _ITEM_TYPES:
+                    problems.append(f"{where}: unsupported type {item_kind!r} for array items")
+                elif item_kind == "string" and item.get("contentEncoding") is not None:
+                    problems.append(f"{where}: unsupported contentEncoding for array items")
+                elif item_kind == "object":
+                    obj(item, f"{where}[]")
+            else:
+                problems.append(f"{where}: unsupported type {kind!r}")
 
-def _field_descriptor(name: str, number: int, type_: int, type_name: str = "") -> bytes:
-    body = _str_field(1, name) + _int_field(3, number) + _int_field(4, _LABEL_OPTIONAL) + _int_field(5, type_)
-    return body + (_str_field(6, type_name) if type_name else b"")
-
-
-def _message_descriptor(name: str, fields: list[bytes]) -> bytes:
-    return _str_field(1, name) + b"".join(_len_field(2, f) for f in fields)
-
-
-def _file_descriptor(name: str, package: str, messages: list[bytes], dependencies: tuple[str, ...]) -> bytes:
-    body = _str_field(1, name) + _str_field(2, package)
-    body += b"".join(_str_field(3, dep) for dep in dependencies)
-    body += b"".join(_len_field(4, m) for m in messages)
-    return body + _str_field(12, "proto3")
-
-
-def raw_image_schema() -> bytes:
-    """The serialized FileDescriptorSet of ``foxglove.RawImage`` (and its Timestamp dependency)."""
-    timestamp = _file_descriptor(
-        "google/protobuf/timestamp.proto",
-        "google.protobuf",
-        [
-            _message_descriptor(
-                "Timestamp",
-                [_field_descriptor("seconds", 1, _TYPE_INT64), _field_descriptor("nanos", 2, _TYPE_INT32)],
-            )
-        ],
-        (),
-    )
-    raw_image = _file_descriptor(
-        "foxglove/RawImage.proto",
-        "foxglove",
-        [
-            _message_descriptor(
-                "RawImage",
-                [
-                    _field_descriptor("timestamp", 1, _TYPE_MESSAGE, ".google.protobuf.Timestamp"),
-                    _field_descriptor("frame_id", 7, _TYPE_STRING),
-                    _field_descriptor("width", 2, _TYPE_FIXED32),
-                    _field_descriptor("height", 3, _TYPE_FIXED32),
-                    _field_descriptor("encoding", 4, _TYPE_STRING),
-                    _field_descriptor("step", 5, _TYPE_FIXED32),
-                    _field_descriptor("data", 6, _TYPE_BYTES),
-                ],
-            )
-        ],
-        ("google/protobuf/timestamp.proto",),
-    )
-    return _len_field(1, timestamp) + _len_field(1, raw_image)
-
-
-def image_encoding(array: np.ndarray) -> str | None:
-    """The RawImage ``encoding`` of an array that can be shown as an image, else None.
-
-    uint8 H x W (mono8), H x W x 1/3/4 (mono8/rgb8/rgba8); uint16 H x W (16UC1, depth in mm);
-    float32 H x W (32FC1, depth in m). Both sides at least 8 px, so trajectories are not images.
-    """
-    if array.ndim not in (2, 3) or min(array.shape[:2]) < 8:
-        return None
-    channels = 1 if array.ndim == 2 else array.shape[2]
-    if array.dtype == np.uint8:
-        return {1: "mono8", 3: "rgb8", 4: "rgba8"}.get(channels)
-    if channels == 1 and array.dtype == np.uint16:
-        return "16UC1"
-    if channels == 1 and array.dtype == np.float32:
-        return "32FC1"
-    return None
-
-
-def encode_raw_image(
-    data: bytes | memoryview,
-    *,
-    shape: tuple[int, ...],
-    encoding: str,
-    itemsize: int,
-    stamp_ns: int,
-    frame_id: str,
-) -> bytes:
-    """One ``foxglove.RawImage`` message (protobuf) around C-contiguous pixel bytes ``data``."""
-    height, width = int(shape[0]), int(shape[1])
-    channels = 1 if len(shape) == 2 else int(shape[2])
-    seconds, nanos = divmod(int(stamp_ns), 1_000_000_000)
-    timestamp = _int_field(1, seconds) + (_int_field(2, nanos) if nanos else b"")
-    # Fields in number order, as protobuf serializers write them.
-    head = (
-        _len_field(1, timestamp)
-        + _fixed32_field(2, width)
-        + _fixed32_field(3, height)
-        + _str_field(4, encoding)
-        + _fixed32_field(5, width * channels * itemsize)
-        + _tag(6, _LEN)
-        + _varint(len(data))
-    )
-    return b"".join((head, data, _str_field(7, frame_id)))
+    obj(schema, "")
+    return [f"{name}: {p}" for p in problems] if name else problems

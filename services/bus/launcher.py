@@ -32,7 +32,7 @@ import zenoh
 
 from services.bus import keys
 from services.bus.config import BusConfig
-from services.bus.discovery import RECORDER, ServiceEntry
+from services.bus.discovery import RECORDER, VIZ, ServiceEntry
 from services.bus.logfiles import BACKUPS, MAX_BYTES, RotatingLog
 from services.bus.schemas.common import LAUNCHER_EVENTS, LauncherEvent
 from services.bus.session import TypedPublisher, close_session, open_session
@@ -104,14 +104,17 @@ class Launcher:
         record: str | None = None,
         duration_s: float | None = None,
         out: IO[str] | None = None,
+        foxglove_port: int | None = None,
     ) -> None:
-        """``duration_s``: stop by itself this long after every service is ready (demos, CI)."""
+        """``duration_s``: stop by itself this long after every service is ready (demos, CI);
+        ``foxglove_port``: the WebSocket port of the viz service (when it is among ``entries``)."""
         self.bus = bus
         self.config = config or LauncherConfig()
         self.config_path = str(Path(config_path).resolve()) if config_path else None
         self.record = str(Path(record).resolve()) if record else None
         self.out = out or sys.stdout
         self.duration_s = duration_s
+        self.foxglove_port = foxglove_port
         self.children = {e.name: _Child(e) for e in entries if e.name != RECORDER}
         self.recorder = _Child(next(e for e in entries if e.name == RECORDER)) if record else None
         self._alive: set[str] = set()
@@ -186,6 +189,8 @@ class Launcher:
             cmd += ["--config", self.config_path]
         if child.entry.name == RECORDER and self.record:
             cmd += ["--output", self.record]
+        if child.entry.name == VIZ and self.foxglove_port is not None:
+            cmd += ["--port", str(self.foxglove_port)]
         return cmd
 
     def _spawn(self, child: _Child) -> None:

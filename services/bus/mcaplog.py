@@ -1,24 +1,21 @@
 """MCAP logs of the bus: what the recorder writes and what replay and ``log-info`` read.
 
-Layout of a log (one MCAP file):
+Layout of a log (one MCAP file, every channel decodable by Foxglove):
 
-* **originals**, one channel per key expression (topic = the zenoh key), holding the exact bytes
-  that were published, so replay republishes exactly what was sent. The message encoding is the
-  frame kind (:mod:`services.bus.frames`): ``json`` (plain JSON, which Foxglove shows directly),
-  ``hrpb`` (the binary frame of :mod:`services.bus.codec`) or ``octets`` (anything else, e.g. a
-  malformed request). A key whose messages change kind gets one channel per kind.
-* **views** of binary frames, for Foxglove: ``<key>/view`` is the frame as JSON (arrays as lists,
-  large ones summarised), and every image-like array becomes ``<key>/view/<field>`` as a
-  ``foxglove.RawImage`` (protobuf, raw pixels).
+* **originals**, one channel per key expression (topic = the zenoh key), one copy of each message in
+  its log form (:mod:`services.bus.logform`): JSON, with arrays as ``{dtype, shape, data (base64)}``,
+  under the JSON Schema Foxglove's reader accepts (:func:`services.bus.foxglove.message_schema`).
+  Channel metadata: ``hrp.key`` (the zenoh key), ``hrp.role`` = ``original`` and ``hrp.frame`` (the
+  frame kind on the bus: ``json``, ``hrpb`` or ``octets``), from which :class:`LogReader` rebuilds the
+  exact bytes that were published. The request id attachment of the ``<endpoint>/request|reply|error``
+  mirrors is the MCAP message ``sequence``.
+* **views** (``hrp.role`` = ``view``): Foxglove's own messages (transforms, scene, images, logs),
+  protobuf, made by a ``views`` callable (the recorder passes :mod:`services.viz`'s converters).
 
-Schemas: the JSON schema of the message type when the key is known to the spec registry
-(:mod:`services.bus.schemas`), for originals and views alike. Channel metadata ``hrp.key`` is the
-zenoh key and ``hrp.role`` is ``original`` or ``view``. The request id attachment of the
-``<endpoint>/request|reply|error`` mirrors is the MCAP message ``sequence``.
-
-Chunks are lz4-compressed (or not at all: never zstd, which costs 5x the time on images for 2 %)
-and closed both by size and every ``chunk_period_s``, and the file is flushed after each chunk: a
-recorder killed with SIGKILL loses at most its last chunk, and :class:`LogReader` reads the rest.
+Chunks are zstd-compressed by default (lz4 or none on request) and closed by size (``chunk_size_bytes``
+of messages, uncompressed); the file is flushed after each message, so a recorder killed with SIGKILL
+leaves every closed chunk on disk and :class:`LogReader` (the official mcap stream reader, CRCs
+checked) reads them up to the cut.
 """
 
 from __future__ import annotations
@@ -28,27 +25,42 @@ import json
 import struct
 import time
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-import msgspec
-import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from services.bus import foxglove, keys
-from services.bus.frames import ArrayRef, frame_kind, parse_frame, replace_arrays
+from services.bus import keys
+from services.bus.foxglove import message_schema
+from services.bus.logform import OCTETS_SCHEMA, from_log_form, to_log_form
 from services.errors import InvalidRequestError, NotFoundError
 
 ROLE_ORIGINAL = "original"
 ROLE_VIEW = "view"
-_COMPRESSIONS = {"lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 _MIRRORS = ("request", "reply", "error")
+
+
+@dataclass(frozen=True)
+class View:
+    """A derived message for Foxglove (a transform, a scene update, an image...), already encoded."""
+
+    topic: str
+    schema_name: str  # e.g. foxglove.FrameTransforms
+    schema_encoding: str  # protobuf or jsonschema
+    schema_data: bytes
+    message_encoding: str  # protobuf or json
+    data: bytes
+    log_time_ns: int
+
+
+#: ``views(key, frame, log_time_ns)`` -> the Foxglove messages derived from one bus message.
+Views = Callable[[str, bytes, int], Iterable[View]]
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -96,51 +108,45 @@ class LogWriter:
         self,
         path: str | Path,
         *,
-        compression: str = "lz4",
-        chunk_size_bytes: int = 4 << 20,
-        image_views: bool = True,
-        max_view_elements: int = 100_000,
+        compression: str = "zstd",
+        chunk_size_bytes: int = 1 << 20,
+        views: Views | None = None,
         metadata: dict[str, str] | None = None,
     ) -> None:
-        if compression not in _COMPRESSIONS:
-            raise InvalidRequestError(
-                f"compression {compression!r} is not one of: {', '.join(_COMPRESSIONS)} (zstd is too slow)"
-            )
+        if compression not in COMPRESSIONS:
+            raise InvalidRequestError(f"compression {compression!r} is not one of: {', '.join(COMPRESSIONS)}")
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
-        self._writer = Writer(self._file, chunk_size=chunk_size_bytes, compression=_COMPRESSIONS[compression])
-        # mcap 1.x closes chunks only by size; closing them by time needs its private method.
-        self._finalize_chunk = getattr(self._writer, "_Writer__finalize_chunk", None)
-        if self._finalize_chunk is None:
-            raise RuntimeError("this mcap version has no Writer.__finalize_chunk: pin mcap>=1.6,<2")
+        self._writer = Writer(self._file, chunk_size=chunk_size_bytes, compression=COMPRESSIONS[compression])
         self._writer.start(profile="", library="humanoid-autonomy recorder")
         if metadata:
             self._writer.add_metadata("recording", dict(metadata))
-        self._image_views = image_views
-        self._max_view_elements = max_view_elements
+        self._views = views
         self._channels: dict[tuple[str, str], int] = {}
         self._schemas: dict[str, int] = {}
         self.message_counts: Counter[str] = Counter()
+        self.view_errors = 0
         self.closed = False
 
     # Public -------------------------------------------------------------------------------------------
     def write(self, key: str, data: bytes, log_time_ns: int, sequence: int = 0) -> None:
-        """Log one message published on ``key`` (its exact bytes, plus Foxglove views if binary)."""
-        kind = frame_kind(data)
+        """Log one message published on ``key`` (one copy, in its log form), then its Foxglove views."""
         type_ = message_type_for_key(key)
-        # Bytes that are neither JSON nor a binary frame (a malformed request) match no schema.
-        channel = self._channel(key, kind, type_ if kind != "octets" else None, ROLE_ORIGINAL, kind)
-        self._writer.add_message(channel, log_time_ns, data, log_time_ns, sequence)
+        kind, stored = to_log_form(data, type_)
+        channel = self._original_channel(key, kind, type_)
+        self._writer.add_message(channel, log_time_ns, stored, log_time_ns, sequence)
         self.message_counts[key] += 1
-        if kind == "hrpb":
-            self._write_views(key, data, type_, log_time_ns, sequence)
+        if self._views is not None:
+            try:
+                views = list(self._views(key, data, log_time_ns))
+            except Exception:  # a converter bug must not lose the originals
+                self.view_errors += 1
+                views = []
+            for view in views:
+                cid = self._view_channel(view, key)
+                self._writer.add_message(cid, view.log_time_ns, view.data, view.log_time_ns, 0)
         self._file.flush()  # a chunk closed by size reaches the OS now
-
-    def flush_chunk(self) -> None:
-        """Close the open chunk and push it to the OS (bounds what a SIGKILL can lose)."""
-        self._finalize_chunk()
-        self._file.flush()
 
     def close(self) -> None:
         """Write the summary (indexes, statistics) and close the file."""
@@ -151,101 +157,36 @@ class LogWriter:
         self._file.close()
 
     # Internals ----------------------------------------------------------------------------------------
-    def _schema_id(self, type_: type | None) -> int:
-        if type_ is None:
-            return 0
-        name = schema_name(type_)
+    def _schema_id(self, name: str, encoding: str, data: bytes) -> int:
         sid = self._schemas.get(name)
         if sid is None:
-            from services.bus.spec import json_schema
-
-            data = json.dumps(json_schema(type_)).encode()
-            sid = self._schemas[name] = self._writer.register_schema(name, "jsonschema", data)
+            sid = self._schemas[name] = self._writer.register_schema(name, encoding, data)
         return sid
 
-    def _image_schema_id(self) -> int:
-        sid = self._schemas.get(foxglove.SCHEMA_NAME)
-        if sid is None:
-            sid = self._schemas[foxglove.SCHEMA_NAME] = self._writer.register_schema(
-                foxglove.SCHEMA_NAME, foxglove.SCHEMA_ENCODING, foxglove.raw_image_schema()
-            )
-        return sid
-
-    def _channel(
-        self, topic: str, slot: str, type_: type | None, role: str, encoding: str, key: str = ""
-    ) -> int:
-        cid = self._channels.get((topic, slot))
+    def _original_channel(self, key: str, kind: str, type_: type | None) -> int:
+        cid = self._channels.get((key, kind))
         if cid is None:
-            schema = (
-                self._image_schema_id() if encoding == foxglove.MESSAGE_ENCODING else self._schema_id(type_)
-            )
-            meta = {"hrp.key": key or topic, "hrp.role": role}
-            cid = self._channels[(topic, slot)] = self._writer.register_channel(topic, encoding, schema, meta)
+            if kind == "octets":
+                schema = self._schema_id("hrp.Octets", "jsonschema", json.dumps(OCTETS_SCHEMA).encode())
+            elif type_ is not None:
+                data = json.dumps(message_schema(type_)).encode()
+                schema = self._schema_id(schema_name(type_), "jsonschema", data)
+            else:
+                schema = 0  # JSON of an unknown key: Foxglove shows schemaless JSON as it is
+            meta = {"hrp.key": key, "hrp.role": ROLE_ORIGINAL, "hrp.frame": kind}
+            topic = key if kind != "octets" else f"{key}#octets"  # json and hrpb share the schema
+            cid = self._channels[(key, kind)] = self._writer.register_channel(topic, "json", schema, meta)
         return cid
 
-    def _write_views(
-        self, key: str, data: bytes, type_: type | None, log_time_ns: int, sequence: int
-    ) -> None:
-        try:
-            doc, refs = parse_frame(data)
-        except (msgspec.DecodeError, ValueError):
-            return  # a malformed binary frame: the original is kept, there is nothing to view
-        by_path = {ref.path: ref for ref in refs}
-
-        def view_of(path: str, _ref: dict[str, Any]) -> Any:
-            ref = by_path[path]
-            array = ref.array()
-            encoding = foxglove.image_encoding(array) if self._image_views else None
-            if encoding is not None:
-                topic = f"{key}/view/{path}"
-                frame_id = _frame_id(doc, path)
-                image = foxglove.encode_raw_image(
-                    ref.data,
-                    shape=array.shape,
-                    encoding=encoding,
-                    itemsize=array.dtype.itemsize,
-                    stamp_ns=log_time_ns,
-                    frame_id=frame_id,
-                )
-                cid = self._channel(topic, "image", None, ROLE_VIEW, foxglove.MESSAGE_ENCODING, key)
-                self._writer.add_message(cid, log_time_ns, image, log_time_ns, sequence)
-                return {"image_topic": topic, "dtype": str(array.dtype), "shape": list(array.shape)}
-            return _array_view(ref, self._max_view_elements)
-
-        view = replace_arrays(doc, view_of)
-        cid = self._channel(f"{key}/view", "json", type_, ROLE_VIEW, "json", key)
-        self._writer.add_message(cid, log_time_ns, msgspec.json.encode(view), log_time_ns, sequence)
-
-
-def _frame_id(doc: Any, path: str) -> str:
-    """An image's frame: a ``frame_id`` or ``name`` beside the array (innermost first), else its path."""
-    nodes = [doc]
-    for part in path.split("/")[:-1]:
-        node = nodes[-1]
-        try:
-            nodes.append(node[int(part)] if isinstance(node, list) else node[part])
-        except (KeyError, IndexError, ValueError, TypeError):
-            break
-    for node in reversed(nodes):
-        if isinstance(node, dict):
-            for name in ("frame_id", "name"):
-                if isinstance(node.get(name), str):
-                    return node[name]
-    return path
-
-
-def _array_view(ref: ArrayRef, max_elements: int) -> Any:
-    array = ref.array()
-    if array.size <= max_elements:
-        return array.tolist()  # msgspec writes NaN and inf as null
-    summary: dict[str, Any] = {
-        "dtype": str(array.dtype),
-        "shape": list(array.shape),
-        "elements": int(array.size),
-    }
-    if array.dtype.kind in "biuf" and array.size:
-        summary.update(min=float(np.nanmin(array)), max=float(np.nanmax(array)))
-    return summary
+    def _view_channel(self, view: View, key: str) -> int:
+        cid = self._channels.get((view.topic, "view"))
+        if cid is None:
+            schema = self._schema_id(view.schema_name, view.schema_encoding, view.schema_data)
+            meta = {"hrp.key": key, "hrp.role": ROLE_VIEW}
+            cid = self._channels[(view.topic, "view")] = self._writer.register_channel(
+                view.topic, view.message_encoding, schema, meta
+            )
+        return cid
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -253,13 +194,13 @@ def _array_view(ref: ArrayRef, max_elements: int) -> Any:
 # ---------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class LogMessage:
-    """One original message of a log."""
+    """One original message of a log, as it was published."""
 
     key: str
     data: bytes
     log_time_ns: int
     sequence: int  # request id of a request/reply/error mirror, else 0
-    encoding: str  # json, hrpb or octets
+    encoding: str  # the frame kind: json, hrpb or octets
 
 
 @dataclass(frozen=True)
@@ -269,6 +210,8 @@ class ChannelInfo:
     message_encoding: str
     schema_name: str
     messages: int
+    bytes: int = 0  # message bytes as stored (before chunk compression)
+    rate_hz: float = 0.0  # messages per second between the channel's first and last message
 
 
 @dataclass(frozen=True)
@@ -279,8 +222,8 @@ class LogInfo:
     start_ns: int
     end_ns: int
     channels: tuple[ChannelInfo, ...]
-    complete: bool  # False: no summary (recorder killed); counted by reading every chunk
-    unreadable_tail: bool = False  # the last chunk was cut off
+    complete: bool  # False: no summary (recorder killed): what was read up to the cut
+    unreadable_tail: bool = False  # the file ends in a cut-off record (a recorder killed mid-chunk)
     metadata: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -298,12 +241,13 @@ class LogReader:
         self.unreadable_tail = False
 
     def records(self) -> Iterator[tuple[Message, Channel, Schema | None]]:
-        """Every message record with its channel and schema, in file order; stops at a cut-off tail."""
+        """Every message record with its channel and schema, in file order, read by the official mcap
+        stream reader with CRC validation; stops at a cut-off tail (``unreadable_tail`` is then set)."""
         channels: dict[int, Channel] = {}
         schemas: dict[int, Schema] = {}
         self.unreadable_tail = False
         with open(self.path, "rb") as stream:
-            reader = StreamReader(stream, skip_magic=False)
+            reader = StreamReader(stream, skip_magic=False, validate_crcs=True)
             try:
                 for record in reader.records:
                     if isinstance(record, Schema):
@@ -315,71 +259,80 @@ class LogReader:
                         if channel is not None:
                             yield record, channel, schemas.get(channel.schema_id)
             except (McapError, struct.error, EOFError, ValueError, RuntimeError, OSError) as exc:
-                # A recorder killed mid-chunk leaves a partial record (lz4 raises RuntimeError).
-                if isinstance(exc, McapError) and "invalid magic" in str(exc) and not channels:
+                # A recorder killed mid-chunk leaves a partial record (the reader raises at the cut).
+                if isinstance(exc, McapError) and "magic" in str(exc).lower() and not channels:
                     raise InvalidRequestError(f"{self.path} is not an MCAP file") from None
                 self.unreadable_tail = True
 
     def messages(self) -> Iterator[LogMessage]:
-        """The original messages, in the order they were recorded."""
+        """The original messages, as published (exact bytes), in the order they were recorded."""
         for message, channel, _schema in self.records():
-            if channel.metadata.get("hrp.role", ROLE_ORIGINAL) != ROLE_ORIGINAL:
+            meta = channel.metadata
+            if meta.get("hrp.role", ROLE_ORIGINAL) != ROLE_ORIGINAL:
                 continue
+            key = meta.get("hrp.key", channel.topic)
+            frame = meta.get("hrp.frame")
+            if frame is None:  # a log of the first format: the frame itself, its kind as the encoding
+                data, kind = bytes(message.data), channel.message_encoding
+            else:
+                kind = frame
+                data = from_log_form(frame, bytes(message.data), message_type_for_key(key))
             yield LogMessage(
-                key=channel.metadata.get("hrp.key", channel.topic),
-                data=bytes(message.data),
-                log_time_ns=message.log_time,
-                sequence=message.sequence,
-                encoding=channel.message_encoding,
+                key=key, data=data, log_time_ns=message.log_time, sequence=message.sequence, encoding=kind
             )
 
     def info(self) -> LogInfo:
-        """Channels, counts, duration, schema names: from the summary, or by reading every chunk."""
-        summary = None
+        """Channels with messages, bytes and rate; duration; schema names. Every chunk is read (bytes
+        and rates are not in the summary); ``complete`` says whether the summary was there."""
         metadata: dict[str, str] = {}
+        complete = False
         try:
             with open(self.path, "rb") as stream:
                 reader = make_reader(stream)
-                summary = reader.get_summary()
-                if summary is not None:
+                complete = reader.get_summary() is not None
+                if complete:
                     for item in reader.iter_metadata():
                         metadata.update(item.metadata)
         except (McapError, struct.error, EOFError, ValueError, RuntimeError, OSError):
-            summary = None
-        size = self.path.stat().st_size
-        if summary is not None and summary.statistics is not None:
-            stats = summary.statistics
-            channels = tuple(
-                _channel_info(ch, summary.schemas.get(ch.schema_id), stats.channel_message_counts.get(cid, 0))
-                for cid, ch in sorted(summary.channels.items())
-            )
-            return LogInfo(
-                str(self.path), size, stats.message_count, stats.message_start_time,
-                stats.message_end_time, channels, complete=True, metadata=metadata,
-            )  # fmt: skip
+            complete = False
         counts: Counter[int] = Counter()
+        sizes: Counter[int] = Counter()
+        first: dict[int, int] = {}
+        last: dict[int, int] = {}
         seen: dict[int, tuple[Channel, Schema | None]] = {}
-        start, end, total = 0, 0, 0
         for message, channel, schema in self.records():
-            counts[channel.id] += 1
-            seen.setdefault(channel.id, (channel, schema))
-            start = message.log_time if total == 0 else min(start, message.log_time)
-            end = max(end, message.log_time)
-            total += 1
-        channels = tuple(_channel_info(ch, sc, counts[cid]) for cid, (ch, sc) in sorted(seen.items()))
+            cid = channel.id
+            counts[cid] += 1
+            sizes[cid] += len(message.data)
+            seen.setdefault(cid, (channel, schema))
+            first.setdefault(cid, message.log_time)
+            first[cid] = min(first[cid], message.log_time)
+            last[cid] = max(last.get(cid, 0), message.log_time)
+        channels = tuple(
+            _channel_info(ch, sc, counts[cid], sizes[cid], first[cid], last[cid])
+            for cid, (ch, sc) in sorted(seen.items())
+        )
+        start = min(first.values(), default=0)
+        end = max(last.values(), default=0)
         return LogInfo(
-            str(self.path), size, total, start, end, channels, complete=False,
-            unreadable_tail=self.unreadable_tail,
+            str(self.path), self.path.stat().st_size, sum(counts.values()), start, end, channels,
+            complete=complete and not self.unreadable_tail, unreadable_tail=self.unreadable_tail,
+            metadata=metadata,
         )  # fmt: skip
 
 
-def _channel_info(channel: Channel, schema: Schema | None, count: int) -> ChannelInfo:
+def _channel_info(
+    channel: Channel, schema: Schema | None, count: int, size: int, first_ns: int, last_ns: int
+) -> ChannelInfo:
+    span_s = (last_ns - first_ns) / 1e9
     return ChannelInfo(
         topic=channel.topic,
         role=channel.metadata.get("hrp.role", ROLE_ORIGINAL),
         message_encoding=channel.message_encoding,
         schema_name=schema.name if schema is not None else "",
         messages=count,
+        bytes=size,
+        rate_hz=(count - 1) / span_s if count > 1 and span_s > 0 else 0.0,
     )
 
 

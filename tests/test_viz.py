@@ -1,0 +1,261 @@
+"""Foxglove compatibility without the bus: every schema the stack registers passes the rules of
+Foxglove's JSON-schema reader, every frame's log form rebuilds the exact frame, and the converters make
+decodable Foxglove messages for both robot models."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from services.bus import schemas
+from services.bus.codec import encode
+from services.bus.foxglove import message_schema, schema_problems
+from services.bus.logform import OCTETS_SCHEMA, from_log_form, to_log_form
+from services.bus.schemas import navigation as nav_msg
+from services.bus.schemas import perception as per_msg
+from services.bus.schemas import sim as sim_msg
+from services.bus.schemas import walking as walk_msg
+from services.bus.schemas.common import ErrorInfo, Heartbeat
+from services.bus.schemas.supervisor import SupervisorEvent
+from services.bus.spec import json_schema
+from services.model import load_robot
+from services.viz import common as c
+from services.viz.converter import Converter, encoded
+from tests.test_viz_live import protobuf_class
+
+
+def _registered_types() -> set[type]:
+    types: set[type] = {Heartbeat, ErrorInfo}
+    for endpoint in schemas.endpoints().values():
+        types |= {endpoint.request, endpoint.reply}
+    types |= {topic.message for topic in schemas.topics().values()}
+    return types
+
+
+def test_every_registered_schema_passes_foxglove_json_schema_rules():
+    types = _registered_types()
+    assert len(types) > 30
+    problems = [p for t in sorted(types, key=str) for p in schema_problems(message_schema(t), t.__name__)]
+    assert problems == []
+    assert schema_problems(OCTETS_SCHEMA) == []
+
+
+def test_the_rules_reject_what_foxglove_rejects():
+    # The plain msgspec schemas the first logs carried: untyped arrays, anyOf, arrays of arrays.
+    assert any("q" in p for p in schema_problems(json_schema(sim_msg.JointState)))
+    assert any("T_world_camera" in p for p in schema_problems(json_schema(per_msg.LocateReply)))
+    assert any("anyOf" in p or "None" in p for p in schema_problems(json_schema(walk_msg.PlanRequest)))
+    assert schema_problems({"type": "object"}) == ['(root): an object needs a "properties" mapping']
+    bad = {"type": "object", "properties": {"a": {"type": ["number", "null"]}, "b": {"type": "null"}}}
+    assert len(schema_problems(bad)) == 2
+
+
+def _locate_reply(z: float = 0.7) -> per_msg.LocateReply:
+    box = per_msg.PixelBox(u_px=1, v_px=2, width_px=3, height_px=4, angle_deg=0.5)
+    footprint = per_msg.FootprintMsg(center=[1.0, 2.0], size=[0.5, 0.4], yaw=0.1, top_z=0.7, n_points=40)
+    return per_msg.LocateReply(
+        object="yellow_table", position=[1.0, 2.0, z], position_camera=[0.1, 0.2, 1.5],
+        distance_m=1.5, size_m=[0.5, 0.4], confidence=0.8, method="edges", disparity_px=12.5,
+        box_left=box, box_right=box, window_left=[1, 2, 3, 4], camera="wide",
+        T_world_camera=np.eye(4).tolist(), rendered=True, sim_time_s=3.25, footprint=footprint,
+    )  # fmt: skip
+
+
+def test_log_form_rebuilds_every_kind_of_frame_exactly():
+    rng = np.random.default_rng(3)
+    image = sim_msg.CameraImage(
+        name="wide_left", width_px=16, height_px=12, K=np.eye(3), T_world_camera=np.eye(4),
+        rgb=rng.integers(0, 255, (12, 16, 3), dtype=np.uint8), depth_m=rng.random((12, 16), dtype=np.float32),
+        labels={3: "robot"},
+    )  # fmt: skip
+    hand = walk_msg.HandTask(side="left", times_s=[1.0, 2.0], positions_m=[[0.3, 0.2, 0.9], [0.4, 0.2, 1.0]])
+    frames = [
+        (sim_msg.JointState, encode(sim_msg.JointState(sim_time_s=1.0, q=rng.random(37), v=rng.random(36)))),
+        (sim_msg.RenderReply, encode(sim_msg.RenderReply(sim_time_s=2.0, images=[image, image]))),
+        (walk_msg.PlanRequest, encode(walk_msg.PlanRequest(steps=[walk_msg.Step(pose=[0.2, 0.1, 0.0])],
+                                                           hands=[hand], q_start=rng.random(37)))),
+        (per_msg.LocateReply, encode(_locate_reply(float("nan")))),  # NaN: null in JSON
+        (ErrorInfo, encode(ErrorInfo(code="invalid_request", message="é \\u0000 \"q\"", details={"a": [1]}))),
+        (None, b"\xff\x00garbage"),
+        (sim_msg.JointState, b"HRPB\x05\x00\x00\x00{bad"),
+    ]  # fmt: skip
+    for type_, frame in frames:
+        kind, stored = to_log_form(frame, type_)
+        doc = json.loads(stored)  # every log form is JSON
+        assert isinstance(doc, dict)
+        assert from_log_form(kind, stored, type_) == frame, type_
+    kind, stored = to_log_form(frames[3][1], per_msg.LocateReply)
+    assert json.loads(stored)["T_world_camera"][0] == {"values": [1.0, 0.0, 0.0, 0.0]}
+    kind, stored = to_log_form(frames[0][1], sim_msg.JointState)
+    assert kind == "hrpb" and set(json.loads(stored)["q"]) == {"dtype", "shape", "data"}
+
+
+def _decode_all(views) -> dict[str, list]:
+    out: dict[str, list] = {}
+    for view in views:
+        if view.message_encoding == "protobuf":
+            msg = protobuf_class(view.schema_name, view.schema_data).FromString(view.data)
+        else:
+            assert schema_problems(json.loads(view.schema_data)) == []
+            msg = json.loads(view.data)
+        out.setdefault(view.topic, []).append(msg)
+    return out
+
+
+@pytest.mark.parametrize("model", ["hrp2_like", "talos"])
+def test_the_robot_in_3d_for_both_models(model):
+    robot = load_robot(model)
+    conv = Converter()  # the model is recognised from the joint state's size
+    q = robot.q_half_sitting.copy()
+    q[:2] = (1.5, -0.5)
+    t = time.time_ns()
+    views = conv.views(
+        "hrp/hrp2/sim/joint_state", encode(sim_msg.JointState(sim_time_s=0.0, q=q, v=np.zeros(robot.nv))), t
+    )
+    got = _decode_all(views)
+    tfs = got[c.TF][0].transforms
+    base = next(tf for tf in tfs if tf.parent_frame_id == c.WORLD)
+    assert (base.child_frame_id, base.translation.x, base.translation.y) == (robot.frames.base, 1.5, -0.5)
+    children = {tf.child_frame_id for tf in tfs}
+    assert {cam.frame for cam in robot.cameras.values()} <= children
+    entities = got[c.ROBOT][0].entities
+    assert {e.frame_id for e in entities} <= children | {robot.frames.base}
+    shapes = sum(len(e.cubes) + len(e.cylinders) + len(e.spheres) for e in entities)
+    if model == "talos":  # meshes in the URDF: its collision capsules (a cylinder and two spheres each)
+        assert shapes == 3 * len(robot.capsules)
+    else:
+        assert shapes == len(robot.build_geometry_model("collision").geometryObjects)
+    # Decimated to 30 Hz: a joint state 5 ms later gives nothing, 40 ms later gives transforms again.
+    js = encode(sim_msg.JointState(sim_time_s=0.005, q=q, v=np.zeros(robot.nv)))
+    assert conv.views("hrp/hrp2/sim/joint_state", js, t + 5_000_000) == []
+    assert [v.topic for v in conv.views("hrp/hrp2/sim/joint_state", js, t + 40_000_000)] == [c.TF]
+
+
+def test_plans_map_cameras_and_text_become_foxglove_messages():
+    conv = Converter("hrp2_like")
+    t = time.time_ns()
+    n = 50
+    goto = nav_msg.GotoReply(
+        model="hrp2_like", goal=[2.0, 0.0, 0.0],
+        path_xy_m=np.column_stack([np.linspace(0, 2, n), np.zeros(n)]),
+        path_theta_rad=np.zeros(n), path_s_m=np.linspace(0, 2, n), path_forward=np.ones(n, np.uint8),
+        path_curve="dubins", left_start=[0.0, 0.095, 0.0], right_start=[0.0, -0.095, 0.0],
+        step_sides=["right", "left"], step_poses=np.array([[0.2, -0.095, 0.0], [0.4, 0.095, 0.0]]),
+        dt_s=0.005,
+        q=np.zeros((n, 37)), com_m=np.column_stack([np.linspace(0, 2, n), np.zeros(n), np.full(n, 0.8)]),
+        zmp_m=np.zeros((n, 2)), duration_s=1.0,
+        reshaping=nav_msg.ReshapingReport(
+            iterations=1, segments=[], min_clearance_m=None, zmp_margin_m=0.01, hand_error_m=0.0,
+            collisions_per_iteration=[0], bar_height_nominal_m=np.zeros(0), bar_height_before_m=np.zeros(0),
+            bar_height_planned_m=np.zeros(0), bar_height_m=np.zeros(0),
+        ),
+        timings_s={"total_s": 1.0},
+    )  # fmt: skip
+    request = nav_msg.GotoRequest(
+        q_start=np.zeros(37),
+        obstacles=[nav_msg.ObstacleMsg(name="box", center=[1, 1, 0.3], size=[0.4, 0.4, 0.6])],
+    )
+    image = sim_msg.CameraImage(
+        name="wide_left", width_px=32, height_px=24, K=np.array([[30, 0, 16], [0, 30, 12], [0, 0, 1.0]]),
+        T_world_camera=np.eye(4), rgb=np.full((24, 32, 3), 128, np.uint8),
+    )  # fmt: skip
+    event = SupervisorEvent(kind="failed", run_id="r", step="walk to table", attempt=1, reason="collision")
+    views = [
+        *conv.views("hrp/hrp2/navigation/goto/reply", encode(goto), t),
+        *conv.views("hrp/hrp2/navigation/goto/request", encode(request), t),
+        *conv.views("hrp/hrp2/perception/locate/reply", encode(_locate_reply()), t),
+        *conv.views(
+            "hrp/hrp2/sim/render/reply", encode(sim_msg.RenderReply(sim_time_s=1.0, images=[image])), t
+        ),
+        *conv.views("hrp/hrp2/supervisor/events", encode(event), t),
+        *conv.views(
+            "hrp/hrp2/walking/plan/error", encode(ErrorInfo(code="infeasible", message="too far")), t
+        ),
+    ]
+    assert conv.errors == 0
+    got = _decode_all(views)
+    assert len(got[c.PLAN_PATH][0].entities[0].lines[0].points) == n
+    steps = got[c.PLAN_FOOTSTEPS][0].entities[0].cubes
+    assert [round(s.pose.position.x, 3) for s in steps] == [0.2, 0.4]
+    assert steps[0].color.r > steps[0].color.b and steps[1].color.b > steps[1].color.r  # right red, left blue
+    assert len(got[c.PLAN_SUPPORT][0].entities[0].lines) == 3  # before the walk and after each landing
+    assert got[c.PLAN_SERIES][0]["com_z_m"][0] == 0.8
+    assert got[c.MAP_OBSTACLES][0].entities[0].id == "map/box"
+    assert got[c.MAP_SIGHTINGS][0].entities[0].id == "sighting/yellow_table"
+    calibration = got[c.camera_calibration_topic("wide_left")][0]
+    assert (
+        calibration.frame_id == load_robot("hrp2_like").cameras["wide_left"].frame and calibration.K[0] == 30
+    )
+    assert got[c.camera_image_topic("wide_left")][0].format == "jpeg"
+    logs = got[c.LOG]
+    assert "walk to table" in logs[0].message and logs[0].name == "supervisor"
+    assert "infeasible: too far" in logs[1].message and logs[1].name == "walking"
+    assert encoded(
+        c.TF, got and __import__("foxglove.messages").messages.FrameTransforms(), t
+    ).schema_name == ("foxglove.FrameTransforms")
+
+
+def test_a_recorded_log_is_served_to_foxglove(tmp_path):
+    """``humanoid replay FILE --foxglove``: the log's channels, advertised and played to a viewer."""
+    import threading
+
+    from services.bus.mcaplog import LogWriter
+    from services.viz.player import serve_log
+    from services.viz.wsclient import FoxgloveClient
+    from tests.conftest import free_port
+
+    robot = load_robot("hrp2_like")
+    path = tmp_path / "log.mcap"
+    writer = LogWriter(path, views=Converter().views)
+    t = time.time_ns()
+    for i in range(20):
+        q = robot.q_half_sitting.copy()
+        q[0] = 0.01 * i
+        frame = encode(sim_msg.JointState(sim_time_s=0.005 * i, q=q, v=np.zeros(robot.nv)))
+        writer.write("hrp/hrp2/sim/joint_state", frame, t + i * 50_000_000)
+    writer.close()
+    port = free_port()
+    ready = threading.Event()
+    player = threading.Thread(
+        target=serve_log,
+        args=(str(path),),
+        kwargs={"port": port, "speed": 4.0, "on_ready": lambda _p: ready.set(), "wait_for_viewer_s": 10.0},
+    )
+    player.start()
+    try:
+        assert ready.wait(10.0)
+        with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+            assert client.wait_for_topics([c.TF, c.ROBOT, "hrp/hrp2/sim/joint_state"])
+            client.subscribe([c.TF])
+            FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_bytes())
+            xs = []
+            while len(xs) < 20:
+                got = client.receive(5.0)
+                assert got is not None
+                base = next(
+                    tf
+                    for tf in FrameTransforms.FromString(got.data).transforms
+                    if tf.parent_frame_id == "world"
+                )
+                xs.append(round(base.translation.x, 3))
+    finally:
+        player.join(timeout=20)
+    assert xs == [round(0.01 * i, 3) for i in range(20)]
+
+
+def _schema_bytes() -> bytes:
+    from foxglove.messages import FrameTransforms
+
+    return bytes(FrameTransforms.get_schema().data)
+
+
+def test_the_committed_layout_is_the_generated_one():
+    from services.viz.layout import LAYOUT_PATH, layout_json
+
+    assert LAYOUT_PATH.read_text() == layout_json(), "regenerate it: python -m services.viz.layout"
+    text = LAYOUT_PATH.read_text()
+    for topic in (c.ROBOT, c.camera_image_topic("wide_left"), c.camera_image_topic("wide_right"), c.LOG):
+        assert f'"{topic}' in text

@@ -1,0 +1,204 @@
+"""The live Foxglove view: the viz service in its own process serves a running stack (sim + walking) over
+Foxglove's WebSocket protocol; a client speaking that protocol sees the robot's base frame move as the
+sim's base does, and misbehaving viewers (connecting in a loop, subscribing to unknown channels, not
+reading) cost the stack nothing that breaks it."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+from services.bus.schemas import sim as sim_msg
+from services.bus.schemas import walking as walk_msg
+from services.viz import common as c
+from services.viz.wsclient import FoxgloveClient
+from tests.conftest import free_port
+
+pytestmark = pytest.mark.integration
+
+
+def protobuf_class(schema_name: str, schema_data: bytes):
+    """The message class of a Foxglove protobuf schema (a serialized FileDescriptorSet)."""
+    files = descriptor_pb2.FileDescriptorSet.FromString(schema_data)
+    pool = descriptor_pool.DescriptorPool()
+    for f in files.file:
+        pool.Add(f)
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName(schema_name))
+
+
+def _schema_data(name: str) -> bytes:
+    import foxglove.messages as fm
+
+    return bytes(getattr(fm, name.removeprefix("foxglove.")).get_schema().data)
+
+
+@pytest.fixture(scope="module")
+def log_path(tmp_path_factory):
+    return tmp_path_factory.mktemp("viz") / "live.mcap"
+
+
+@pytest.fixture(scope="module")
+def stack(module_bus_harness, log_path):
+    h = module_bus_harness
+    h.spawn_service("services.bus.recorder", "--output", str(log_path), name="record")
+    h.spawn_service("sim.service", "--scene", "empty", name="sim", timeout_s=60)
+    h.spawn_service("services.walking.service", name="walking", timeout_s=60)
+    port = free_port()
+    viz = h.spawn_service("services.viz.service", "--port", str(port), name="viz", timeout_s=60)
+    return h, port, viz
+
+
+def _walk(h) -> sim_msg.ExecuteReply:
+    state = h.client.call(sim_msg.STATE, sim_msg.StateRequest(), 30.0)
+    steps = [walk_msg.Step(pose=[0.2 * (i // 2 + 1), 0.095 if i % 2 else -0.095, 0.0]) for i in range(4)]
+    plan = h.client.call(
+        walk_msg.PLAN, walk_msg.PlanRequest(steps=steps, q_start=state.q, model=state.model), 60.0
+    )
+    return h.client.call(sim_msg.EXECUTE, sim_msg.ExecuteRequest(q=plan.q, hold_s=0.3), 120.0)
+
+
+def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
+    h, port, _viz = stack
+    FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_data("foxglove.FrameTransforms"))
+    SceneUpdate = protobuf_class("foxglove.SceneUpdate", _schema_data("foxglove.SceneUpdate"))
+    with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+        assert client.wait_for_topics([c.TF, c.ROBOT, c.WORLD_OBJECTS, c.PLAN_FOOTSTEPS, c.LOG])
+        ads = client.topics()
+        assert ads[c.TF].encoding == "protobuf" and ads[c.TF].schema_name == "foxglove.FrameTransforms"
+        client.subscribe([c.TF, c.ROBOT, c.WORLD_OBJECTS, c.PLAN_FOOTSTEPS])
+        got: list = []
+        stop = threading.Event()
+
+        def read() -> None:
+            while not stop.is_set():
+                msg = client.receive(0.2)
+                if msg is not None:
+                    got.append(msg)
+
+        reader = threading.Thread(target=read)
+        reader.start()
+        try:
+            time.sleep(0.5)
+            start = h.client.call(sim_msg.STATE, sim_msg.StateRequest(), 30.0).q
+            result = _walk(h)
+            time.sleep(1.0)
+        finally:
+            stop.set()
+            reader.join()
+    assert result.outcome == "completed", result.message
+    base_x = []
+    for msg in got:
+        if msg.topic == c.TF:
+            tfs = FrameTransforms.FromString(msg.data).transforms
+            base = next(t for t in tfs if t.parent_frame_id == "world")
+            assert base.child_frame_id == "base_link"
+            assert len(tfs) > 20  # the links, soles, grasp frames and cameras under the base
+            base_x.append(base.translation.x)
+    assert len(base_x) >= 5, f"{len(base_x)} transforms received"
+    assert base_x[0] == pytest.approx(start[0], abs=0.02)
+    assert base_x[-1] == pytest.approx(result.q[0], abs=0.02)  # where the sim's base ended
+    assert result.q[0] - start[0] > 0.3 and np.all(np.diff(base_x) > -0.02)  # it walked forward
+    scenes = [SceneUpdate.FromString(m.data) for m in got if m.topic == c.ROBOT]
+    assert scenes and {e.frame_id for e in scenes[0].entities} >= {"base_link"}
+    assert all(e.frame_locked for e in scenes[0].entities)
+    footsteps = [SceneUpdate.FromString(m.data) for m in got if m.topic == c.PLAN_FOOTSTEPS]
+    assert footsteps and len(footsteps[-1].entities[0].cubes) == 4  # the walk's four soles
+    objects = [SceneUpdate.FromString(m.data) for m in got if m.topic == c.WORLD_OBJECTS]
+    assert objects  # the empty scene: an update that clears, polled from the sim while watched
+
+
+def test_misbehaving_viewers_do_not_hurt_the_stack(stack):
+    h, port, viz = stack[:3]
+    for _ in range(10):  # connect and disconnect in a loop
+        with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+            client.wait_for_topics([c.TF], timeout_s=2.0)
+            client.subscribe([c.TF])
+    slow = FoxgloveClient(f"ws://127.0.0.1:{port}")  # subscribes to everything, never reads
+    slow.wait_for_topics([c.TF, c.ROBOT])
+    slow.subscribe(list(slow.topics()))
+    odd = FoxgloveClient(f"ws://127.0.0.1:{port}")  # unknown channels
+    odd.wait_for_topics([c.TF])
+    odd.subscribe_channel_ids([987654, 123456789])
+    try:
+        result = _walk(h)
+        assert result.outcome == "completed", result.message
+        assert viz.poll() is None  # the viz service is still there
+        assert {"sim", "walking", "viz"} <= h.client.alive_services()
+        with FoxgloveClient(f"ws://127.0.0.1:{port}") as fresh:  # and still serves a new viewer
+            assert fresh.wait_for_topics([c.TF, c.ROBOT])
+            fresh.subscribe([c.ROBOT])
+            robot = fresh.receive(5.0)  # the body is sent again to a new subscriber
+            assert robot is not None and robot.topic == c.ROBOT
+    finally:
+        slow.close()
+        odd.close()
+
+
+def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log_path):
+    """Runs after the other tests of the module (pytest keeps file order): the recorder saw them."""
+    import json
+
+    from mcap.reader import make_reader
+
+    from services.bus.foxglove import schema_problems
+
+    h = stack[0]
+    recorder = next(p for p in h.procs if "services.bus.recorder" in " ".join(map(str, p.args)))
+    assert h.stop(recorder) == 0
+    topics: dict[str, int] = {}
+    with open(log_path, "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        summary = reader.get_summary()
+        for schema, channel, message in reader.iter_messages():
+            topics[channel.topic] = topics.get(channel.topic, 0) + 1
+            if channel.message_encoding == "protobuf":
+                protobuf_class(schema.name, schema.data).FromString(message.data)
+            else:
+                assert channel.message_encoding == "json"
+                json.loads(message.data)
+                if schema is not None:
+                    assert schema.encoding == "jsonschema"
+                    assert schema_problems(json.loads(schema.data), channel.topic) == []
+    assert summary is not None and summary.statistics.message_count == sum(topics.values())
+    robot = h.bus.robot
+    for topic in (c.TF, c.ROBOT, c.PLAN_FOOTSTEPS, c.PLAN_COM_ZMP, f"hrp/{robot}/sim/joint_state"):
+        assert topics.get(topic, 0) > 0, topic
+    # One copy of the 200 Hz joint state, at its own rate; the transforms at about 30 Hz.
+    assert [t for t in topics if t.startswith(f"hrp/{robot}/sim/joint_state")] == [
+        f"hrp/{robot}/sim/joint_state"
+    ]
+    assert topics[c.TF] < topics[f"hrp/{robot}/sim/joint_state"] / 2
+
+
+def test_up_foxglove_starts_the_live_view_and_only_then(tmp_path):
+    import subprocess
+    import sys
+
+    from tests.test_launcher import REPO, Up
+
+    listed = subprocess.run(
+        [sys.executable, "-m", "services.cli", "up", "--list"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
+    )
+    assert "diag" in listed.stdout and "viz" not in listed.stdout  # not started unless asked for
+    port = free_port()
+    up = Up("--services", "diag", "--foxglove", str(port))
+    try:
+        up.client.wait_for(["diag", "viz"], timeout_s=60.0)
+        Log = protobuf_class("foxglove.Log", _schema_data("foxglove.Log"))
+        with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+            assert client.wait_for_topics([c.TF, c.ROBOT, c.LOG])
+            client.subscribe([c.LOG])
+            got = client.receive(10.0)  # the latest log line is sent to a new subscriber
+            assert got is not None and got.topic == c.LOG
+            line = Log.FromString(got.data)
+            assert line.name == "launcher" and ": ready" in line.message
+    finally:
+        up.close()
