@@ -21,6 +21,8 @@ from services.bus.spec import EndpointSpec, TopicSpec
 #: Packages that use the bus without being started by ``humanoid up``: name -> folder.
 CLIENT_PACKAGES = {"supervisor": "supervisor"}
 _SCHEMA_PACKAGE = "services.bus.schemas"
+#: What a subscriber to every key (``keys.everything``) subscribes to, in the graph.
+EVERYTHING = "**"
 
 
 @dataclass
@@ -68,6 +70,11 @@ def _spec_references(files: list[Path]) -> set[str]:
                     if a.name.startswith(_SCHEMA_PACKAGE + ".") and a.asname:
                         aliases[a.asname] = a.name
         for node in ast.walk(tree):
+            if isinstance(node, ast.Call):  # keys.everything(robot): a subscriber to all of hrp/**
+                func = node.func
+                name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+                if name == "everything":
+                    found.add(EVERYTHING)
             if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name):
                 module_name = aliases.get(node.value.id)
                 if module_name is None:
@@ -103,10 +110,10 @@ def build_graph(alive: set[str] | None = None) -> dict[str, Node]:
     for spec in topics.values():
         nodes[spec.service].publishes.append(spec.path)
     for name, files in sources.items():
-        if name == RECORDER:
-            nodes[name].subscribes.append("**")
-            continue
-        for path in sorted(_spec_references(files)):
+        references = _spec_references(files)
+        if name == RECORDER or EVERYTHING in references:  # the recorder's key comes from its config
+            nodes[name].subscribes.append(EVERYTHING)
+        for path in sorted(references - {EVERYTHING}):
             if path in endpoints and endpoints[path].service != name:
                 nodes[name].calls.append(path)
             elif path in topics and topics[path].service != name:
@@ -143,7 +150,7 @@ def _edges(nodes: dict[str, Node]) -> list[tuple[str, str, str, str]]:
         for path in node.calls:
             edges.append((node.name, path.split("/", 1)[0], path.split("/", 1)[1], "call"))
         for path in node.subscribes:
-            if path == "**":
+            if path == EVERYTHING:
                 continue
             edges.append((topics[path].service, node.name, path.split("/", 1)[1], "topic"))
     return edges
@@ -158,8 +165,9 @@ def to_mermaid(nodes: dict[str, Node]) -> str:
         lines.append(f'  {node.name}["{label}"]')
     for a, b, label, kind in _edges(nodes):
         lines.append(f"  {a} -->|{label}| {b}" if kind == "call" else f"  {a} -.->|{label}| {b}")
-    if RECORDER in nodes:
-        lines.append(f"  bus((hrp/**)) -.-> {RECORDER}")
+    for node in nodes.values():
+        if EVERYTHING in node.subscribes:
+            lines.append(f"  bus((hrp/**)) -.-> {node.name}")
     return "\n".join(lines) + "\n"
 
 
