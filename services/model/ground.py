@@ -91,6 +91,13 @@ def sole_pose_at(robot: Any, q: np.ndarray, side: str, data: Any = None) -> Sole
     return sole_pose_of(robot.sole_pose(q, side, data))
 
 
+def mid_feet(left: SolePose, right: SolePose) -> SolePose:
+    """The mid-feet frame of two soles: the middle of their origins, the right sole's yaw turned by half
+    the (wrapped) yaw of the left one relative to it."""
+    yaw = right.yaw_rad + 0.5 * wrap_angle(left.yaw_rad - right.yaw_rad)
+    return SolePose(0.5 * (left.x_m + right.x_m), 0.5 * (left.y_m + right.y_m), yaw)
+
+
 # ------------------------------------------------------------------------------------ footstep sequences
 
 

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from services.errors import HumanoidError
+from services.model.ground import mid_feet
 from services.walking.footsteps import (
     Footstep,
     FootstepBounds,
@@ -76,9 +77,9 @@ def shrunk_limits(limits: FootstepBounds, ratio: float) -> FootstepBounds:
 
 
 def mid_pose(left: SolePose, right: SolePose) -> tuple[float, float, float]:
-    """(x, y, yaw) of the mid-feet frame of two soles."""
-    yaw = right.yaw_rad + 0.5 * wrap_angle(left.yaw_rad - right.yaw_rad)
-    return 0.5 * (left.x_m + right.x_m), 0.5 * (left.y_m + right.y_m), yaw
+    """(x, y, yaw) of the mid-feet frame of two soles (:func:`services.model.ground.mid_feet`)."""
+    mid = mid_feet(left, right)
+    return mid.x_m, mid.y_m, mid.yaw_rad
 
 
 def _is_valid(seq: FootstepSequence, limits: FootstepBounds) -> bool:

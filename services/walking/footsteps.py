@@ -22,6 +22,7 @@ from services.model.ground import (
     FootstepSequence,
     Side,
     SolePose,
+    mid_feet,
     other_side,
     rectangles_overlap_depth,
     sole_corners,
@@ -124,8 +125,7 @@ def _start_frame(
             mid,
             feet_spacing_m,
         )
-    yaw = right_start.yaw_rad + 0.5 * wrap_angle(left_start.yaw_rad - right_start.yaw_rad)
-    mid = SolePose(0.5 * (left_start.x_m + right_start.x_m), 0.5 * (left_start.y_m + right_start.y_m), yaw)
+    mid = mid_feet(left_start, right_start)
     spacing = left_start.relative_to(mid)[1] - right_start.relative_to(mid)[1]
     return left_start, right_start, mid, spacing
 
