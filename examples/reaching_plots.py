@@ -1,15 +1,18 @@
-"""Plot the reaching paper's Figs. 7 and 8 for a reach beyond the arm's reach, as PNG files under out/.
+"""Plot the reaching paper's Figs. 6-7 and 8 for a reach beyond the arm's reach, as PNG files under out/.
 
-* ``reaching_<robot>_manipulability.png`` (Fig. 7): the arm's manipulability (eq. 5) over time on the
-  initial support polygon (computed to its end: "without reshaping"; the planner discards it at the first
-  criterion out of range) and in the motion with support polygon reshaping, against the threshold.
-* ``reaching_<robot>_zmp.png`` (Fig. 8): the ZMP in x and in y over time against the support polygon
-  projected on each axis (shaded): planned (dotted: the pattern generator's, dashed: multibody ZMP of the
-  whole-body trajectory) and measured in the sim (solid: centre of pressure of the floor contacts), plus
-  a top view of the footsteps, the ZMP and the target.
+Each for the paper's experiment (``paper``: its two criteria, S = I) and the stack's defaults (``stack``):
+
+* ``reaching_<robot>_<settings>_criteria.png`` (Figs. 6-7): the two criteria of the paper's experiment,
+  the arm's manipulability (eq. 5) and the end-effector error, over time on the initial support polygon
+  (computed to its end: "without reshaping"; the planner discards it at the first criterion out of
+  range, marked) and in the motion with support polygon reshaping, against their thresholds.
+* ``reaching_<robot>_<settings>_zmp.png`` (Fig. 8): the ZMP in x and in y over time against the support
+  polygon projected on each axis (shaded): planned (dotted: the pattern generator's, dashed: multibody
+  ZMP of the whole-body trajectory) and measured in the sim (solid: centre of pressure of the floor
+  contacts), plus a top view of the footsteps, the ZMP and the target.
 
 Usage: python examples/reaching_plots.py [--robot hrp2_like|talos] [--target X Y Z] [--hand left|right]
-       [--no-sim] [--out out]
+       [--no-sim] [--settings paper stack] [--out out]
 """
 
 from __future__ import annotations
@@ -35,11 +38,13 @@ if str(ROOT) not in sys.path:
 
 from services.model import load_robot  # noqa: E402
 from services.reaching import ReachRequest  # noqa: E402
+from services.reaching.options import ReachingOptions  # noqa: E402
 from services.reaching.planner import planner_for  # noqa: E402
 from services.walking.support_polygon import support_hull  # noqa: E402
 
 MEASURED_WINDOW = 20  # samples (0.1 s) of the moving mean of the measured centre of pressure
-DEFAULT_TARGETS = {"hrp2_like": (0.20, 0.75, 0.90), "talos": (0.20, 0.80, 1.00)}  # sideways, left hand
+# Beyond the left arm's reach on the initial support polygon (left hand).
+DEFAULT_TARGETS = {"hrp2_like": (0.90, 0.30, 0.90), "talos": (0.20, 0.80, 1.00)}
 
 
 def polygon_extents(result, robot) -> np.ndarray:
@@ -89,39 +94,53 @@ def smooth(x: np.ndarray, window: int = MEASURED_WINDOW) -> np.ndarray:
     return np.convolve(padded, kernel, mode="valid")
 
 
-def plot_manipulability(path: Path, result, monitors_without, robot_name: str) -> None:
-    fig, ax = plt.subplots(figsize=(7, 4))
+def plot_criteria(path: Path, result, monitors_without, robot_name: str) -> None:
+    """Figs. 6-7: the two monitored criteria of the paper's experiment over time, on the initial support
+    polygon (computed to its end: "without reshaping") and in the kept motion, with the threshold and
+    the trigger (the first criterion out of range: where the motion on the initial polygon is
+    discarded and reshaping starts) marked."""
+    fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
     violation = result.attempts[0].violation
-    ax.plot(
-        monitors_without.times_s,
-        monitors_without.manipulability,
-        "--",
-        color="tab:red",
-        label="without reshaping (initial support polygon)",
+    series = (
+        ("manipulability", "manipulability w = sqrt(det(J J^T))", result.thresholds.manipulability, "1.5e-4"),
+        ("ee_error_m", "end-effector error [m]", result.thresholds.ee_error_m, "4e-5 m"),
     )
-    ax.plot(result.monitors.times_s, result.monitors.manipulability, color="tab:blue", label="with reshaping")
-    ax.axhline(result.thresholds.manipulability, color="k", lw=0.8, label="threshold (1.5e-4)")
+    for ax, (field, label, threshold, text) in zip(axes, series, strict=True):
+        ax.plot(
+            monitors_without.times_s,
+            getattr(monitors_without, field),
+            "--",
+            color="tab:red",
+            label="without reshaping (initial support polygon)",
+        )
+        ax.plot(
+            result.monitors.times_s, getattr(result.monitors, field), color="tab:blue", label="with reshaping"
+        )
+        ax.axhline(threshold, color="k", lw=0.8, label=f"threshold ({text})")
+        ax.set_yscale("log")
+        ax.set_ylabel(label)
+        if violation is not None:
+            ax.axvline(violation.time_s, color="tab:red", lw=0.8, ls=":")
     if violation is not None:
-        ax.axvline(violation.time_s, color="tab:red", lw=0.8, ls=":")
-        ax.annotate(
-            f"'{violation.criterion}' fails: reshaping\n(t = {violation.time_s:.2f} s)",
-            (violation.time_s, ax.get_ylim()[1] * 0.8),
+        axes[0].annotate(
+            f"'{violation.criterion}' fails at t = {violation.time_s:.2f} s:\nmotion discarded, reshaping "
+            f"({len(result.footsteps)} step{'s' if len(result.footsteps) != 1 else ''})",
+            (violation.time_s, axes[0].get_ylim()[1] * 0.3),
             fontsize=8,
             color="tab:red",
         )
-    ax.set_yscale("log")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("manipulability w = sqrt(det(J J^T))")
-    ax.set_title(
-        f"Fig. 7 — {robot_name}: arm manipulability with and without support polygon reshaping", fontsize=9
+    axes[1].set_xlabel("time [s]")
+    axes[0].legend(fontsize=8, loc="lower left")
+    axes[0].set_title(
+        f"Figs. 6-7 — {robot_name}\nthe monitored criteria with and without support polygon reshaping",
+        fontsize=9,
     )
-    ax.legend(fontsize=8, loc="lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
-def plot_zmp(path: Path, result, robot, cop: np.ndarray | None) -> None:
+def plot_zmp(path: Path, result, robot, cop: np.ndarray | None, label: str = "") -> None:
     t = result.times_s
     ext = polygon_extents(result, robot)
     fig = plt.figure(figsize=(12, 4.5))
@@ -158,7 +177,7 @@ def plot_zmp(path: Path, result, robot, cop: np.ndarray | None) -> None:
     ax.legend(fontsize=7)
     ax.set_title("top view (soles: left green, right orange)", fontsize=8)
     fig.suptitle(
-        f"Fig. 8 — {robot.name}: ZMP against the support polygon, {len(result.footsteps)} step(s), "
+        f"Fig. 8 — {robot.name} ({label}): ZMP against the support polygon, {len(result.footsteps)} step(s), "
         f"min margin {1e3 * result.min_zmp_margin_m:.0f} mm",
         fontsize=9,
     )
@@ -167,12 +186,25 @@ def plot_zmp(path: Path, result, robot, cop: np.ndarray | None) -> None:
     plt.close(fig)
 
 
+SETTINGS = {
+    "stack": ("the stack's defaults", ReachingOptions()),
+    "paper": ("the paper's experiment (2 criteria, S = I)", ReachingOptions.paper_experiment()),
+}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--robot", default="hrp2_like", choices=("hrp2_like", "talos"))
     parser.add_argument("--target", type=float, nargs=3, metavar=("X", "Y", "Z"), help="target [m]")
     parser.add_argument("--hand", choices=("left", "right"), help="default: the target's side")
     parser.add_argument("--no-sim", action="store_true", help="do not execute in the sim (no measured ZMP)")
+    parser.add_argument(
+        "--settings",
+        nargs="+",
+        choices=sorted(SETTINGS),
+        default=["paper", "stack"],
+        help="planner settings to plot: the paper's experiment and/or the stack's defaults (default both)",
+    )
     parser.add_argument("--out", default=str(ROOT / "out"), help="output directory (default out/)")
     args = parser.parse_args(argv)
 
@@ -180,23 +212,27 @@ def main(argv: list[str] | None = None) -> int:
     target = np.array(args.target or DEFAULT_TARGETS[robot.name])
     hand = args.hand or ("left" if target[1] >= 0 else "right")
     request = ReachRequest(hand, target, robot.q_half_sitting)
-    planner = planner_for(robot.name)
-    result = planner.plan(request)
-    _, without = planner.without_reshaping(request)
-    print(
-        f"{robot.name}: {len(result.footsteps)} step(s), {result.duration_s:.1f} s motion planned in "
-        f"{result.wall_time_s:.2f} s; attempts: "
-        + ", ".join(
-            f"{a.kind}" + (f" ({a.violation.criterion} at {a.violation.time_s:.2f} s)" if a.violation else "")
-            for a in result.attempts
-        )
-    )
-    cop = None if args.no_sim else measured_zmp(robot, result)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    plot_manipulability(out / f"reaching_{robot.name}_manipulability.png", result, without, robot.name)
-    plot_zmp(out / f"reaching_{robot.name}_zmp.png", result, robot, cop)
-    print(f"wrote {out}/reaching_{robot.name}_manipulability.png and reaching_{robot.name}_zmp.png")
+    for name in args.settings:
+        label, options = SETTINGS[name]
+        planner = planner_for(robot.name, options)
+        result = planner.plan(request)
+        _, without = planner.without_reshaping(request)
+        print(
+            f"{robot.name}, {label}: {len(result.footsteps)} step(s), {result.duration_s:.1f} s motion "
+            f"planned in {result.wall_time_s:.2f} s; attempts: "
+            + ", ".join(
+                f"{a.kind}"
+                + (f" ({a.violation.criterion} at {a.violation.time_s:.2f} s)" if a.violation else "")
+                for a in result.attempts
+            )
+        )
+        cop = None if args.no_sim else measured_zmp(robot, result)
+        stem = f"reaching_{robot.name}_{name}"
+        plot_criteria(out / f"{stem}_criteria.png", result, without, f"{robot.name}, {label}")
+        plot_zmp(out / f"{stem}_zmp.png", result, robot, cop, label)
+        print(f"wrote {out}/{stem}_criteria.png and {stem}_zmp.png")
     return 0
 
 

@@ -24,6 +24,7 @@ CLI_MODULES = (
     "services.model.cli",
     "services.ik.cli",
     "services.footsteps.cli",
+    "services.contacts.cli",
     "supervisor.cli",
     "services.viz.cli",
     "services.cli_completion",
@@ -64,7 +65,8 @@ def build_parser(command: str | None = None, *, grouped: bool = True) -> argpars
         if add_cli is None:
             raise AttributeError(f"{name} has no add_cli(subparsers) function")
         add_cli(subparsers)
-        if command is not None and command in subparsers.choices:
+        # (``scenario`` gathers sub-commands from several modules: all of them are imported)
+        if command is not None and command in subparsers.choices and command != "scenario":
             break
     if command is None and grouped:  # the full list: grouped instead of argparse's single list
         subparsers.help = argparse.SUPPRESS

@@ -8,7 +8,9 @@ Planned contacts:
 * an object held by the robot touching a hand, an ``allowed`` object, or an object it already touched
   when the motion started (lifting it off its support);
 * any link on an object the motion is ``leaving`` (backing out of a collision), until that contact
-  first breaks: touching it again later is a collision.
+  first breaks: touching it again later is a collision;
+* any link on a ``supports`` object (a multi-contact motion's supports: the chair the robot gets up
+  from, the table it leans on; the contact planner chose where).
 
 Every other contact between the robot (or an object it holds) and the scene is a collision. Contacts
 among scene objects (a ball resting on a box) are never reported. Self-contacts of the robot are not
@@ -53,6 +55,7 @@ class ContactRules:
     already_touching: frozenset[tuple[str, str]] = frozenset()  # (held object, other) at motion start
     min_force_n: float = 0.05
     leaving: set[str] = field(default_factory=set)  # objects still touched since the start (shrinks)
+    supports: frozenset[str] = frozenset()  # objects any link may touch (multi-contact supports)
 
     def other_name(self, body: int) -> str:
         return "floor" if body == self.floor_id else self.names.get(body, f"body{body}")
@@ -92,7 +95,7 @@ class ContactRules:
             other_name = self.other_name(other)
             if other == self.floor_id and link in self.foot_links:
                 continue
-            if other_name in self.leaving:
+            if other_name in self.leaving or other_name in self.supports:
                 continue
             if link in self.hand_links and (other in held_names or other_name in self.allowed):
                 continue

@@ -70,7 +70,8 @@ DISK_THICKNESS_M = 0.002
 _DEFAULT_MASS_KG = {"ball": 0.1, "bar": 0.5}
 
 _TOP_KEYS = ("name", "description", "robot", "floor", "objects")
-_ROBOT_KEYS = ("x", "y", "yaw", "random")
+_ROBOT_KEYS = ("x", "y", "yaw", "random", "posture")
+_POSTURE_KEYS = ("base_z", "pitch", "joints")
 _FLOOR_KEYS = ("colour", "friction")
 _RANDOM_KEYS = ("x", "y", "yaw")
 _OBJECT_KEYS = {
@@ -168,8 +169,21 @@ class ObjectSpec:
 
 
 @dataclass(frozen=True)
+class RobotPosture:
+    """A start posture other than half-sitting (``robot.posture`` in a scene file, e.g. seated on a
+    chair): the base (waist) height ``base_z_m`` [m] and pitch ``pitch_rad`` [rad] (the heading is the
+    scene's ``robot.yaw``, the base's x, y the scene's ``robot.x``, ``robot.y``) and joint values
+    [rad] overriding half-sitting (``joints: {NAME: value}``)."""
+
+    base_z_m: float
+    pitch_rad: float
+    joints: tuple[tuple[str, float], ...]
+
+
+@dataclass(frozen=True)
 class SceneSpec:
-    """A parsed scene file."""
+    """A parsed scene file. ``robot_posture`` None: the robot starts in half-sitting with its soles'
+    midpoint at ``robot_xy``; otherwise its base is at ``robot_xy`` in that posture."""
 
     name: str
     description: str
@@ -179,6 +193,7 @@ class SceneSpec:
     floor_colour: tuple[float, float, float, float]
     floor_friction: float
     objects: tuple[ObjectSpec, ...]
+    robot_posture: RobotPosture | None = None
 
     def object(self, name: str) -> ObjectSpec:
         for obj in self.objects:
@@ -293,6 +308,23 @@ def parse_scene(doc: Any, source: str = "<scene>") -> SceneSpec:
         floor_colour=_colour(f"{source}: floor.colour", floor.get("colour", "light_grey")),
         floor_friction=_positive(f"{source}: floor.friction", floor.get("friction", 1.0)),
         objects=tuple(objects),
+        robot_posture=_parse_posture(f"{source}: robot.posture", robot.get("posture")),
+    )
+
+
+def _parse_posture(where: str, raw: Any) -> RobotPosture | None:
+    if raw is None:
+        return None
+    raw = _mapping(where, raw, _POSTURE_KEYS)
+    if "base_z" not in raw:
+        raise InvalidRequestError(f"{where}: a posture needs 'base_z' (the waist height [m])")
+    joints = raw.get("joints") or {}
+    if not isinstance(joints, dict):
+        raise InvalidRequestError(f"{where}.joints: expected a mapping of joint names to values [rad]")
+    return RobotPosture(
+        base_z_m=_positive(f"{where}.base_z", raw["base_z"]),
+        pitch_rad=_number(f"{where}.pitch", raw.get("pitch", 0.0)),
+        joints=tuple((str(k), _number(f"{where}.joints.{k}", v)) for k, v in joints.items()),
     )
 
 

@@ -166,6 +166,7 @@ class SimService(Service):
                 request.stop_on_collision,
                 request.hold_s,
                 tuple(request.leaving),
+                tuple(request.supports),
             )
         return msg.ExecuteReply(
             outcome=r.outcome,

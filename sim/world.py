@@ -44,6 +44,29 @@ _FINGER_STALL_SPEED = 2e-3  # [m/s or rad/s]: a closing finger slower than this 
 _FINGER_DONE_TOL = 1e-3  # [m or rad]: a finger this close to its target has arrived
 
 TickHook = Callable[["World"], None]
+FALL_MARGIN_M = 0.15  # a base this far below a planned posture under the fall height has fallen [m]
+FALL_MARGIN_RAD = 0.35  # a base this much more tilted than a planned tilted posture has fallen [rad]
+
+
+def start_configuration(robot: RobotModel, scene_layout: Layout) -> np.ndarray:
+    """The robot's configuration at a reset: half-sitting with the soles' midpoint at the scene's
+    start pose, or the scene's ``robot.posture`` (e.g. seated) with the base there."""
+    x, y = scene_layout.robot_xy
+    yaw = scene_layout.robot_yaw_rad
+    q = robot.half_sitting_at(x, y, yaw)
+    posture = scene_layout.scene.robot_posture
+    if posture is None:
+        return q
+    for name, value in posture.joints:
+        if name not in robot.joint_names:
+            raise InvalidRequestError(
+                f"scene {scene_layout.scene.name}: robot.posture names an unknown joint {name!r}; "
+                f"joints: {robot.joint_names}"
+            )
+        q[robot.joint_index(name).idx_q] = value
+    q[:3] = (x, y, posture.base_z_m)
+    q[3:7] = pin.Quaternion(pin.rpy.rpyToMatrix(0.0, posture.pitch_rad, yaw)).coeffs()
+    return q
 
 
 @contextlib.contextmanager
@@ -128,14 +151,14 @@ class World:
         self.floor_id, self.bodies = build_scene(new_layout, c)
         self.body_names = {body: name for name, body in self.bodies.items()}
         self.movable = {b: n for n, b in self.bodies.items() if not new_layout.object(n).spec.is_static}
-        x, y = new_layout.robot_xy
-        q0 = self.robot.half_sitting_at(x, y, new_layout.robot_yaw_rad)
+        q0 = start_configuration(self.robot, new_layout)
         with _quiet_stdout():
             self.pyrobot = PybulletRobot(self.robot, c, q0)
         self._index_robot()
         self.held: dict[str, str] = {}
         self._constraints: dict[str, int] = {}
         self.q_cmd = q0.copy()
+        self.q_planned = q0.copy()  # the posture the robot should be in (its fall limits)
         for side in ("left", "right"):
             self._finger_target[side] = self.robot.params.gripper.open_q
             self._command_finger(side, self.robot.params.gripper.open_q)
@@ -278,15 +301,27 @@ class World:
         R = (T_world_base or self.base_pose()).rotation
         return float(math.acos(max(-1.0, min(1.0, R[2, 2]))))
 
-    def fallen(self) -> bool:
-        """True if the base is below the robot's fall height or tilted beyond its fall angle."""
-        T = self.base_pose()
+    def fall_limits(self, q_planned: np.ndarray) -> tuple[float, float]:
+        """(base height [m], tilt [rad]) under / beyond which the robot has fallen while it should be at
+        ``q_planned``: the robot's fall height and angle, moved with a planned posture lower or more
+        tilted than them (seated on a chair, leaning on a table) to that much below or more tilted."""
         prm = self.robot.params
-        return T.translation[2] < prm.fall_base_height_m or self.tilt_rad(T) > prm.fall_tilt_rad
+        planned = pin.XYZQUATToSE3(np.asarray(q_planned[:7], dtype=float))
+        height = min(prm.fall_base_height_m, float(planned.translation[2]) - FALL_MARGIN_M)
+        return height, max(prm.fall_tilt_rad, self.tilt_rad(planned) + FALL_MARGIN_RAD)
 
-    def contact_rules(self, allowed: tuple[str, ...] = (), leaving: tuple[str, ...] = ()) -> ContactRules:
+    def fallen(self) -> bool:
+        """True if the base is below the fall height or tilted beyond the fall angle of the posture last
+        planned (:meth:`fall_limits`: the start posture, then each trajectory sample played)."""
+        T = self.base_pose()
+        height, tilt = self.fall_limits(self.q_planned)
+        return T.translation[2] < height or self.tilt_rad(T) > tilt
+
+    def contact_rules(
+        self, allowed: tuple[str, ...] = (), leaving: tuple[str, ...] = (), supports: tuple[str, ...] = ()
+    ) -> ContactRules:
         """The planned-contact rules for the current held objects and ``allowed`` object names."""
-        unknown = sorted((set(allowed) | set(leaving)) - set(self.bodies) - {"floor"})
+        unknown = sorted((set(allowed) | set(leaving) | set(supports)) - set(self.bodies) - {"floor"})
         if unknown:
             raise NotFoundError(
                 f"allowed_contacts names unknown objects {unknown}; objects in scene "
@@ -305,6 +340,7 @@ class World:
             allowed=frozenset(allowed),
             min_force_n=self.config.contact_force_n,
             leaving=set(leaving) - {"floor"},
+            supports=frozenset(supports),
         )
 
     def collisions(self, allowed: tuple[str, ...] = ()) -> list[Contact]:
@@ -320,6 +356,7 @@ class World:
         stop_on_collision: bool = True,
         hold_s: float = 0.0,
         leaving: tuple[str, ...] = (),
+        supports: tuple[str, ...] = (),
     ) -> ExecutionResult:
         """Play a joint trajectory through position control.
 
@@ -333,6 +370,9 @@ class World:
             hold_s: keep the last sample commanded this long after the end [s] (still monitored).
             leaving: objects the robot touches now and moves away from: their contacts with any link
                 are allowed until they first break (:attr:`sim.contacts.ContactRules.leaving`).
+            supports: objects any link may touch during the whole motion (a multi-contact motion's
+                supports: a chair the robot gets up from, a table it leans on; ``floor`` lets any link
+                touch the floor).
         """
         cfg = self.config
         q_traj = self._check_trajectory(q_trajectory)
@@ -344,7 +384,7 @@ class World:
             )
         if hold_s < 0:
             raise InvalidRequestError(f"hold_s must be >= 0, got {hold_s}")
-        rules = self.contact_rules(tuple(allowed_contacts), tuple(leaving))
+        rules = self.contact_rules(tuple(allowed_contacts), tuple(leaving), tuple(supports))
         rules.already_touching = rules.touching_pairs()
         n_hold = round(hold_s / dt)
         monitor = _Monitor(self)
@@ -364,16 +404,20 @@ class World:
                 self._command_body(q_cmd, v_ff)
                 self.step(1)
             self.q_cmd = q_next.copy()
+            self.q_planned = q_next.copy()
             executed = min(k + 1, len(q_traj))
             T_base = monitor.update(q_next)
             height, tilt = float(T_base.translation[2]), self.tilt_rad(T_base)
-            prm = self.robot.params
-            if height < prm.fall_base_height_m or tilt > prm.fall_tilt_rad:
+            # A planned posture lower or more tilted than the fall limits (seated on a chair, leaning on
+            # a table) moves the limits with it: a fall is then a base that much below or more tilted
+            # than planned.
+            fall_height, fall_tilt = self.fall_limits(q_next)
+            if height < fall_height or tilt > fall_tilt:
                 outcome, fall = "fell", (height, tilt)
                 message = (
                     f"the robot fell at t={self.sim_time_s - start_time:.3f} s into the motion: base height "
-                    f"{height:.3f} m (limit {prm.fall_base_height_m} m), tilt "
-                    f"{math.degrees(tilt):.1f} deg (limit {math.degrees(prm.fall_tilt_rad):.1f} deg)"
+                    f"{height:.3f} m (limit {fall_height:.3f} m), tilt "
+                    f"{math.degrees(tilt):.1f} deg (limit {math.degrees(fall_tilt):.1f} deg)"
                 )
                 break
             for contact in rules.collisions():

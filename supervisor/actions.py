@@ -39,6 +39,7 @@ from supervisor.report import ActionError, ActionReport
 from supervisor.runner import Action, Remedy
 from supervisor.scene_map import box_estimate, boxes, distance_to_box, is_obstacle, ray_entry
 from supervisor.script import Step
+from supervisor.stand_up import stand_up
 
 #: A contact farther than this from every mapped box [m] hit something the map lacks.
 MAPPED_MARGIN_M = 0.1
@@ -137,7 +138,9 @@ class Actions:
     # The tables the runner uses ---------------------------------------------------------------------
     def table(self) -> dict[str, Action]:
         names = ("detect", "localize", "goto", "turn", "reach", "grasp", "open", "put", "look_at")
-        return {name: self._timed(getattr(self, f"do_{name}")) for name in names}
+        table = {name: self._timed(getattr(self, f"do_{name}")) for name in names}
+        table["stand_up"] = self._timed(lambda step: stand_up(self.bus, self.body, self.progress, step.args))
+        return table
 
     def remedies(self) -> dict[str, Remedy]:
         return {"relocalize": self.relocalize, "replan": self.replan, "wait_service": self.wait_service}

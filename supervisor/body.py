@@ -133,13 +133,15 @@ class Body:
         hold_s: float = 0.0,
         touch: str = "",
         leaving: Sequence[str] = (),
+        supports: Sequence[str] = (),
     ) -> Executed:
         """Play the (N, nq) trajectory ``Q`` in chunks; ActionError(fell | collision | stopped).
 
         ``touch``: an object the motion is expected to bump into (a guarded move: lowering a held object
         onto a table of uncertain height); stopping on contacts with it only is a success with
         ``touched`` set, as a force sensor in the wrist would tell. ``leaving``: objects touched at the
-        start that the motion moves away from (``sim/execute``'s ``leaving``). A collision stop keeps
+        start that the motion moves away from (``sim/execute``'s ``leaving``); ``supports``: objects any link
+        may touch (a multi-contact motion's supports). A collision stop keeps
         the executed part in :attr:`interrupted` (see :meth:`back_out`).
         """
         Q = np.asarray(Q, dtype=float)
@@ -162,6 +164,7 @@ class Body:
                 allowed_contacts=list(allowed_contacts),
                 hold_s=hold_s if last else 0.0,
                 leaving=list(leaving),
+                supports=list(supports),
             )
             reply = self.bus.call(sim_msg.EXECUTE, request, EXECUTE_TIMEOUT_S)
             spent += reply.duration_s

@@ -154,6 +154,9 @@ VERBS: dict[str, str] = {
     "retreat": "back",
     # posture
     "stand up": "stand",
+    "get out of": "stand",
+    "get off": "stand",
+    "climb out of": "stand",
     "get up": "stand",
     "stand": "stand",
     "rise": "stand",
@@ -761,9 +764,11 @@ class Listener:
             return self._parse_turn(rest, clause, filled)
         if kind in ("step", "back"):
             return self._parse_step(kind, rest, clause)
-        if kind == "stand":
-            if rest and rest not in ("up", "back up"):
-                raise NotUnderstoodError(clause, "'stand up' takes nothing after it")
+        if kind == "stand":  # the supervisor's stand_up: out of the chair, standing beside it
+            rest = re.sub(r"^(?:back )?up\b\s*", "", rest)
+            rest = re.sub(r"^(?:from|out of|off)\s+", "", rest)
+            if rest and self._object(rest, "", "obj", filled) not in [k for k in self.known if "chair" in k]:
+                raise NotUnderstoodError(clause, "I can stand up from the chair only")
             return Intent("stand", clause)
         raise NotUnderstoodError(clause, f"'{verb}' is not an action I can do")
 

@@ -54,6 +54,9 @@ ACTIONS: dict[str, Signature] = {
     "open": Signature(("hand",), help="open the hand, releasing what it holds"),
     "put": Signature(("object",), ("on",), help="put the held object on a place"),
     "look_at": Signature(("object",), help="turn the head toward an object"),
+    "stand_up": Signature(
+        ("goal_y",), optional_positional=1, help="get out of the chair (contact planning), stand beside it"
+    ),
 }
 
 HANDS = ("left", "right")

@@ -427,8 +427,26 @@ def test_a_refusal_says_what_it_understood_and_what_it_can_do(text: str, underst
         assert f"I understood: {understood}" in understanding.say
 
 
+@pytest.mark.parametrize(
+    "text", ["stand up", "get up, please", "get out of the chair", "stand up from the chair"]
+)
+def test_standing_up_is_the_supervisors_stand_up(text: str):
+    understanding = Listener(KNOWN, actions=ACTIONS_PLUS).hear(text)
+    assert [s.text() for s in understanding.steps] == ["stand_up"], understanding.say
+
+
+def test_standing_up_from_something_else_is_refused():
+    understanding = Listener(KNOWN, actions=ACTIONS_PLUS).hear("get off the green box")
+    assert understanding.refused and "I can stand up from the chair only" in understanding.say
+
+
 def test_real_action_table_runs_or_names_the_missing_action():
     """With the supervisor's own actions: a relative walk runs if `walk` exists, else is refused by name."""
+    standing = Listener(KNOWN).hear("get up")
+    if "stand_up" in ACTIONS:
+        assert [s.text() for s in standing.steps] == ["stand_up"]
+    else:
+        assert standing.refused and "no 'stand_up' action" in standing.say
     understanding = Listener(KNOWN).hear("step back")
     if "walk" in ACTIONS:
         assert [s.text() for s in understanding.steps] == ["walk -0.2 0"]

@@ -359,6 +359,8 @@ def test_initial_guess_of_steps(robot):
         ({"disks": (DiskObstacle(0, 0, -1),)}, "disks[0]"),
         ({"initial_steps": 30}, "initial_steps"),
         ({"options": PlannerOptions(alpha=2.0)}, "alpha"),
+        ({"options": PlannerOptions(damping=-1.0)}, "damping"),
+        ({"options": PlannerOptions(polish_iterations=-1)}, "polish_iterations"),
     ],
 )
 def test_invalid_requests_name_the_field(robot, change, field):
@@ -390,6 +392,29 @@ def test_chain_from_a_turned_stance(robot):
 # ------------------------------------------------------------------------------------------ execution
 
 
+def test_paper_scenarios_use_the_papers_task_sets():
+    """Section 4: the reach and the pick-up with the reach alone (the disks are constraints), the
+    posture recovery with gaze > posture; the rest posture objective only on request."""
+    assert [t.kind for t in scenarios.reach().request.tasks] == ["reach"]
+    assert [t.kind for t in scenarios.pickup().request.tasks] == ["reach"]
+    assert [t.kind for t in scenarios.posture().request.tasks] == ["gaze", "posture"]
+    assert [t.kind for t in scenarios.fig10().request.tasks] == ["reach", "gaze", "posture"]
+    assert [t.kind for t in scenarios.reach(posture_objective=True).request.tasks] == ["reach", "posture"]
+
+
+def test_fig10_threshold_study_higher_epsilon_reacts_earlier(robot):
+    """Fig. 10 (b)-(e): with low thresholds the steps come late and the run is longer; with high ones
+    the algorithm reacts faster and needs fewer iterations."""
+    runs = {}
+    for label in ("low", "high"):
+        request = scenarios.fig10(robot.name, scenarios.EPSILON_STUDY[label]).request
+        runs[label] = plan_footsteps(scenarios.with_trace(request), robot)
+    assert runs["high"].iterations < runs["low"].iterations
+    assert runs["high"].n_steps <= runs["low"].n_steps
+    for result in runs.values():
+        assert len(result.trace.steps_added_at) == result.chain_steps - 1
+
+
 @pytest.fixture(scope="module")
 def near_reach(robot):
     """A ball 1 m ahead at table height: a few steps, then the reach (rest posture as objective)."""
@@ -410,6 +435,9 @@ def test_plan_becomes_a_walk_and_a_reach(robot, near_reach):
     assert np.max(np.abs(np.diff(motion.q[:, 7:], axis=0))) < 0.05
     assert motion.final_errors_m["reach:right"] < 2e-3
     assert motion.reach_max_sole_drift_m < 1e-3 and motion.reach_min_com_margin_m > 0.0
+    # the final reach keeps the self-collision constraints (Fig. 8): no capsule pair closer than 1 cm
+    # (its margin) less what the 5 ms interpolation between IK knots may cut
+    assert motion.reach_min_self_distance_m > 0.005
     # the walk ends on the planned footprints
     final = {s.side: s for s in result.footsteps}
     data = robot.new_data()

@@ -229,6 +229,24 @@ def test_options_are_validated():
         ReachingOptions(criteria=("manipulability", "luck"))
     with pytest.raises(InvalidRequestError, match="knot_stride"):
         ReachingOptions(knot_stride=0)
+    with pytest.raises(InvalidRequestError, match="recovery_iterations"):
+        ReachingOptions(recovery_iterations=-1)
+
+
+def test_the_papers_experiment_triggers_on_its_two_criteria_and_keeps_a_stable_reshaping():
+    """ "Experimental Results": only the manipulability and the end-effector error trigger, S = I; a
+    reshaping whose motion has no ZMP inside the polygon is discarded, the kept one is inside."""
+    options = ReachingOptions.paper_experiment()
+    assert options.criteria == ("manipulability", "ee_error") and not options.other_arm_still
+    assert options.joint_limit_selection_rad is None and options.weighted
+    robot = load_robot("hrp2_like")
+    result = plan_reach(robot, _request(robot, FORWARD_BEYOND[robot.name]), options)
+    first = result.attempts[0]
+    assert result.stepped and first.violation.criterion in ("manipulability", "ee_error", "multibody_zmp")
+    for attempt in result.attempts[:-1]:
+        assert attempt.violation is not None
+    assert result.attempts[-1].violation is None
+    _check_plan(robot, result)
 
 
 # ------------------------------------------------------------------------------------------ in the sim

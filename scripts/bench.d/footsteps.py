@@ -5,9 +5,19 @@ The paper's three scenarios (section 4) beside the paper's solve times (HRP-2 mo
 random layouts (``services.footsteps.scenarios.random_layout``: a target 1-3 m away in any direction
 at 0.1-1.2 m height, 0-2 disk obstacles). Both start feet are solved (section 5.2) in every timing.
 
+The scenarios run with the paper's task sets (section 4: the reach alone with its disks; gaze >
+posture) and ``scenarios.PAPER_OPTIONS``; ``paper_tasks`` lists them beside the paper's steps and
+times and beside the stack's variant (``posture_objective``: the rest posture as lowest objective, the
+stack's default numerics). ``epsilon_study`` is Fig. 10's threshold study (reach > gaze > posture,
+every epsilon_i x0.1 / x1 / x5: steps, step additions, time). ``numerics`` runs the three paper
+scenarios with each of Algorithm 1's numerics that differ from eqs. 2/15 switched to the paper's
+form one at a time (saturated task rates off, the 0.25 per-coordinate cap on, LM damping off,
+epsilon as written, no polish iterations), and all of them at once: which results depend on which.
+
 Writes ``bench/out/footsteps.json``::
 
     {"scenarios": [{name, solve_s, cpu_s, steps, paper_s, paper_steps, solved}, ...],
+     "paper_tasks": [...], "epsilon_study": [...], "numerics": {variant: [...]},
      "random": {n, success_rate, median_s, median_cpu_s, p90_s, max_s, failures: [...]}, ...}
 
 ``solve_s`` is the best wall time of ``--repeat`` runs (the machine is shared), ``cpu_s`` the process
@@ -21,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import platform
 import statistics
 import sys
@@ -31,8 +42,11 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from dataclasses import replace  # noqa: E402
+
 from services.errors import InfeasibleError  # noqa: E402
 from services.footsteps import scenarios  # noqa: E402
+from services.footsteps.demo import run_epsilon_study  # noqa: E402
 from services.footsteps.planner import plan_footsteps  # noqa: E402
 from services.model import load_robot  # noqa: E402
 
@@ -72,6 +86,70 @@ def bench_scenarios(robot, repeat: int) -> list[dict]:
             }
         )
     return rows
+
+
+# Algorithm 1's numerics that differ from eqs. 2/15, each switched to the paper's form (README).
+NUMERICS = {
+    "as_run": {},
+    "no_rate_saturation": {"max_rate_m": math.inf, "max_rate_rad": math.inf},
+    "coordinate_cap_0.25": {"dq_max": 0.25},
+    "no_lm_damping": {"damping": 0.0, "error_damping": 0.0},
+    "epsilon_as_written": {"relative_epsilon": math.inf},
+    "no_polish": {"polish_iterations": 0},
+    "all_as_written": {
+        "max_rate_m": math.inf,
+        "max_rate_rad": math.inf,
+        "damping": 0.0,
+        "error_damping": 0.0,
+        "relative_epsilon": math.inf,
+        "polish_iterations": 0,
+    },
+}
+
+
+def _row(name: str, scenario, result, error, wall: float, cpu: float) -> dict:
+    return {
+        "name": name,
+        "solved": error is None,
+        "steps": None if result is None else result.n_steps,
+        "iterations": None if result is None else result.iterations,
+        "solve_s": wall,
+        "cpu_s": cpu,
+        "paper_s": scenario.paper_solve_s,
+        "paper_steps": scenario.paper_steps,
+        "error": None if error is None else error.message,
+    }
+
+
+def bench_paper_tasks(robot) -> list[dict]:
+    """The three scenarios with the paper's task sets beside the stack's posture-objective variant."""
+    rows = []
+    for name in ("reach", "pickup", "posture"):
+        factory = scenarios.SCENARIOS[name]
+        variants = [("paper", factory(robot.name))]
+        if name != "posture":
+            variants.append(("posture_objective", factory(robot.name, posture_objective=True)))
+        for task_set, scenario in variants:
+            result, error, wall, cpu = _timed(scenario.request, robot)
+            row = _row(name, scenario, result, error, wall, cpu)
+            row["task_set"] = task_set
+            row["tasks"] = [t.name for t in scenario.request.tasks]
+            rows.append(row)
+    return rows
+
+
+def bench_numerics(robot) -> dict:
+    """The paper scenarios with each numerical device switched to eqs. 2/15's form."""
+    out = {}
+    for variant, overrides in NUMERICS.items():
+        rows = []
+        for name in ("reach", "pickup", "posture"):
+            scenario = scenarios.SCENARIOS[name](robot.name)
+            request = replace(scenario.request, options=replace(scenario.request.options, **overrides))
+            result, error, wall, cpu = _timed(request, robot)
+            rows.append(_row(name, scenario, result, error, wall, cpu))
+        out[variant] = rows
+    return out
 
 
 def bench_random(robot, n: int, seed0: int) -> dict:
@@ -125,6 +203,28 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['solve_s']:8.3f} {r['cpu_s']:8.3f} {r['first_s']:8.3f} {r['paper_s']:8.2f} "
             f"{r['speedup_vs_paper']:7.1f}x"
         )
+    paper = bench_paper_tasks(robot)
+    print("paper_tasks (section 4 task sets; posture_objective: the stack's variant)")
+    for r in paper:
+        print(
+            f"  {r['name']:8s} {r['task_set']:17s} solved {r['solved']!s:5s} steps {r['steps']!s:>3s} "
+            f"(paper {r['paper_steps'] or '0-few'!s}) {r['solve_s']:.3f} s (paper {r['paper_s']} s)"
+        )
+    study = run_epsilon_study(robot.name, out_dir=None)
+    print("epsilon_study (Fig. 10: reach > gaze > posture)")
+    for r in study:
+        print(
+            f"  {r['label']:8s} x{r['epsilon_scale']:<4g} steps {r['steps']} "
+            f"added after {r['steps_added_at']} {r['solve_s']:.3f} s wall, {r['cpu_s']:.3f} s CPU"
+        )
+    numerics = bench_numerics(robot)
+    print("numerics (paper scenarios; each device switched to eqs. 2/15's form)")
+    for variant, rows_v in numerics.items():
+        cells = ", ".join(
+            f"{r['name']} {'ok' if r['solved'] else 'FAIL'} {r['steps']} steps {r['solve_s']:.2f} s"
+            for r in rows_v
+        )
+        print(f"  {variant:20s} {cells}")
     rand = bench_random(robot, args.n, args.seed0)
     print(
         f"random layouts: {rand['n']}, success {100 * rand['success_rate']:.1f} %, "
@@ -149,6 +249,9 @@ def main(argv: list[str] | None = None) -> int:
             "processor": platform.processor() or platform.machine(),
         },
         "scenarios": rows,
+        "paper_tasks": paper,
+        "epsilon_study": study,
+        "numerics": numerics,
         "random": rand,
         "goals": goals,
     }

@@ -11,6 +11,15 @@ Figures (issue 7), all from one run:
   and executed in ``sim.world.World`` (scene ``empty``); a success is a completed execution, the robot
   standing and the hand within 1 cm of the target (goal: >= 95 %). Planning times are wall times on
   this shared machine (CPU times alongside).
+- ``trigger``: over the random targets (executed with the stack's defaults), how many reshapings each
+  criterion triggered (the first attempt's violation, on the initial support polygon: the paper's
+  ``manipulability`` (< 1.5e-4) and ``ee_error`` (> 4e-5 m), the stack's ``joint_speed`` and
+  ``joint_torque``, and ``multibody_zmp``: a motion whose ZMP does not exist or leaves the polygon,
+  discarded); ``single_step_share``: the share of the reshaped reaches done with one step (the
+  paper's Fig. 6 makes one step);
+- ``paper_experiment``: the same targets planned (not executed) with the paper's settings
+  (``ReachingOptions.paper_experiment()``: its two criteria, S = I): planned share, trigger counts,
+  single-step share, median steps.
 
 The envelopes of reach (measured once per hand, see ``services/reaching/envelope.py``) are computed
 before the timings.
@@ -85,7 +94,12 @@ def run_one(world, robot, hand: str, target: np.ndarray) -> dict:
     try:
         result = plan_reach(robot, ReachRequest(hand, target, q0))
     except HumanoidError as exc:
-        return {"outcome": exc.code, "message": exc.message, "planning_s": time.perf_counter() - t0}
+        return {
+            "outcome": exc.code,
+            "message": exc.message,
+            "planning_s": time.perf_counter() - t0,
+            "trigger": (exc.details or {}).get("criterion"),
+        }
     plan_s, plan_cpu_s = time.perf_counter() - t0, time.process_time() - c0
     ex = world.execute(result.q, hold_s=HOLD_S)
     q = world.state().q
@@ -106,6 +120,7 @@ def run_one(world, robot, hand: str, target: np.ndarray) -> dict:
         "attempts": [
             a.kind + ("" if a.violation is None else f":{a.violation.criterion}") for a in result.attempts
         ],
+        "trigger": None if result.attempts[0].violation is None else result.attempts[0].violation.criterion,
     }
 
 
@@ -129,6 +144,40 @@ def timings(robot, targets: list[tuple[float, float, float]], expect_step: bool)
         "motion_s": float(np.median(durations)),
         "speedup": float(np.median(np.array(durations) / np.array(wall))),
         "min_speedup": float(np.min(np.array(durations) / np.array(wall))),
+    }
+
+
+def paper_experiment(robot, targets: list[tuple[str, np.ndarray, float]]) -> dict:
+    """Plan (no execution) every target with the paper's settings: triggers and steps."""
+    from services.errors import HumanoidError
+    from services.reaching import ReachRequest
+    from services.reaching.options import ReachingOptions
+    from services.reaching.planner import ReachPlanner
+
+    planner = ReachPlanner(robot, ReachingOptions.paper_experiment())
+    triggers: dict[str, int] = {}
+    steps, failures = [], 0
+    for hand, target, _ in targets:
+        try:
+            result = planner.plan(ReachRequest(hand, target, robot.q_half_sitting))
+        except HumanoidError as exc:
+            failures += 1
+            criterion = (exc.details or {}).get("criterion")
+            if criterion:
+                triggers[criterion] = triggers.get(criterion, 0) + 1
+            continue
+        first = result.attempts[0].violation
+        if first is not None:
+            triggers[first.criterion] = triggers.get(first.criterion, 0) + 1
+        steps.append(len(result.footsteps))
+    reshaped = [n for n in steps if n > 0]
+    return {
+        "n": len(targets),
+        "planned": len(steps),
+        "infeasible": failures,
+        "trigger": triggers,
+        "single_step_share": sum(n == 1 for n in reshaped) / len(reshaped) if reshaped else None,
+        "median_steps": float(np.median(steps)) if steps else None,
     }
 
 
@@ -191,6 +240,17 @@ def main(argv: list[str] | None = None) -> int:
     outcomes: dict[str, int] = {}
     for r in runs:
         outcomes[r["outcome"]] = outcomes.get(r["outcome"], 0) + 1
+    triggers: dict[str, int] = {}
+    for r in runs:
+        if r.get("trigger"):
+            triggers[r["trigger"]] = triggers.get(r["trigger"], 0) + 1
+    reshaped = [r for r in planned if r.get("steps", 0) > 0]
+    results["trigger"] = triggers
+    results["single_step_share"] = (
+        sum(r["steps"] == 1 for r in reshaped) / len(reshaped) if reshaped else None
+    )
+    results["paper_single_step"] = "Fig. 6: one step"
+    results["paper_experiment"] = paper_experiment(robot, random_targets(robot, args.n, args.seed))
     results["random"] = {
         "n": len(runs),
         "seed": args.seed,
@@ -219,6 +279,18 @@ def main(argv: list[str] | None = None) -> int:
     ):
         print(f"{label:44s} {value:10.2f}")
     print(f"  outcomes: {rnd['outcomes']}")
+    share = results["single_step_share"]
+    print(f"  trigger (first violation) by criterion: {results['trigger']}")
+    print(
+        "  single_step_share (reshapings with one step; paper Fig. 6: one step): "
+        + ("-" if share is None else f"{share:.2f} of {len(reshaped)}")
+    )
+    pe = results["paper_experiment"]
+    print(
+        f"paper's settings (2 criteria, S = I; planned only): {pe['planned']}/{pe['n']} planned, "
+        f"trigger {pe['trigger']}, single_step_share {pe['single_step_share']}, median steps "
+        f"{pe['median_steps']}"
+    )
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
     print(f"wrote {OUT.relative_to(ROOT)}")

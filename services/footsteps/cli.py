@@ -59,6 +59,11 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
             help="also turn the plan into the whole-body motion (walking pattern generator + final reach), "
             "saved as out/footsteps_<name>_motion.npz",
         )
+        p.add_argument(
+            "--posture-objective",
+            action="store_true",
+            help="the stack's variant: the rest posture as the lowest task (default: the paper's task set)",
+        )
         p.add_argument("--json", action="store_true", help="print the summary as JSON")
         p.set_defaults(func=_run, footsteps_scenario=name)
 
@@ -72,6 +77,7 @@ def _run(args: argparse.Namespace) -> int:
         out_dir=None if args.no_figures else args.out,
         front_foot=args.front_foot,
         execute=args.execute,
+        posture_objective=args.posture_objective and args.footsteps_scenario in ("reach", "pickup"),
     )
     print(json.dumps(summary, indent=2) if args.json else format_summary(summary))
     return 0 if summary["solved"] else 1

@@ -9,11 +9,14 @@ from typing import Any
 
 import numpy as np
 
-from services.errors import InvalidRequestError
+from services.errors import InfeasibleError, InvalidRequestError
 from services.footsteps import scenarios
 from services.footsteps.planner import plan_footsteps_best
 from services.footsteps.plotting import chain_states_figure, task_values_figure
 from services.model import load_robot
+from services.walking.timing import WalkTiming
+
+SLOW_WALK = WalkTiming(single_support_s=1.2, double_support_s=0.45)
 
 
 def run_scenario(
@@ -22,15 +25,19 @@ def run_scenario(
     out_dir: Path | None = Path("out"),
     front_foot: str = "auto",
     execute: bool = False,
+    posture_objective: bool = False,
 ) -> dict[str, Any]:
-    """Plan scenario ``name`` ("reach", "pickup" or "posture"), draw its figures into ``out_dir``
-    (``footsteps_<name>_chain.png``, ``footsteps_<name>_values.png``; None: no figure), optionally
-    turn the plan into the whole-body motion (walk + reach, ``footsteps_<name>_motion.npz``), and
-    return a plain-data summary."""
+    """Plan scenario ``name`` ("reach", "pickup", "posture" or "fig10"), draw its figures into
+    ``out_dir`` (``footsteps_<name>_chain.png``, ``footsteps_<name>_values.png``; None: no figure),
+    optionally turn the plan into the whole-body motion (walk + reach, ``footsteps_<name>_motion.npz``;
+    a plan the walking planner rejects is reported in ``motion_error``), and return a plain-data
+    summary. ``posture_objective``: the stack's variant of "reach" and "pickup" (the rest posture as
+    the lowest task) instead of the paper's task set."""
     if name not in scenarios.SCENARIOS:
         raise InvalidRequestError(f"unknown scenario {name!r}; valid: {sorted(scenarios.SCENARIOS)}")
     robot = load_robot(robot_name)
-    scenario = scenarios.SCENARIOS[name](robot_name)
+    factory = scenarios.SCENARIOS[name]
+    scenario = factory(robot_name, posture_objective=True) if posture_objective else factory(robot_name)
     request = scenarios.with_trace(scenario.request)
     if front_foot != "auto":
         from dataclasses import replace
@@ -75,7 +82,18 @@ def run_scenario(
         from services.footsteps.execution import execute_plan
 
         t0 = time.perf_counter()
-        motion = execute_plan(robot, request, result)
+        try:
+            motion = execute_plan(robot, request, result)
+            summary["walk_timing"] = "default"
+        except InfeasibleError:
+            # Steps at the corners of the paper's bounds (dx 0.22 m with a turn) can ask a knee for more
+            # than its velocity limit at the default timing: the same steps, walked slower.
+            try:
+                motion = execute_plan(robot, request, result, timing=SLOW_WALK)
+                summary["walk_timing"] = f"slow ({SLOW_WALK.single_support_s} s single support)"
+            except InfeasibleError as exc:
+                summary["motion_error"] = exc.message
+                return summary
         summary["motion"] = {
             "duration_s": motion.duration_s,
             "walk_end_s": motion.walk_end_s,
@@ -83,6 +101,7 @@ def run_scenario(
             "final_errors_m": motion.final_errors_m,
             "reach_max_sole_drift_m": motion.reach_max_sole_drift_m,
             "reach_min_com_margin_m": motion.reach_min_com_margin_m,
+            "reach_min_self_distance_m": motion.reach_min_self_distance_m,
             "walk": None if motion.walk is None else motion.walk.figures(),
         }
         if out_dir is not None:
@@ -90,6 +109,43 @@ def run_scenario(
             np.savez_compressed(path, times_s=motion.times_s, q=motion.q, walk_end_s=motion.walk_end_s)
             summary["figures"].append(str(path))
     return summary
+
+
+def run_epsilon_study(
+    robot_name: str = "hrp2_like", out_dir: Path | None = Path("out")
+) -> list[dict[str, Any]]:
+    """Fig. 10's threshold study: the ``fig10`` scenario with every epsilon_i scaled low, average and
+    high (``scenarios.EPSILON_STUDY``); rows (label, scale, solved, steps, steps_added_at, solve_s)
+    and, with ``out_dir``, ``footsteps_fig10_epsilon.png``."""
+    from services.footsteps.plotting import epsilon_study_figure
+
+    robot = load_robot(robot_name)
+    rows, runs = [], []
+    for label, scale in scenarios.EPSILON_STUDY.items():
+        request = scenarios.with_trace(scenarios.fig10(robot_name, scale).request)
+        t0, c0 = time.perf_counter(), time.process_time()
+        result, error = plan_footsteps_best(request, robot)
+        solve_s, cpu_s = time.perf_counter() - t0, time.process_time() - c0
+        runs.append((f"{label} epsilon (x{scale:g})", request, result, cpu_s))
+        rows.append(
+            {
+                "label": label,
+                "epsilon_scale": scale,
+                "solved": error is None,
+                "steps": result.n_steps,
+                "iterations": result.iterations,
+                "steps_added_at": list(result.steps_added_at),
+                "solve_s": solve_s,
+                "cpu_s": cpu_s,
+            }
+        )
+    if out_dir is not None:
+        epsilon_study_figure(
+            runs,
+            Path(out_dir) / "footsteps_fig10_epsilon.png",
+            title=f"Fig. 10 threshold study [{robot_name}]",
+        )
+    return rows
 
 
 def format_summary(summary: dict[str, Any]) -> str:
@@ -111,8 +167,11 @@ def format_summary(summary: dict[str, Any]) -> str:
         errors = ", ".join(f"{k} {1000 * v:.1f} mm" for k, v in motion["final_errors_m"].items())
         lines.append(
             f"  motion: {motion['duration_s']:.2f} s (walk {motion['walk_end_s']:.2f} s) computed in "
-            f"{motion['compute_s']:.2f} s; final hand error {errors or '-'}"
+            f"{motion['compute_s']:.2f} s; final hand error {errors or '-'}; closest self-collision "
+            f"pair {1000 * motion['reach_min_self_distance_m']:.0f} mm"
         )
+    if summary.get("motion_error"):
+        lines.append(f"  motion: the walking planner rejects the plan: {summary['motion_error']}")
     for path in summary["figures"]:
         lines.append(f"  wrote {path}")
     return "\n".join(lines)

@@ -5,8 +5,10 @@ configuration. Section 4.2 of the footstep paper: "a dynamic walk is planned ove
 produced by the local foot placement planner, then the whole body is driven by a reaching task".
 
 The reaching motion tracks a smooth (quintic in time) joint-space interpolation from the end of the
-walk to the planned configuration with the prioritized IK, under both soles held on their footprints
-and the CoM over the support polygon (eq. 11); the 5 ms samples between IK knots are interpolated.
+walk to the planned configuration with the prioritized IK, under both soles held on their footprints,
+the CoM over the support polygon (eq. 11) and the self-collision constraints (eqs. 12-13: Fig. 8's
+"the whole body is driven by a reaching task while observing self-collision avoidance constraints");
+the 5 ms samples between IK knots are interpolated.
 Execution in the simulator is the caller's (the sim service plays ``q``).
 """
 
@@ -26,6 +28,7 @@ from services.ik.tasks.com_support_polygon import ComSupportPolygonTask
 from services.ik.tasks.frame_pose import FramePoseTask
 from services.ik.tasks.frame_position import FramePositionTask
 from services.ik.tasks.posture import PostureTask
+from services.ik.tasks.self_collision import SelfCollisionTask
 from services.model import RobotModel
 from services.model.ground import signed_distance, smoothstep5
 from services.walking.timing import WalkTiming
@@ -44,6 +47,8 @@ class FootstepExecution:
         reach_max_sole_drift_m: largest sole displacement from its footprint during the reach [m].
         reach_min_com_margin_m: smallest distance of the CoM projection inside the support polygon
             during the reach [m].
+        reach_min_self_distance_m: smallest surface distance between two checked capsules of the
+            robot during the reach [m] (nan: the robot has no collision pairs).
         final_errors_m: distance of each reaching hand to its target at the last sample [m].
     """
 
@@ -55,14 +60,26 @@ class FootstepExecution:
     reach_max_sole_drift_m: float
     reach_min_com_margin_m: float
     final_errors_m: dict[str, float]
+    reach_min_self_distance_m: float = math.nan
 
     @property
     def duration_s(self) -> float:
         return float(self.times_s[-1])
 
 
-def _support_level(robot: RobotModel, q_stance: np.ndarray, com_margin_m: float) -> Level:
-    """Both soles held where they are at ``q_stance``, the CoM over the support polygon (eq. 11)."""
+def self_collision(robot: RobotModel, margin_m: float) -> SelfCollisionTask | None:
+    """Eqs. (12)-(13) on the robot's capsules and checked pairs (None: the robot has none)."""
+    if not robot.collision_pairs:
+        return None
+    pairs = list(robot.collision_pairs)
+    return SelfCollisionTask(robot.model, list(robot.capsules), pairs, margin_m=margin_m)
+
+
+def _support_level(
+    robot: RobotModel, q_stance: np.ndarray, com_margin_m: float, collision: SelfCollisionTask | None
+) -> Level:
+    """Both soles held where they are at ``q_stance``, the CoM over the support polygon (eq. 11), the
+    self-collision constraints (eqs. 12-13) when given."""
     model = robot.model
     data = robot.new_data()
     tasks = [
@@ -77,6 +94,8 @@ def _support_level(robot: RobotModel, q_stance: np.ndarray, com_margin_m: float)
             sole_size_m=robot.sole_size_m,
         )
     )
+    if collision is not None:
+        tasks.append(collision)
     return Level(tuple(tasks), name="support")
 
 
@@ -114,12 +133,14 @@ def reaching_motion(
     com_margin_m: float = 0.03,
     hand_paths: dict[str, np.ndarray] | None = None,
     hand_speed_m_s: float = 0.15,
-) -> tuple[np.ndarray, float, float]:
+    self_collision_margin_m: float | None = 0.01,
+) -> tuple[np.ndarray, float, float, float]:
     """Motion from ``q_from`` to ``q_to`` (both standing on the same footprints): (q (n, nq), largest
-    sole drift [m], smallest CoM margin [m]). The joints follow a quintic-in-time interpolation (the
-    largest moving at about ``speed_rad_s``) and, in a level above, each frame of ``hand_paths``
-    follows its polyline (at about ``hand_speed_m_s``), under the soles held and the CoM over the
-    support polygon."""
+    sole drift [m], smallest CoM margin [m], smallest self-collision distance [m], nan without
+    collision pairs). The joints follow a quintic-in-time interpolation (the largest moving at about
+    ``speed_rad_s``) and, in a level above, each frame of ``hand_paths`` follows its polyline (at about
+    ``hand_speed_m_s``), under the soles held, the CoM over the support polygon and the capsules kept
+    ``self_collision_margin_m`` apart (None: self-collisions not constrained)."""
     q_from = robot.check_q(q_from)
     q_to = robot.check_q(q_to)
     model = robot.model
@@ -129,7 +150,8 @@ def reaching_motion(
     posture = PostureTask(model, q_to, joint_names=list(robot.joint_names))
     paths = {f: np.asarray(path, dtype=float) for f, path in (hand_paths or {}).items()}
     hands = [FramePositionTask(model, f, path[0]) for f, path in paths.items()]
-    levels = [_support_level(robot, q_to, com_margin_m)]
+    collision = None if self_collision_margin_m is None else self_collision(robot, self_collision_margin_m)
+    levels = [_support_level(robot, q_to, com_margin_m, collision)]
     if hands:
         levels.append(Level(tuple(hands), name="hands"))
     levels.append(Level((posture,), name="posture"))
@@ -163,8 +185,12 @@ def reaching_motion(
         for k in range(k0, k1 + 1):
             out[k] = pin.interpolate(model, qa, qb, (k - k0) / (k1 - k0))
     drift, margin = 0.0, math.inf
+    checker = collision or self_collision(robot, 0.0)
+    self_distance = math.inf if checker is not None else math.nan
     for qk in out[:: max(1, knot_stride // 2)]:
         pin.framesForwardKinematics(model, data, qk)
+        if checker is not None:
+            self_distance = min(self_distance, float(checker.distances(data).min()))
         for f, T in zip(sole_frames, T_soles, strict=True):
             drift = max(
                 drift, float(np.linalg.norm(data.oMf[model.getFrameId(f)].translation - T.translation))
@@ -172,7 +198,7 @@ def reaching_motion(
         margin = min(
             margin, -float(signed_distance(robot.com(qk, data)[:2], robot.support_polygon(qk, data=data))[0])
         )
-    return out, drift, margin
+    return out, drift, margin, self_distance
 
 
 def execute_plan(
@@ -212,7 +238,7 @@ def execute_plan(
         for t in request.tasks
         if t.kind == "reach"
     }
-    q_reach, drift, margin = reaching_motion(
+    q_reach, drift, margin, self_distance = reaching_motion(
         robot, q_walk[-1], q_final, dt_s=dt_s, speed_rad_s=reach_speed_rad_s, hand_paths=hand_paths
     )
     segments = [q_walk, q_reach[1:]]
@@ -233,4 +259,5 @@ def execute_plan(
         reach_max_sole_drift_m=drift,
         reach_min_com_margin_m=margin,
         final_errors_m=errors,
+        reach_min_self_distance_m=self_distance,
     )

@@ -32,8 +32,6 @@ from services.model import FootstepBounds, RobotModel, load_robot
 from services.model.ground import sole_pose_of
 from services.walking.footsteps import Side, SolePose
 
-POLISH_ITERATIONS = 30
-RELATIVE_EPSILON = 0.3  # see _Algorithm1._stalled
 CONSTRAINT_TOL = 1e-3  # level-0 value (eqs. 5-6) accepted in a solution [m, rad]
 FLAT_TOL_M = 5e-3  # q_start: soles within this of the ground
 FLAT_TOL_RAD = 2e-2  # q_start: soles within this of horizontal
@@ -179,10 +177,14 @@ class _Algorithm1:
         The paper asks epsilon_i < lambda V_i ("the threshold epsilon_i for a task T_i is to be chosen
         less than lambda V_i^(p)"); a constant epsilon_i breaks this near convergence, where the
         geometric decrease alpha lambda V_i gets small, and would add a step to a task about to be
-        solved. The threshold used is therefore min(epsilon_i, RELATIVE_EPSILON alpha lambda V_i).
+        solved. The threshold used is therefore min(epsilon_i, relative_epsilon alpha lambda V_i)
+        (``options.relative_epsilon``, 0.3; ``math.inf``: epsilon_i as written).
         A task already within its tolerance cannot be expected to decrease: it counts as stalled.
         """
-        eps = np.minimum(self.epsilons, RELATIVE_EPSILON * self.alpha * self.request.options.gain * before)
+        opts = self.request.options
+        eps = self.epsilons
+        if math.isfinite(opts.relative_epsilon):
+            eps = np.minimum(eps, opts.relative_epsilon * self.alpha * opts.gain * before)
         return bool(np.all((before - after < eps) | (after <= self.tolerances)))
 
     def _solved(self, values: np.ndarray, constraint_value: float) -> bool:
@@ -271,7 +273,7 @@ class _Algorithm1:
         if reason in ("stalled", "max_steps") and not self.success(values, cval):
             # Algorithm 1 stops right after an iteration; let the chain settle (no more steps) so that
             # the equalities of level 0 and nearly met tasks converge.
-            for _ in range(POLISH_ITERATIONS):
+            for _ in range(self.request.options.polish_iterations):
                 if iterations >= self.request.max_iterations or self.budget.expired():
                     break
                 q = self._step(systems, q)

@@ -140,22 +140,20 @@ def chain_states_figure(
     return path
 
 
-def task_values_figure(
-    request: FootstepPlanRequest, result: FootstepPlanResult, path: Path, title: str = ""
-) -> Path:
-    """Task values (eqs. 5-6) against the iterations, a vertical line at each step addition drawn to
-    the curve of the highest-priority unsolved task, the one that motivated it (Fig. 10)."""
+def _draw_task_values(ax, request: FootstepPlanRequest, result: FootstepPlanResult) -> None:
+    """Task values against the iterations on ``ax``, a dashed line at each step addition drawn to the
+    curve of the highest-priority unsolved task, the one that motivated it (Fig. 10)."""
     trace = result.trace
     if trace is None:
         raise InvalidRequestError("the result has no trace: plan with record_trace=True")
     values = np.array(trace.values)
-    fig, ax = plt.subplots(figsize=(7.0, 3.8))
     iters = np.arange(values.shape[0])
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     tolerances = [t.tol() for t in request.tasks]
     for i, name in enumerate(trace.task_names):
         ax.plot(iters, values[:, i], color=colours[i % len(colours)], lw=1.5, label=f"task {i + 1}: {name}")
-        ax.axhline(tolerances[i], color=colours[i % len(colours)], lw=0.6, ls=":")
+        if np.isfinite(tolerances[i]):
+            ax.axhline(tolerances[i], color=colours[i % len(colours)], lw=0.6, ls=":")
     for k in trace.steps_added_at:
         k = min(k, values.shape[0] - 1)
         unsolved = [i for i in range(values.shape[1]) if values[k, i] > tolerances[i]]
@@ -167,7 +165,35 @@ def task_values_figure(
     ax.set_ylim(bottom=0.0)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title(title or f"task values, {len(trace.steps_added_at)} step additions (dashed)", fontsize=10)
+
+
+def task_values_figure(
+    request: FootstepPlanRequest, result: FootstepPlanResult, path: Path, title: str = ""
+) -> Path:
+    """Task values (eqs. 5-6) against the iterations, a vertical line at each step addition (Fig. 10)."""
+    fig, ax = plt.subplots(figsize=(7.0, 3.8))
+    _draw_task_values(ax, request, result)
+    n_added = len(result.trace.steps_added_at) if result.trace else 0
+    ax.set_title(title or f"task values, {n_added} step additions (dashed)", fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def epsilon_study_figure(
+    runs: Sequence[tuple[str, FootstepPlanRequest, FootstepPlanResult, float]], path: Path, title: str = ""
+) -> Path:
+    """Fig. 10 (b)-(e): one panel of task values per threshold setting (label, request, result, CPU
+    time of the solve [s]), the step additions marked, the steps and the computation time in each
+    panel's title."""
+    fig, axes = plt.subplots(1, len(runs), figsize=(5.2 * len(runs), 3.8), squeeze=False)
+    for ax, (label, request, result, solve_s) in zip(axes[0], runs, strict=True):
+        _draw_task_values(ax, request, result)
+        ax.set_title(f"{label}: {result.n_steps} steps, {solve_s:.2f} s CPU", fontsize=10)
+    fig.suptitle(title or "threshold study (Fig. 10 b-e)", fontsize=10)
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -224,9 +224,10 @@ def build_levels(
     o = request.options
     rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad}
     front = FrontRelativePose(chain)
-    levels = [Level(tuple(constraint_tasks(chain, request, front)), name="constraints")]
+    lm = {"damping": o.damping, "error_damping": o.error_damping}
+    levels = [Level(tuple(constraint_tasks(chain, request, front)), name="constraints", **lm)]
     for task in request.tasks:
-        levels.append(Level((desired_task(chain, task, gain, rates),), name=task.name))
+        levels.append(Level((desired_task(chain, task, gain, rates),), name=task.name, **lm))
     for i, Q_init in held:
         q_ref = np.zeros(chain.model.nq)
         q_ref[3 * (i - 1) : 3 * i] = Q_init
@@ -237,9 +238,9 @@ def build_levels(
             gain=gain,
             name=f"hold:{footprint_frame(i)}",
         )
-        levels.append(Level((hold,), name=hold.name))
+        levels.append(Level((hold,), name=hold.name, **lm))
     if hold_front and chain.n_steps >= 1:
         folded = relative_pose(chain.start.of(chain.front_side), chain.start.of(chain.root_side))
         hold_front = FrontFootHoldTask(chain, folded, gain=gain, front=front)
-        levels.append(Level((hold_front,), name=hold_front.name))
+        levels.append(Level((hold_front,), name=hold_front.name, **lm))
     return levels

@@ -99,7 +99,15 @@ class PlannerOptions:
             middle by this factor (1: the paper's bounds); below 1 keeps the steps away from the
             corners of the region, which a dynamic walk executes less easily.
         max_rate_m, max_rate_rad: saturation of the desired rate lambda F of the reach and gaze tasks
-            [m per IK time] and of the posture task [rad per IK time] (norms).
+            [m per IK time] and of the posture task [rad per IK time] (norms); ``math.inf``: eq. (2)
+            as written.
+        damping, error_damping: Levenberg-Marquardt regularization of every level's increment,
+            mu = damping + error_damping ||e||^2 (``services.ik.Level``); 0, 0: the undamped
+            least squares of eq. (7).
+        relative_epsilon: the stall test of eq. (15) uses min(epsilon_i, relative_epsilon alpha lambda
+            V_i) (the paper asks epsilon_i < lambda V_i); ``math.inf``: epsilon_i as written.
+        polish_iterations: iterations without new steps after Algorithm 1 stops on a stall (the
+            level-0 equalities settle); 0: Algorithm 1 as written.
     """
 
     gain: float = 1.0
@@ -114,6 +122,10 @@ class PlannerOptions:
     max_rate_m: float = 0.1
     step_region_scale: float = 1.0
     max_rate_rad: float = 0.5
+    damping: float = 1e-3
+    error_damping: float = 0.1
+    relative_epsilon: float = 0.3
+    polish_iterations: int = 30
 
 
 @dataclass(frozen=True)
@@ -176,6 +188,13 @@ class FootstepPlanRequest:
         o = self.options
         if not (0 < o.alpha <= 1 and o.gain > 0 and o.dq_max > 0):
             raise InvalidRequestError(f"options: need 0 < alpha <= 1, gain > 0, dq_max > 0, got {o}")
+        numerics_ok = o.damping >= 0 and o.error_damping >= 0 and o.relative_epsilon > 0
+        if not (numerics_ok and o.polish_iterations >= 0):
+            raise InvalidRequestError(
+                "options: need damping >= 0, error_damping >= 0, relative_epsilon > 0, "
+                f"polish_iterations >= 0, got {o.damping}, {o.error_damping}, {o.relative_epsilon}, "
+                f"{o.polish_iterations}"
+            )
         if not 0 < o.step_region_scale <= 1:
             raise InvalidRequestError(
                 f"options.step_region_scale must be in (0, 1], got {o.step_region_scale}"

@@ -118,6 +118,16 @@ class Violation:
                 f"holding the posture takes {100 * self.value:.0f} % of a joint's effort limit (admissible "
                 f"{100 * self.threshold:.0f} %) at t={self.time_s:.2f} s"
             )
+        if self.criterion == "multibody_zmp" and self.value > 0:
+            return (
+                f"the multibody ZMP leaves the support polygon by {1e3 * self.value:.0f} mm at "
+                f"t={self.time_s:.2f} s"
+            )
+        if self.criterion == "multibody_zmp":
+            return (
+                f"the whole-body motion has no ZMP at t={self.time_s:.2f} s (vertical contact force "
+                f"{self.value:.3g} N: a joint jumps between two IK knots)"
+            )
         return (
             f"an arm joint reached its limit (margin {self.value:.2g} rad < {self.threshold:.2g} rad) at "
             f"t={self.time_s:.2f} s"

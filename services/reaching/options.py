@@ -21,6 +21,16 @@ error above its threshold, an arm joint faster than ``velocity_ratio`` of its li
 of a joint without contact above ``torque_ratio`` of its effort limit, an arm joint at its limit."""
 
 
+PAPER_EXPERIMENT: dict[str, Any] = {
+    "criteria": ("manipulability", "ee_error"),
+    "weighted": True,
+    "other_arm_still": False,
+    "joint_limit_selection_rad": None,
+}
+"""The fields that differ in the paper's experiment from the stack's defaults (see
+:meth:`ReachingOptions.paper_experiment`)."""
+
+
 @dataclass(frozen=True)
 class ReachingOptions:
     """Settings of :func:`services.reaching.planner.plan_reach`.
@@ -44,6 +54,16 @@ class ReachingOptions:
     Generalized IK (eqs. 1-4):
         weighted: weighted pseudo-inverse of eq. (4), W_i = m_i / M, on the four prioritized tasks (the
             paper's experiment uses it for all tasks).
+        com_height: the CoM task of level (ii) also holds the CoM height at its initial value (the
+            pattern generator's constant height); off: x, y only.
+        com_height_rest: the CoM height pulled back to its initial value in the rest level (the body
+            does not crouch unless the hand needs it).
+        arm_speed_per_knot: the arms' joints move at most ``velocity_ratio`` of their limits over a
+            whole knot (not per Gauss-Newton step): near a singular configuration the hand then falls
+            behind its reference and ``ee_error`` fires instead of ``joint_speed``.
+        recovery_iterations: Gauss-Newton steps a knot may add when the hand is still beyond the
+            end-effector threshold after ``max_iterations_per_knot`` (transients: a joint reaching
+            its limit, a foot landing).
         other_arm_still: the selection matrix S leaves out the arm that does not reach (no task uses
             it; with the weighted pseudo-inverse the light arm would otherwise swing to help the CoM).
         joint_limit_selection_rad: the selection matrix S_l: joints closer than this to a limit [rad] are
@@ -83,12 +103,16 @@ class ReachingOptions:
     joint_limit_margin_rad: float = 1e-3
     criteria: tuple[str, ...] = ("manipulability", "ee_error", "joint_speed", "joint_torque")
     weighted: bool = True
+    com_height: bool = False
+    com_height_rest: bool = False
     other_arm_still: bool = True
     joint_limit_selection_rad: float | None = None
     knot_stride: int = 10
     max_iterations_per_knot: int = 3
+    recovery_iterations: int = 0
     knot_tolerance_m: float = 1e-6
     velocity_ratio: float = 0.5
+    arm_speed_per_knot: bool = False
     torque_ratio: float = 0.6
     hand_speed_m_s: float = 0.2
     min_reach_s: float = 2.0
@@ -139,7 +163,13 @@ class ReachingOptions:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise InvalidRequestError(f"option {name} must be >= 0, got {value!r}")
-        for name, low in (("knot_stride", 1), ("max_iterations_per_knot", 1), ("max_steps", 0)):
+        integers = (
+            ("knot_stride", 1),
+            ("max_iterations_per_knot", 1),
+            ("recovery_iterations", 0),
+            ("max_steps", 0),
+        )
+        for name, low in integers:
             value = getattr(self, name)
             if not isinstance(value, int) or value < low:
                 raise InvalidRequestError(f"option {name} must be an integer >= {low}, got {value!r}")
@@ -161,6 +191,15 @@ class ReachingOptions:
             joint_speed_ratio=self.velocity_ratio,
             torque_ratio=self.torque_ratio,
         )
+
+    @classmethod
+    def paper_experiment(cls, **overrides: Any) -> ReachingOptions:
+        """The settings of the paper's experiment ("Experimental Results"): the two monitored criteria
+        (manipulability 1.5e-4, end-effector error 4e-5 m) as the only triggers, the weighted
+        pseudo-inverse with S = I_n for every task (the other arm free too), S_l off; ``overrides``
+        change any field."""
+        values: dict[str, Any] = {**PAPER_EXPERIMENT, **overrides}
+        return cls(**values)
 
     @staticmethod
     def field_names() -> list[str]:

@@ -20,6 +20,7 @@ second preview-control stage when it comes closer than ``zmp_margin_m`` to the e
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import time
@@ -48,12 +49,26 @@ from services.walking.two_stage import SupportSamples, correct_multibody_zmp, ro
 from services.walking.zmp_reference import smoothstep5
 
 # One reshaping step is tried when it brings the target this much [m] inside the reach envelope, at most
-# SINGLE_STEP_MAX_BEARING_RAD away from straight ahead of the shoulder; a walk aims WALK_MARGIN_M inside.
+# SINGLE_STEP_MAX_BEARING_RAD away from straight ahead of the shoulder (the chest and waist turn the
+# upper body towards the target: Fig. 5); a walk aims WALK_MARGIN_M inside.
 REACH_MARGIN_M = 0.05
 SINGLE_STEP_MAX_BEARING_RAD = 0.6
 WALK_MARGIN_M = 0.12
 # Fade-in of the second preview stage's ZMP error at the start of a motion without a standing lead-in [s].
 CORRECTION_FADE_IN_S = 0.4
+
+
+def _no_zmp(exc: InfeasibleError, spec: MotionSpec) -> Violation:
+    """A motion whose multibody ZMP does not exist (a joint jumps between two IK knots: the CoM would
+    fall faster than gravity: ``value`` the vertical force [N]) or leaves the support polygon even
+    after the second preview stage (``value`` by how much [m]) is discarded like a criterion out of
+    range (``multibody_zmp``); any other error is raised again."""
+    if "sample" not in exc.details:
+        raise exc
+    k = min(int(exc.details["sample"]), spec.n_samples - 1)
+    if "zmp_outside_m" in exc.details:
+        return Violation("multibody_zmp", float(spec.times_s[k]), float(exc.details["zmp_outside_m"]), 0.0)
+    return Violation("multibody_zmp", float(spec.times_s[k]), float(exc.details["vertical_force_n"]), 0.0)
 
 
 class ReachPlanner:
@@ -98,10 +113,14 @@ class ReachPlanner:
 
         spec0 = self._standing_spec(req, left, right)
         track0 = self.tracker.track(spec0, q0, req.hand)
-        attempts.append(Attempt("no_step", 0, track0.violation, track0.wall_time_s))
-        if track0.violation is None:
-            return self._finish(req, spec0, track0, None, track0, attempts, t0)
         violation = track0.violation
+        if violation is None:
+            kept = [Attempt("no_step", 0, None, track0.wall_time_s)]
+            try:
+                return self._finish(req, spec0, track0, None, track0, kept, t0)
+            except InfeasibleError as exc:
+                violation = _no_zmp(exc, spec0)
+        attempts.append(Attempt("no_step", 0, violation, track0.wall_time_s))
         if not req.allow_stepping:
             raise self._infeasible(req, violation, "stepping is not allowed (allow_stepping=false)")
 
@@ -118,13 +137,31 @@ class ReachPlanner:
             )
         last_violation = violation
         for plan in candidates:
-            pattern = robot_pattern(robot, plan.footsteps, q0, self.timing, self.pattern_options)
+            pattern = self._pattern(req, plan, self.timing)
+            extra_s = self._hand_overrun_s(req, pattern)
+            if extra_s > 0.0:
+                # The hand takes longer than the steps: the robot stands on its new polygon until the
+                # hand arrives (the final hold lengthened by the difference).
+                timing = dataclasses.replace(self.timing, final_hold_s=self.timing.final_hold_s + extra_s)
+                pattern = self._pattern(req, plan, timing)
             spec = self._stepping_spec(req, pattern)
             track = self.tracker.track(spec, q0, req.hand)
-            attempts.append(Attempt(plan.kind, plan.n_steps, track.violation, track.wall_time_s))
-            if track.violation is None:
-                return self._finish(req, spec, track, plan, track0, attempts, t0)
-            last_violation = track.violation
+            violation = track.violation
+            if violation is None:
+                try:
+                    return self._finish(
+                        req,
+                        spec,
+                        track,
+                        plan,
+                        track0,
+                        [*attempts, Attempt(plan.kind, plan.n_steps, None, track.wall_time_s)],
+                        t0,
+                    )
+                except InfeasibleError as exc:
+                    violation = _no_zmp(exc, spec)
+            attempts.append(Attempt(plan.kind, plan.n_steps, violation, track.wall_time_s))
+            last_violation = violation
         raise self._infeasible(
             req,
             last_violation,
@@ -132,6 +169,10 @@ class ReachPlanner:
             + ", ".join(f"{p.kind}: {p.n_steps} steps" for p in candidates)
             + ")",
         )
+
+    def _pattern(self, req: ReachRequest, plan: StepPlan, timing: WalkTiming) -> WalkPattern:
+        """The pattern generator's CoM, ZMP and soles for the steps of ``plan`` (first stage)."""
+        return robot_pattern(self.robot, plan.footsteps, req.q_start, timing, self.pattern_options)
 
     def without_reshaping(self, request: ReachRequest) -> tuple[np.ndarray | None, MonitorSeries]:
         """The motion on the initial support polygon computed to its end instead of being discarded at
@@ -163,11 +204,18 @@ class ReachPlanner:
         near = support.comfort_stance(
             left, right, target, req.hand, reach_m=max(comfort_m, reach - WALK_MARGIN_M)
         )
-        single = support.single_step(left, right, near, req.hand)
-        if single is not None:
+        # Fig. 5: one step of the foot on the target's side, turned towards the stance facing the
+        # target; else straight towards the target without turning (a side step: the chest and waist
+        # turn the upper body to it), if it brings the target within the envelope.
+        yaw0 = mid_pose(left, right)[2]
+        for goal in (near, (float(target[0]), float(target[1]), yaw0)):
+            single = support.single_step(left, right, goal, req.hand)
+            if single is None:
+                continue
             distance, bearing = support.from_shoulder(single.final_mid, target, req.hand)
             if distance <= reach - REACH_MARGIN_M and abs(bearing) <= SINGLE_STEP_MAX_BEARING_RAD:
                 plans.append(single)
+                break
         for goal in (near, support.comfort_stance(left, right, target, req.hand)):
             walk = support.walk(left, right, goal, req.hand, opt.max_steps)
             if walk is not None and all(walk.footsteps != p.footsteps for p in plans):
@@ -226,16 +274,31 @@ class ReachPlanner:
         # Duration from the hand's motion relative to the body (the steps carry it the rest of the way).
         r0 = _in_body(hand0, frame["com_xy_m"][0], frame["body_yaw_rad"][0])
         r1 = _in_body(req.target_world_m, frame["com_xy_m"][-1], frame["body_yaw_rad"][-1])
-        duration = min(self._reach_duration(float(np.linalg.norm(r1 - r0))), t_arrive)
-        s = minimum_jerk(frame["times_s"], t_arrive - duration, duration)
+        duration = self._reach_duration(float(np.linalg.norm(r1 - r0)))
+        # The hand arrives with the last weight transfer, or after it when it needs longer than the
+        # steps (then the pattern's final hold must leave it the time: see ``plan``).
+        t_end = min(max(t_arrive, duration), float(frame["times_s"][-1]))
+        duration = min(duration, t_end)
+        s = minimum_jerk(frame["times_s"], t_end - duration, duration)
         # The feet turn the waist step by step; the references turn smoothly over the whole walk (a hand
         # carried by each quick swing turn would have to whip round).
         yaw = frame["body_yaw_rad"]
         smooth_yaw = yaw[0] + (yaw[-1] - yaw[0]) * minimum_jerk(frame["times_s"], 0.0, t_arrive)
         hand, rot, gaze = self._references(req, frame, s, smooth_yaw)
         return MotionSpec(
-            hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=t_arrive, pattern=pattern, **frame
+            hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=t_end, pattern=pattern, **frame
         )
+
+    def _hand_overrun_s(self, req: ReachRequest, pattern: WalkPattern) -> float:
+        """How much longer [s] than the steps (to the end of the last weight transfer) the hand's own
+        motion takes at ``hand_speed_m_s``."""
+        frame = pattern_frame(pattern)
+        hold = [seg for seg in pattern.schedule.segments if seg.role == "hold"]
+        t_arrive = float(frame["times_s"][hold[0].start]) if hold else float(frame["times_s"][-1])
+        hand0 = self.robot.frame_pose(req.q_start, self.robot.frames.grasp(req.hand)).translation
+        r0 = _in_body(hand0, frame["com_xy_m"][0], frame["body_yaw_rad"][0])
+        r1 = _in_body(req.target_world_m, frame["com_xy_m"][-1], frame["body_yaw_rad"][-1])
+        return max(0.0, self._reach_duration(float(np.linalg.norm(r1 - r0))) - t_arrive)
 
     # ------------------------------------------------------------------------------------ finishing
     def _finish(
@@ -280,6 +343,15 @@ class ReachPlanner:
             max_corrections=opt.max_corrections,
         )
         track, q, mb, distance, corrections = kept[-1], out.q, out.zmp, out.distance_m, out.corrections
+        if distance.max() > 0.0:
+            # Still outside the support polygon after the corrections: the motion is not dynamically
+            # stable (the paper's pattern generator guarantees the ZMP inside): discarded.
+            k = int(np.argmax(distance))
+            raise InfeasibleError(
+                f"the multibody ZMP leaves the support polygon by {1e3 * distance[k]:.0f} mm at "
+                f"t={spec.times_s[k]:.2f} s",
+                {"sample": k, "zmp_outside_m": float(distance[k])},
+            )
         slide = _max_sole_slide(robot, q, spec)
         hand_final = robot.frame_pose(q[-1], robot.frames.grasp(req.hand)).translation
         return ReachResult(

@@ -36,6 +36,7 @@ from services.ik import (
     Level,
     link_mass_weights,
 )
+from services.ik.dofs import joint_dofs
 from services.reaching.monitors import ArmMonitor, KnotValues, MonitorSeries, Violation, first_violation
 from services.reaching.motion import MotionSpec
 from services.reaching.options import ReachingOptions
@@ -98,7 +99,7 @@ class IKModel:
         # ``joint_speed`` criterion (near a singularity the arm's joints would have to fly).
         v_max = np.asarray(robot.v_max)[self.free_v_idx]
         knot_dt_s = options.knot_stride * DT_S
-        self.solver = HierarchicalSolver(self.model, dq_max=options.velocity_ratio * v_max * knot_dt_s)
+        dq_max = options.velocity_ratio * v_max * knot_dt_s
         self.weights = link_mass_weights(self.model) if options.weighted else None
         self.monitor = ArmMonitor(
             self.model,
@@ -110,6 +111,16 @@ class IKModel:
             (robot.frames.left_sole, robot.frames.right_sole),
         )
         self.v_max_arm = v_max[self.monitor.arm_v_idx]
+        # The arms' joints move at most velocity_ratio of their limits over a whole knot (the
+        # Gauss-Newton steps of a knot share it): near a singular configuration the reaching arm
+        # cannot whip round to keep up (the hand falls behind its reference and the paper's
+        # end-effector error criterion, or the manipulability, is what fails, as on HRP-2), nor the
+        # other arm, free with S = I, swing to help the CoM.
+        if options.arm_speed_per_knot:
+            arms = [n for side in ("left", "right") for n in robot.arm_joints(side)]
+            arm_v = joint_dofs(self.model, [n for n in arms if self.model.existJointName(n)])
+            dq_max[arm_v] /= options.max_iterations_per_knot
+        self.solver = HierarchicalSolver(self.model, dq_max=dq_max)
 
     def reduce_q(self, q_full: np.ndarray) -> np.ndarray:
         """IK configuration of a full one."""
@@ -153,7 +164,7 @@ class ReachTracker:
             side: FramePoseTask(m, frames.sole(side), identity, name=f"{side}_sole")
             for side in ("left", "right")
         }
-        com = ComPositionTask(m, np.zeros(3), mask=(True, True, False), name="com")
+        com = ComPositionTask(m, np.zeros(3), mask=(True, True, opt.com_height), name="com")
         if spec.hand_rot is None:
             hand_task: Any = FramePositionTask(
                 m, frames.grasp(ik.hand), spec.hand_ref_m[0], max_step=MAX_HAND_STEP_M, name="hand"
@@ -192,7 +203,15 @@ class ReachTracker:
             )
             levels.append(Level((gaze,), name="gaze", weights=W, lock_near_limits_rad=S_l))
             tasks["gaze"] = gaze
-        levels.append(Level((waist,), name="waist", weights=W))
+        rest: tuple[Any, ...] = (waist,)
+        if opt.com_height_rest and not opt.com_height:
+            # The CoM height back to its initial value with the waist, in the redundancy left: the
+            # body does not crouch unless the hand needs it (a crouch that no task asks for ends on
+            # the waist-height inequality and bounces there).
+            com_z = ComPositionTask(m, np.zeros(3), mask=(False, False, True), gain=REST_GAIN, name="com_z")
+            tasks["com_z"] = com_z
+            rest = (waist, com_z)
+        levels.append(Level(rest, name="waist", weights=W))
         return levels, tasks
 
     # -------------------------------------------------------------------------------------- track
@@ -241,6 +260,8 @@ class ReachTracker:
                 if i == 1 or np.any(soles[k] != soles[knots[i - 1]]):  # stance soles stay put
                     feet[side].set_target(pin.SE3(rot_z(float(soles[k, 3])), np.asarray(soles[k, :3])))
             com.set_target(np.array([com_xy[k, 0], com_xy[k, 1], com_z]))
+            if "com_z" in tasks:
+                tasks["com_z"].set_target(np.array([0.0, 0.0, com_z]))
             if spec.hand_rot is None:
                 hand_task.set_target(spec.hand_ref_m[k])
             else:
@@ -256,11 +277,18 @@ class ReachTracker:
             waist_gain = REST_GAIN * float(1.0 - smoothstep5((t_k - spec.reach_end_s) / fade_s))
             waist.gain = max(waist_gain, 1e-9)
             q_knot = q
-            for iteration in range(opt.max_iterations_per_knot):
+            # A hand still beyond the end-effector threshold after them gets ``recovery_iterations``
+            # more (a joint reaching its limit, a foot landing: the IK redistributes the motion); a
+            # hand out of reach stays behind and fails the criterion all the same.
+            n_iterations = opt.max_iterations_per_knot + opt.recovery_iterations
+            for iteration in range(n_iterations):
                 step_levels = levels if iteration == 0 and waist_gain > 0.0 else levels[:-1]
                 q = pin.integrate(ik.model, q, ik.solver.solve(step_levels, q))
                 np.clip(q, ik.q_lower, ik.q_upper, out=q)
-                if np.linalg.norm(monitor.hand_position(q) - spec.hand_ref_m[k]) < opt.knot_tolerance_m:
+                error = np.linalg.norm(monitor.hand_position(q) - spec.hand_ref_m[k])
+                if iteration + 1 >= opt.max_iterations_per_knot and error <= limits.ee_error_m:
+                    break
+                if error < opt.knot_tolerance_m:
                     break
             Q[i] = q
             values.append(self._knot_values(ik, q_knot, q, spec, k, (k - knots[i - 1]) * DT_S))

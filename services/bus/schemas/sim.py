@@ -79,6 +79,9 @@ class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True):
     # Objects the robot touches at the start and moves away from (backing out of a collision): any link
     # may keep touching one of them until that contact first breaks; touching it again is a collision.
     leaving: list[str] = []
+    # Objects any link may touch during the whole motion: the supports of a multi-contact motion (the
+    # chair the robot gets up from, the table it leans on), chosen by the contact planner.
+    supports: list[str] = []
 
 
 class Contact(msgspec.Struct, kw_only=True, frozen=True):

@@ -1,0 +1,96 @@
+"""Messages of the ``contacts`` service: contact-before-motion planning (Escande et al., "Planning support
+contact-points for acyclic motions", ``004_1528a6467056ab4d.txt``).
+
+Configurations follow the pinocchio layout of the service's robot model: ``q = [x, y, z, qx, qy, qz, qw,
+joints...]`` (base position [m] and orientation in the world, then joint positions). World frame: z up,
+ground at z = 0. A contact is a (spot, surface) pair with (x, y, theta) in the surface's frame (§2.5).
+"""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+
+from services.bus.spec import EndpointSpec, TopicSpec
+
+
+class ContactMsg(msgspec.Struct, kw_only=True, frozen=True):
+    """A contact: the robot's ``spot`` (e.g. ``left_sole``) on the environment ``surface`` (e.g.
+    ``chair.seat``) at (``x``, ``y`` [m], ``theta`` [rad]) in the surface's frame (origin at its centre)."""
+
+    spot: str
+    surface: str
+    x: float
+    y: float
+    theta: float
+
+
+class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Plan from ``q_start`` (the robot's measured configuration) with the ``start_contacts`` holding there
+    (pairs [spot, surface]) until the waist coordinate ``goal_axis`` exceeds ``goal_value_m`` with exactly
+    the contacts ``final_contacts`` (empty: any). ``key_postures`` (k x nq) define the rough trajectory T
+    (§2.7); None: the scenario's default (the ``chair_egress`` scene only)."""
+
+    scene: str  # a scene of sim/scenes (its surfaces and obstacles are read from the scene file)
+    q_start: np.ndarray  # (nq,) float64
+    start_contacts: list[list[str]]  # [[spot, surface], ...] in contact at q_start
+    goal_axis: str = "y"  # "x", "y" or "z"
+    goal_value_m: float = 0.75
+    final_contacts: list[list[str]] = msgspec.field(
+        default_factory=lambda: [["left_sole", "floor"], ["right_sole", "floor"]]
+    )
+    key_postures: np.ndarray | None = None  # (k, nq) float64
+    time_budget_s: float = 300.0  # the whole request (search + interpolation) [s]
+    max_nodes: int = 1000  # nodes generated
+    spots: list[str] | None = None  # allowed contact spots (None: all of the robot's)
+    surfaces: list[str] | None = None  # allowed surfaces (None: all of the scene's)
+    pairs: list[list[str]] | None = None  # allowed [spot, surface] pairs (overrides spots x surfaces)
+    best_first_sons: bool = True  # §2.8: one leaf per (spot, surface) pair, sons in f_T order
+    slope_k: float = 30.0  # k of f_T (eq. 1)
+    interpolate: bool = True  # compute the 5 ms motion (§3.3)
+    n_interpolation: int = 20  # posture generations per transition (§3.3's n)
+
+
+class PlanReply(msgspec.Struct, kw_only=True, frozen=True):
+    """The contact sets with their witness postures, and the statically stable motion (send ``q`` to
+    ``sim/execute``)."""
+
+    model: str
+    joint_names: list[str]
+    sets: list[list[ContactMsg]]  # the sequence of contact sets, start first
+    changes: list[str]  # what changed into each set ("start", "+ contact", "- contact")
+    witnesses: np.ndarray  # (S, nq) witness postures of the sets
+    f_values: list[float]  # f_T of each witness (eq. 1)
+    progress: list[float]  # s' of each witness along T [m-rad]
+    dt_s: float  # sample period of q [s]
+    q: np.ndarray  # (N, nq) the interpolated motion (empty (0, nq) if not asked)
+    set_samples: list[int]  # index in q of each set's witness
+    nodes_generated: int
+    nodes_expanded: int
+    posture_generations: int
+    plan_s: float  # search wall time [s]
+    interpolation_s: float  # interpolation wall time [s]
+
+
+class Progress(msgspec.Struct, kw_only=True, frozen=True):
+    """A node selected for expansion during a search (published on ``contacts/progress``)."""
+
+    request_id: str  # the scene and start of the plan it belongs to
+    depth: int
+    change: str
+    contacts: list[str]  # described contacts of the node's set
+    f: float
+    base_xyz: list[float]  # the witness's waist position [m]
+    nodes_generated: int
+    nodes_expanded: int
+    elapsed_s: float
+
+
+PLAN = EndpointSpec(
+    "contacts",
+    "plan",
+    PlanRequest,
+    PlanReply,
+    "contact-before-motion plan (best-first search over contact sets) and its statically stable motion",
+)
+PROGRESS = TopicSpec("contacts", "progress", Progress, "nodes expanded by a running contacts/plan")

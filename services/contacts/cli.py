@@ -1,0 +1,99 @@
+"""``humanoid scenario chair-egress``: the chair experiment of Escande et al. (§3) in one process: plan the
+contact sets from the seated robot of the ``chair_egress`` scene, printing every set as it is expanded,
+interpolate the motion (§3.3), play it in a pybullet world (DIRECT) and report whether the robot ends
+standing beside the table. (Over the bus, the same is the supervisor's ``stand_up`` action on a stack
+started with ``humanoid up`` and the sim in that scene.)"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Any
+
+EXAMPLES = """examples:
+  humanoid scenario chair-egress                     # plan (<= 300 s), interpolate, execute, report
+  humanoid scenario chair-egress --budget 600 --no-best-first   # all sons generated (no §2.8)
+"""
+
+
+def add_cli(subparsers: Any) -> None:
+    """Register ``humanoid scenario chair-egress``."""
+    from services.footsteps.cli import scenario_subparsers
+
+    p = scenario_subparsers(subparsers).add_parser(
+        "chair-egress",
+        help="get out of a chair at a table by contact-before-motion planning (Escande et al., §3)",
+        description=__doc__,
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--budget", type=float, default=300.0, help="search time budget [s] (300)")
+    p.add_argument("--max-nodes", type=int, default=1000, help="nodes generated at most (1000)")
+    p.add_argument("--no-best-first", action="store_true", help="generate every son (§2.8 off)")
+    p.add_argument("--n", type=int, default=10, help="posture generations per transition (§3.3's n)")
+    p.add_argument("--no-execute", action="store_true", help="plan and interpolate only")
+    p.set_defaults(func=cmd_scenario)
+
+
+def cmd_scenario(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from services.contacts.interpolate import InterpolationConfig
+    from services.contacts.planner import default_problem, plan
+    from services.contacts.search import Node, SearchConfig
+    from services.model import load_robot
+    from sim.scene import layout, load_scene
+    from sim.world import World, start_configuration
+
+    robot = load_robot("hrp2_like")
+    q0 = start_configuration(robot, layout(load_scene("chair_egress")))
+
+    def progress(kind: str, node: Node, generated: int, expanded: int, elapsed: float) -> None:
+        print(
+            f"[{elapsed:6.1f} s] nodes {generated:4d} expanded {expanded:4d}  depth {node.depth:3d}  "
+            f"f_T {node.f:8.2f}  waist ({node.q[0]:+.2f}, {node.q[1]:+.2f}, {node.q[2]:.2f})  {node.change}",
+            flush=True,
+        )
+
+    problem = default_problem(
+        robot,
+        q0,
+        search=SearchConfig(
+            best_first_sons=not args.no_best_first, max_nodes=args.max_nodes, time_budget_s=args.budget
+        ),
+        interpolation=InterpolationConfig(n=args.n),
+    )
+    result = plan(robot, problem, progress)
+    s = result.search
+    print(
+        f"plan: {len(s.path)} sets, {s.nodes_generated} nodes generated, {s.nodes_expanded} expanded, "
+        f"{s.posture_generations} posture generations, {s.plan_s:.1f} s"
+    )
+    for k, node in enumerate(s.path):
+        print(f"  {k:3d} {node.change:50s} {' '.join(c.describe() for c in node.contacts)}")
+    motion = result.motion
+    assert motion is not None
+    print(
+        f"interpolation: {motion.q.shape[0]} samples ({motion.q.shape[0] * motion.dt_s:.1f} s of motion) "
+        f"in {motion.interpolation_s:.1f} s"
+    )
+    if args.no_execute:
+        return 0
+    with World(robot, "chair_egress") as world:
+        executed = world.execute(motion.q, motion.dt_s, supports=("chair", "table"), hold_s=1.0)
+        q = executed.state.q
+        standing = all(
+            abs(float(robot.sole_pose(q, side).translation[2])) < 0.01 for side in ("left", "right")
+        )
+        print(
+            f"execution: {executed.outcome}: {executed.message}; waist at "
+            f"({q[0]:+.2f}, {q[1]:+.2f}, {q[2]:.2f}) m, tilt {math.degrees(world.tilt_rad()):.1f} deg, "
+            f"{'standing on both soles' if standing else 'not standing on both soles'}"
+        )
+        ok = (
+            executed.outcome == "completed"
+            and standing
+            and float(np.asarray(q)[1]) > problem.goal.value_m - 0.05
+        )
+    print("chair egress:", "succeeded" if ok else "failed")
+    return 0 if ok else 1

@@ -1,0 +1,129 @@
+"""The environment of a contact plan, from the sim's scene file (§2.1, §3.1 of Escande et al.): the flat
+surfaces on which contacts may be taken (the floor, a chair's seat, the tops of tables and boxes) and
+the boxes the robot must not collide with (every primitive of every static object, and the floor).
+
+Read from the scene YAML through ``sim.scene`` and ``sim.objects.parts_of`` (the same geometry the sim
+builds), never from pybullet.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+import pybullet as p
+
+from services.errors import InvalidRequestError
+from sim.objects import parts_of
+from sim.scene import Layout
+
+FLOOR_HALF_SIZE_M = 2.5  # the floor surface: a square of this half size around the robot's start [m]
+FLOOR_BOX_DEPTH_M = 0.5
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A flat, convex (rectangular) contact surface: its frame in the world (origin at the centre of
+    the rectangle, z = outer normal, §2.1), its half sizes along its x and y [m], the object it
+    belongs to (``floor`` for the floor) and its friction coefficient."""
+
+    name: str
+    T_world_surface: pin.SE3
+    half_size_m: tuple[float, float]
+    owner: str
+    friction: float
+
+    def placement(self, x: float, y: float, theta: float) -> pin.SE3:
+        """The world frame of a contact at (x [m], y [m], theta [rad]) on the surface (§2.5)."""
+        c, s = math.cos(theta), math.sin(theta)
+        local = pin.SE3(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, 0.0]))
+        return self.T_world_surface * local
+
+    def coordinates(self, T_world_frame: pin.SE3) -> tuple[float, float, float]:
+        """(x, y, theta) of a frame's origin and x axis in the surface's frame."""
+        local = self.T_world_surface.actInv(T_world_frame)
+        return (
+            float(local.translation[0]),
+            float(local.translation[1]),
+            math.atan2(float(local.rotation[1, 0]), float(local.rotation[0, 0])),
+        )
+
+
+@dataclass(frozen=True)
+class Box:
+    """An obstacle box: world placement of its centre and half extents [m]; ``owner`` is its object."""
+
+    name: str
+    T_world_box: pin.SE3
+    half_extents_m: np.ndarray
+    owner: str
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Surfaces and obstacle boxes of a scene."""
+
+    surfaces: tuple[Surface, ...]
+    boxes: tuple[Box, ...]
+
+    def surface(self, name: str) -> Surface:
+        for s in self.surfaces:
+            if s.name == name:
+                return s
+        raise InvalidRequestError(f"unknown surface {name!r}; surfaces: {[s.name for s in self.surfaces]}")
+
+    def select(self, names: Sequence[str] | None) -> tuple[Surface, ...]:
+        """The surfaces named (all when None); InvalidRequestError lists the valid names."""
+        if names is None:
+            return self.surfaces
+        return tuple(self.surface(n) for n in names)
+
+
+def _yaw_se3(yaw: float, xyz: Sequence[float]) -> pin.SE3:
+    return pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.array(xyz, dtype=float))
+
+
+def environment_of(layout: Layout, floor_friction: float | None = None) -> Environment:
+    """Surfaces and boxes of a laid-out scene. Surfaces: ``floor``, ``<chair>.seat``, ``<table>.top``,
+    ``<box>.top`` (static objects only: the planner does not handle moving objects, §3.1)."""
+    friction = layout.scene.floor_friction if floor_friction is None else floor_friction
+    rx, ry = layout.robot_xy
+    surfaces = [
+        Surface(
+            "floor", _yaw_se3(0.0, (rx, ry, 0.0)), (FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M), "floor", friction
+        )
+    ]
+    boxes = [
+        Box(
+            "floor",
+            _yaw_se3(0.0, (rx, ry, -0.5 * FLOOR_BOX_DEPTH_M)),
+            np.array([FLOOR_HALF_SIZE_M + 1.0, FLOOR_HALF_SIZE_M + 1.0, 0.5 * FLOOR_BOX_DEPTH_M]),
+            "floor",
+        )
+    ]
+    for obj in layout.objects:
+        spec = obj.spec
+        if not spec.is_static or spec.kind not in ("box", "table", "chair"):
+            continue
+        T_obj = _yaw_se3(obj.yaw_rad, obj.position)
+        for i, part in enumerate(parts_of(spec)):
+            if part.shape != p.GEOM_BOX:
+                continue
+            T_part = T_obj * pin.SE3(np.eye(3), np.array(part.xyz))
+            boxes.append(Box(f"{spec.name}[{i}]", T_part, np.array(part.half_extents), spec.name))
+        top = parts_of(spec)[0]  # box: the box; table: the top; chair: the seat
+        label = {"box": "top", "table": "top", "chair": "seat"}[spec.kind]
+        T_top = T_obj * pin.SE3(np.eye(3), np.array(top.xyz) + np.array([0.0, 0.0, top.half_extents[2]]))
+        surfaces.append(
+            Surface(
+                f"{spec.name}.{label}",
+                T_top,
+                (top.half_extents[0], top.half_extents[1]),
+                spec.name,
+                spec.friction,
+            )
+        )
+    return Environment(tuple(surfaces), tuple(boxes))

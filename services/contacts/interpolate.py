@@ -1,0 +1,269 @@
+"""A statically stable motion between consecutive contact sets (§3.3 of Escande et al.; §4 for the
+speed profile).
+
+For two consecutive sets S1, S2 with witness postures q1, q2:
+
+* when a body's spot moves between q1 and q2 (a contact geometrically created, broken or changed), a
+  Cartesian trajectory of that spot is generated: a short straight line along the surface normal when
+  it leaves a surface, another when it enters one, a smooth (C1) connection in between, the
+  orientation interpolated by slerp; it is cut into n - 1 steps giving n frame constraints C_i;
+* otherwise (a contact created or broken only at the stability level) there is no C_i;
+
+then the posture generator runs n times with the contacts of S1 and S2 that do not move, the C_i,
+stability on the contacts held during the motion (S1 for a removal: the contact is released at q2;
+S1 for an addition: the new contact is only made at q2), and the squared distance to q_i, the linear
+interpolation between q1 and q2, as criterion. The discrete path is then timed with a sinusoidal speed
+profile (null speed at every contact change, §4) through a clamped cubic spline of the postures, and
+sampled every ``dt_s`` (5 ms).
+
+Collisions: every posture of the path is generated collision free (capsules against the scene's boxes
+and each other); a segment whose posture generation fails is reported (no hand correction).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.interpolate import CubicSpline
+
+from services.contacts.posture import PostureGenerator
+from services.contacts.sets import ContactSet, spot_surface_gap
+from services.errors import InfeasibleError, RequestTimeoutError
+from services.ik import FramePoseTask, PostureTask
+
+
+@dataclass(frozen=True)
+class InterpolationConfig:
+    """``n`` postures per transition (the paper's n = 20), lift/approach height along the normal [m],
+    quasi-static speed limits: base ``base_speed_m_s`` [m/s], moving spot ``spot_speed_m_s`` [m/s],
+    joints ``joint_speed_ratio`` of their velocity limits, ``min_segment_s`` [s], sample ``dt_s`` [s],
+    ``deadline`` (``time.monotonic()`` [s]) past which RequestTimeoutError is raised."""
+
+    n: int = 20
+    lift_m: float = 0.03
+    base_speed_m_s: float = 0.08
+    spot_speed_m_s: float = 0.15
+    joint_speed_ratio: float = 0.1
+    min_segment_s: float = 0.8
+    dt_s: float = 0.005
+    deadline: float = math.inf  # time.monotonic() after which the interpolation gives up (timeout)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The interpolated motion: ``q`` (N x nq) every ``dt_s``, the index in ``q`` where each contact
+    set's witness posture is reached (``set_samples``), the discrete path (``waypoints``), the
+    interpolation time [s]."""
+
+    q: np.ndarray
+    dt_s: float
+    set_samples: list[int]
+    waypoints: np.ndarray
+    interpolation_s: float
+
+
+def _moving_spot(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2: np.ndarray) -> str | None:
+    """The spot in (or about to be in) contact that moves most between q1 and q2 (> 5 mm), if any."""
+    best, best_d = None, 5e-3
+    for spot in spots:
+        d = float(np.linalg.norm(gen.spot_pose(q1, spot).translation - gen.spot_pose(q2, spot).translation))
+        if d > best_d:
+            best, best_d = spot, d
+    return best
+
+
+def _on_surface(gen: PostureGenerator, T: pin.SE3) -> np.ndarray | None:
+    """The outer normal of a surface the frame ``T`` lies on (within 5 mm and 0.1 rad), if any."""
+    for surface in gen.env.surfaces:
+        height, tilt, inside = spot_surface_gap(T, gen.env, surface.name)
+        if abs(height) < 5e-3 and tilt < 0.1 and inside:
+            return surface.T_world_surface.rotation[:, 2].copy()
+    return None
+
+
+def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: float) -> list[pin.SE3]:
+    """n frames from T1 to T2 (§3.3): straight out along the normal when T1 is on a surface, straight in
+    along the normal when T2 is, a C1 cubic (Hermite) between, orientation by slerp."""
+    n1, n2 = _on_surface(gen, T1), _on_surface(gen, T2)
+    p1, p2 = T1.translation, T2.translation
+    a = p1 + (lift_m * n1 if n1 is not None else 0.0)
+    b = p2 + (lift_m * n2 if n2 is not None else 0.0)
+    span = max(float(np.linalg.norm(b - a)), 1e-6)
+    # Hermite tangents: along the normals at the ends of the straight lines (C1 junctions)
+    # a body leaving no surface (a hand hanging) first rises: a straight chord to a table's top would
+    # run into its edge from below
+    up = np.array([0.0, 0.0, 1.0])
+    ta = (n1 if n1 is not None else (up if b[2] > a[2] else (b - a) / span)) * span
+    tb = (-n2 if n2 is not None else (b - a) / span) * span
+    lengths = [lift_m if n1 is not None else 0.0, span, lift_m if n2 is not None else 0.0]
+    total = sum(lengths)
+    out = []
+    q1, q2 = pin.Quaternion(T1.rotation), pin.Quaternion(T2.rotation)
+    for i in range(n):
+        s = (i + 1) / n * total
+        if s <= lengths[0]:
+            p = p1 + s * n1
+            r = q1
+        elif s <= lengths[0] + lengths[1]:
+            u = (s - lengths[0]) / lengths[1]
+            h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
+            h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
+            p = h00 * a + h10 * ta + h01 * b + h11 * tb
+            r = q1.slerp(u, q2)
+        else:
+            p = b - (s - lengths[0] - lengths[1]) * n2
+            r = q2
+        out.append(pin.SE3(r.toRotationMatrix(), np.asarray(p, float)))
+    return out
+
+
+def transition(
+    gen: PostureGenerator,
+    s1: ContactSet,
+    q1: np.ndarray,
+    s2: ContactSet,
+    q2: np.ndarray,
+    geometric_extra: ContactSet,
+    config: InterpolationConfig,
+) -> list[np.ndarray]:
+    """The n postures from q1 to q2 (q2 last). ``geometric_extra``: a contact removed at the previous
+    transition, still in place at q1 (its body leaves it now). Raises InfeasibleError naming the step."""
+    pairs1 = {c.pair: c for c in (*s1, *geometric_extra)}
+    candidates = sorted({c.spot for c in (*pairs1.values(), *s2)})
+    moving = _moving_spot(gen, candidates, q1, q2)
+    # held: every contact in place at q1 that stays in place at q2 (a contact removed at this
+    # transition is still there at q2, §2.3: it is released at q2)
+    held = tuple(
+        c
+        for c in pairs1.values()
+        if c.spot != moving
+        and np.linalg.norm(gen.spot_pose(q2, c.spot).translation - gen.contact_pose(c).translation) < 5e-3
+    )
+    stable = tuple(c for c in s1 if c in held) or held
+    frames = []
+    if moving is not None:
+        frames = spot_path(gen, gen.spot_pose(q1, moving), gen.spot_pose(q2, moving), config.n, config.lift_m)
+    # the moving body may touch the surface it leaves during the first step and the one it enters
+    # during the last (within the straight lines along the normal); elsewhere it must clear them
+    leaving = [c.pair for c in pairs1.values() if c.spot == moving]
+    entering = [c.pair for c in s2 if c.spot == moving]
+    out: list[np.ndarray] = []
+    q = q1.copy()
+    for i in range(1, config.n + 1):
+        q_ref = pin.interpolate(gen.model, q1, q2, i / config.n)
+        extra = []
+        if moving is not None:
+            extra = [
+                FramePoseTask(
+                    gen.model,
+                    gen.spots[moving].frame_name,
+                    frames[i - 1],
+                    max_step=0.1,
+                    name=f"C_{i}:{moving}",
+                )
+            ]
+        result = gen.generate(
+            held,
+            stable,
+            q,
+            PostureTask(gen.model, q_ref),
+            guide=extra,
+            extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []),
+        )
+        if not result.ok:
+            raise InfeasibleError(
+                f"interpolation step {i}/{config.n} from {[c.describe() for c in s1]} to "
+                f"{[c.describe() for c in s2]} failed: {result.reason}",
+                {"step": i, "moving_spot": moving or ""},
+            )
+        q = result.q
+        out.append(q)
+    return out
+
+
+def sinusoidal_profile(n_samples: int) -> np.ndarray:
+    """s(t) in [0, 1] with a sinusoidal speed (1 - cos), null at both ends (§4)."""
+    t = np.linspace(0.0, 1.0, n_samples)
+    return t - np.sin(2.0 * math.pi * t) / (2.0 * math.pi)
+
+
+def segment_duration(
+    gen: PostureGenerator,
+    waypoints: np.ndarray,
+    config: InterpolationConfig,
+    v_max: np.ndarray,
+    moving_path_m: float = 0.0,
+) -> float:
+    """Duration [s] of a segment so that the peak speed (twice the mean under the sinusoidal profile)
+    stays within the quasi-static limits."""
+    d = np.array(
+        [pin.difference(gen.model, waypoints[k], waypoints[k + 1]) for k in range(len(waypoints) - 1)]
+    )
+    base = float(np.linalg.norm(d[:, :3], axis=1).sum())
+    joints = np.abs(d[:, 6:]).sum(axis=0)
+    ratio = float(np.max(joints / (config.joint_speed_ratio * v_max[6:]))) if joints.size else 0.0
+    return max(
+        config.min_segment_s,
+        2.0 * base / config.base_speed_m_s,
+        2.0 * ratio,
+        2.0 * moving_path_m / config.spot_speed_m_s,
+    )
+
+
+def time_segment(gen: PostureGenerator, waypoints: np.ndarray, duration_s: float, dt_s: float) -> np.ndarray:
+    """Samples every dt_s of a clamped cubic spline through the waypoints (tangent coordinates from the
+    first), timed by the sinusoidal profile; the last sample is the last waypoint."""
+    base = waypoints[0]
+    d = np.array([pin.difference(gen.model, base, w) for w in waypoints])
+    spline = CubicSpline(np.linspace(0.0, 1.0, len(waypoints)), d, bc_type="clamped")
+    n = max(2, round(duration_s / dt_s) + 1)
+    u = sinusoidal_profile(n)
+    q = np.array([pin.integrate(gen.model, base, v) for v in spline(u)])
+    # a cubic through postures at a joint limit can overshoot it by a hair: clip
+    bound = gen.solver.bound_q_idx
+    q[:, bound] = q[:, bound].clip(gen.solver.q_lower[bound], gen.solver.q_upper[bound])
+    return q
+
+
+def interpolate_plan(
+    gen: PostureGenerator,
+    sets: Sequence[ContactSet],
+    witnesses: Sequence[np.ndarray],
+    config: InterpolationConfig | None = None,
+) -> Motion:
+    """The whole motion through the plan's sets and witness postures."""
+    config = config or InterpolationConfig()
+    t0 = time.perf_counter()
+    v_max = np.asarray(gen.robot.v_max, float)
+    samples = [np.asarray(witnesses[0], float)[None]]
+    set_samples = [0]
+    waypoints = [np.asarray(witnesses[0], float)]
+    count = 1
+    removed: ContactSet = ()
+    for k in range(1, len(sets)):
+        if time.monotonic() > config.deadline:
+            raise RequestTimeoutError(
+                f"the time budget ran out while interpolating transition {k} of {len(sets) - 1}",
+                {"transitions_done": k - 1},
+            )
+        s1, s2 = sets[k - 1], sets[k]
+        q1, q2 = np.asarray(witnesses[k - 1], float), np.asarray(witnesses[k], float)
+        # the last posture generated aims at q2; the witness itself (stable and collision free by
+        # construction) ends the segment, so that the next one starts exactly there
+        path = [q1, *transition(gen, s1, q1, s2, q2, removed, config)[:-1], q2]
+        removed = tuple(c for c in s1 if c not in s2)
+        segment = np.array(path)
+        duration = segment_duration(gen, segment, config, v_max)
+        timed = time_segment(gen, segment, duration, config.dt_s)
+        samples.append(timed[1:])
+        count += len(timed) - 1
+        set_samples.append(count - 1)
+        waypoints.extend(path[1:])
+    return Motion(
+        np.concatenate(samples), config.dt_s, set_samples, np.array(waypoints), time.perf_counter() - t0
+    )

@@ -1,0 +1,155 @@
+"""The ``contacts`` service: contact-before-motion planning on the bus (Escande et al.).
+
+Run: ``python -m services.contacts.service [--model hrp2_like]`` (plus the common service options:
+``--config``, ``--robot``, ``--hub``, ``--log-level``).
+
+Endpoint ``contacts/plan`` (:mod:`services.bus.schemas.contacts`): a stateless planner (the reply is a
+function of the request). Every node selected during the search is published on ``contacts/progress``.
+Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` of the wrong
+size, a start contact that does not hold at ``q_start``), ``infeasible`` (the search tree was exhausted,
+or an interpolation step failed; ``details`` has the best set reached and why), ``timeout`` (the time or
+node budget was spent; ``details`` has the partial plan: sets, changes, witnesses).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import dataclass, replace
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small dense problems: threads only add overhead
+
+import numpy as np
+
+from services.bus.schemas import contacts as msg
+from services.bus.service import Service, handles, run_service
+from services.contacts.interpolate import InterpolationConfig
+from services.contacts.planner import Plan, PlanProblem, plan
+from services.contacts.search import Goal, Node, SearchConfig
+from services.errors import InvalidRequestError
+from services.model import RobotModel, load_robot
+from services.model.options import add_model_argument, with_model
+
+SEARCH_SHARE = 0.7  # of the request's time budget for the search; the rest for the interpolation
+
+
+@dataclass(frozen=True)
+class ContactsConfig:
+    """Options of the service: the robot model (only ``hrp2_like`` has contact spots)."""
+
+    model: str = "hrp2_like"
+
+
+class ContactsService(Service):
+    """Contact-before-motion planning (stateless planner)."""
+
+    name = "contacts"
+    Config = ContactsConfig
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        add_model_argument(parser)
+
+    @classmethod
+    def configure(cls, config: ContactsConfig, args: argparse.Namespace) -> ContactsConfig:
+        return with_model(config, args.model)
+
+    def start(self) -> None:
+        self.robot = load_robot(self.config.model)
+        self._progress = self.publisher(msg.PROGRESS)
+        self.log.info("contacts planner ready for %s", self.robot.name)
+
+    @handles(msg.PLAN)
+    def plan(self, request: msg.PlanRequest) -> msg.PlanReply:
+        problem = to_problem(request)
+        request_id = f"{request.scene}@{time.time():.3f}"
+
+        def progress(kind: str, node: Node, generated: int, expanded: int, elapsed: float) -> None:
+            self._progress.put(
+                msg.Progress(
+                    request_id=request_id,
+                    depth=node.depth,
+                    change=node.change,
+                    contacts=[c.describe() for c in node.contacts],
+                    f=float(node.f),
+                    base_xyz=[float(v) for v in node.q[:3]],
+                    nodes_generated=generated,
+                    nodes_expanded=expanded,
+                    elapsed_s=elapsed,
+                )
+            )
+
+        return to_reply(plan(self.robot, problem, progress), self.robot)
+
+
+def to_problem(request: msg.PlanRequest) -> PlanProblem:
+    """The planner's problem of a request (validated)."""
+    if not request.time_budget_s > 0.0:
+        raise InvalidRequestError(f"time_budget_s must be positive, got {request.time_budget_s}")
+    if request.max_nodes < 1:
+        raise InvalidRequestError(f"max_nodes must be >= 1, got {request.max_nodes}")
+    if request.n_interpolation < 2:
+        raise InvalidRequestError(f"n_interpolation must be >= 2, got {request.n_interpolation}")
+    for name, pairs in (
+        ("start_contacts", request.start_contacts),
+        ("final_contacts", request.final_contacts),
+        ("pairs", request.pairs or []),
+    ):
+        if any(len(p) != 2 for p in pairs):
+            raise InvalidRequestError(f"{name} must be a list of [spot, surface] pairs, got {pairs}")
+    deadline = time.monotonic() + request.time_budget_s
+    search = SearchConfig(
+        best_first_sons=request.best_first_sons,
+        max_nodes=request.max_nodes,
+        time_budget_s=SEARCH_SHARE * request.time_budget_s if request.interpolate else request.time_budget_s,
+    )
+    interpolation = (
+        replace(InterpolationConfig(), n=request.n_interpolation, deadline=deadline)
+        if request.interpolate
+        else None
+    )
+    keys = None if request.key_postures is None else np.asarray(request.key_postures, float)
+    return PlanProblem(
+        scene=request.scene,
+        q_start=np.asarray(request.q_start, float).reshape(-1),
+        start_pairs=tuple((a, b) for a, b in request.start_contacts),
+        goal=Goal(request.goal_axis, request.goal_value_m, tuple((a, b) for a, b in request.final_contacts)),
+        key_postures=keys,
+        spots=None if request.spots is None else tuple(request.spots),
+        surfaces=None if request.surfaces is None else tuple(request.surfaces),
+        pairs=None if request.pairs is None else tuple((a, b) for a, b in request.pairs),
+        slope_k=request.slope_k,
+        search=search,
+        interpolation=interpolation,
+    )
+
+
+def to_reply(result: Plan, robot: RobotModel) -> msg.PlanReply:
+    """The bus message of a plan."""
+    path = result.search.path
+    motion = result.motion
+    return msg.PlanReply(
+        model=robot.name,
+        joint_names=list(robot.joint_names),
+        sets=[
+            [msg.ContactMsg(spot=c.spot, surface=c.surface, x=c.x, y=c.y, theta=c.theta) for c in n.contacts]
+            for n in path
+        ],
+        changes=[n.change for n in path],
+        witnesses=np.ascontiguousarray(result.witnesses),
+        f_values=[float(n.f) for n in path],
+        progress=[float(result.trajectory.progress(n.q)) for n in path],
+        dt_s=motion.dt_s if motion else 0.005,
+        q=np.ascontiguousarray(motion.q if motion else np.zeros((0, robot.nq))),
+        set_samples=list(motion.set_samples) if motion else [],
+        nodes_generated=result.search.nodes_generated,
+        nodes_expanded=result.search.nodes_expanded,
+        posture_generations=result.search.posture_generations,
+        plan_s=result.search.plan_s,
+        interpolation_s=motion.interpolation_s if motion else 0.0,
+    )
+
+
+if __name__ == "__main__":
+    raise SystemExit(run_service(ContactsService))

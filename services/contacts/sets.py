@@ -1,0 +1,84 @@
+"""Contacts and sets of contacts (§2.1-2.3 of Escande et al.).
+
+A contact matches a robot spot's frame with a frame of an environment surface (§2.1): the pair
+(spot, surface) plus the three parameters (x, y, theta) on the surface (§2.5). A set of contacts is
+the node of the search (§2.2); all its contacts take part in the stability.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from services.contacts.environment import Environment
+from services.contacts.spots import ContactSpot
+from services.contacts.stability import ContactPatch
+
+
+@dataclass(frozen=True, order=True)
+class Contact:
+    """A fixed contact: spot name, surface name, and (x [m], y [m], theta [rad]) in the surface frame."""
+
+    spot: str
+    surface: str
+    x: float
+    y: float
+    theta: float
+
+    @property
+    def pair(self) -> tuple[str, str]:
+        return (self.spot, self.surface)
+
+    def close_to(self, other: Contact, tol_m: float, tol_rad: float) -> bool:
+        """Same pair and within ``tol_m`` / ``tol_rad`` of each other (sons too close to a node, §2.2)."""
+        if self.pair != other.pair:
+            return False
+        dtheta = abs((self.theta - other.theta + math.pi) % (2.0 * math.pi) - math.pi)
+        return math.hypot(self.x - other.x, self.y - other.y) <= tol_m and dtheta <= tol_rad
+
+    def describe(self) -> str:
+        return f"{self.spot}@{self.surface}({self.x:+.2f},{self.y:+.2f},{math.degrees(self.theta):+.0f}deg)"
+
+
+ContactSet = tuple[Contact, ...]
+
+
+def canonical(contacts: ContactSet | list[Contact]) -> ContactSet:
+    """Contacts sorted by (spot, surface): one representation per set."""
+    return tuple(sorted(contacts))
+
+
+def sets_close(a: ContactSet, b: ContactSet, tol_m: float, tol_rad: float) -> bool:
+    """Two sets are too close when they have the same pairs and each contact is close to its
+    counterpart (§2.2: such a new leaf is discarded)."""
+    if len(a) != len(b):
+        return False
+    return all(x.close_to(y, tol_m, tol_rad) for x, y in zip(canonical(a), canonical(b), strict=True))
+
+
+def patch_of(contact: Contact, spot: ContactSpot, env: Environment) -> ContactPatch:
+    """The stability patch of a contact: the spot's rectangle placed on the surface (world)."""
+    surface = env.surface(contact.surface)
+    T = surface.placement(contact.x, contact.y, contact.theta)
+    corners = spot.corners_local().dot(T.rotation.T) + T.translation
+    return ContactPatch(corners, surface.T_world_surface.rotation[:, 2].copy(), surface.friction)
+
+
+def contact_at(spot: ContactSpot, surface_name: str, env: Environment, T_world_spot: pin.SE3) -> Contact:
+    """The contact a spot frame at ``T_world_spot`` makes with a surface (its (x, y, theta) there)."""
+    x, y, theta = env.surface(surface_name).coordinates(T_world_spot)
+    return Contact(spot.name, surface_name, x, y, theta)
+
+
+def spot_surface_gap(T_world_spot: pin.SE3, env: Environment, surface_name: str) -> tuple[float, float, bool]:
+    """(height of the spot above the surface's plane [m], tilt between the normals [rad], whether the
+    spot's origin projects inside the surface's rectangle)."""
+    surface = env.surface(surface_name)
+    local = surface.T_world_surface.actInv(T_world_spot)
+    tilt = math.acos(float(np.clip(local.rotation[2, 2], -1.0, 1.0)))
+    hx, hy = surface.half_size_m
+    inside = abs(local.translation[0]) <= hx and abs(local.translation[1]) <= hy
+    return float(local.translation[2]), tilt, inside

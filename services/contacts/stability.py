@@ -1,0 +1,158 @@
+"""Static stability with non-coplanar contacts (§2.2 of Escande et al.: "stability" among the posture
+generator's constraints).
+
+A set of flat contacts holds the robot statically when there are contact forces inside the friction
+cones that balance gravity at the centre of mass. Each contact is a convex patch; its force
+distribution is represented by a force at each corner of the patch, inside the cone linearized by
+``N_GENERATORS`` edges (f = sum_k lambda_k u_k, lambda_k >= 0). The Newton-Euler equations with gravity
+only (m g pointing down along -z):
+
+    sum_j f_j = (0, 0, m g)
+    sum_j p_j x f_j + c x (0, 0, -m g) = 0
+
+are linear in (lambda, c_x, c_y) and independent of c_z: the CoM positions that admit forces form a
+convex polygon of the horizontal plane, the static-equilibrium region, which we compute as the
+projection of that polytope onto (c_x, c_y) by Bretl and Lall's incremental algorithm (Bretl & Lall,
+"Testing static equilibrium for legged robots", IEEE T-RO 2008): linear programs in directions normal
+to the current inner approximation's edges until inner and outer approximations agree. The posture
+generator then keeps the CoM inside that polygon (a fixed polygon: the contacts taking part in the
+stability are fixed while a posture is generated, §2.3). A direct check of a given CoM is the force
+feasibility QP solved with proxsuite (:func:`is_statically_stable`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import proxsuite
+from scipy.optimize import linprog
+
+from services.errors import InfeasibleError
+from services.model.ground import convex_hull_indices
+
+N_GENERATORS = 4  # edges of each linearized friction cone
+REGION_BOUND_M = 5.0  # the region is clipped to this square around the contacts [m] (unbounded LPs)
+
+
+@dataclass(frozen=True)
+class ContactPatch:
+    """A contact taking part in the stability: its patch corners in the world (k x 3) [m], its unit
+    normal pointing out of the environment into the robot (world), and the friction coefficient."""
+
+    corners_world: np.ndarray
+    normal_world: np.ndarray
+    friction: float
+
+
+def cone_generators(normal: np.ndarray, mu: float, n: int = N_GENERATORS) -> np.ndarray:
+    """(n, 3) unit-free edges n + mu (cos a t1 + sin a t2) of the inner linearized friction cone: the
+    polyhedral cone inscribed in the circular one, so that a force in it is always admissible."""
+    normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(normal, helper)
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(normal, t1)
+    mu_in = mu * math.cos(math.pi / n)  # inscribed polygon of the cone's circular section
+    angles = 2.0 * math.pi * np.arange(n) / n
+    return normal + mu_in * (np.cos(angles)[:, None] * t1 + np.sin(angles)[:, None] * t2)
+
+
+def _equilibrium_system(patches: Sequence[ContactPatch]) -> tuple[np.ndarray, np.ndarray]:
+    """(A, b) with A [lambda; c_x; c_y] = b: the Newton-Euler equations per unit weight (m g = 1)."""
+    columns = []
+    for patch in patches:
+        generators = cone_generators(patch.normal_world, patch.friction)
+        for p in np.asarray(patch.corners_world, dtype=float):
+            for u in generators:
+                columns.append(np.concatenate((u, np.cross(p, u))))
+    if not columns:
+        raise InfeasibleError("no contact takes part in the stability: nothing can hold the robot")
+    A_force = np.array(columns).T  # (6, n_lambda)
+    # gravity's moment c x (0, 0, -1) = (-c_y, c_x, 0)
+    A_com = np.zeros((6, 2))
+    A_com[3, 1] = -1.0
+    A_com[4, 0] = 1.0
+    b = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    return np.hstack((A_force, A_com)), b
+
+
+def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max_lps: int = 60) -> np.ndarray:
+    """The static-equilibrium CoM region (k x 2 counter-clockwise polygon [m]) by Bretl and Lall's
+    projection: ``tol_m`` is the largest distance between the inner and outer approximations.
+
+    Raises InfeasibleError when no CoM position is in equilibrium (e.g. one contact too steep).
+    """
+    A, b = _equilibrium_system(patches)
+    n = A.shape[1]
+    corners = np.vstack([np.asarray(p.corners_world, dtype=float) for p in patches])
+    centre = corners[:, :2].mean(axis=0)
+    bounds = [(0.0, None)] * (n - 2) + [
+        (centre[0] - REGION_BOUND_M, centre[0] + REGION_BOUND_M),
+        (centre[1] - REGION_BOUND_M, centre[1] + REGION_BOUND_M),
+    ]
+    lps = 0
+
+    def extreme(direction: np.ndarray) -> np.ndarray | None:
+        nonlocal lps
+        lps += 1
+        cost = np.zeros(n)
+        cost[-2:] = -direction
+        res = linprog(cost, A_eq=A, b_eq=b, bounds=bounds, method="highs")
+        return None if res.status != 0 else res.x[-2:]
+
+    vertices = []
+    for angle in (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0):
+        v = extreme(np.array([math.cos(angle), math.sin(angle)]))
+        if v is None:
+            raise InfeasibleError("the contacts cannot balance gravity for any centre of mass position")
+        vertices.append(v)
+    done: set[tuple[float, float, float, float]] = set()
+    while lps < max_lps:
+        points = np.array(vertices)
+        hull = convex_hull_indices(points)
+        polygon = points[hull]
+        if polygon.shape[0] < 3:
+            return polygon  # a segment or a point: degenerate (e.g. one point contact)
+        grown = False
+        for i in range(polygon.shape[0]):
+            a, c = polygon[i], polygon[(i + 1) % polygon.shape[0]]
+            key = (round(a[0], 6), round(a[1], 6), round(c[0], 6), round(c[1], 6))
+            if key in done:
+                continue
+            edge = c - a
+            normal = np.array([edge[1], -edge[0]]) / max(np.linalg.norm(edge), 1e-12)  # outward (CCW)
+            v = extreme(normal)
+            if v is not None and normal.dot(v - a) > tol_m:
+                vertices.append(v)
+                grown = True
+            else:
+                done.add(key)
+            if lps >= max_lps:
+                break
+        if not grown:
+            break
+    points = np.array(vertices)
+    return points[convex_hull_indices(points)]
+
+
+def is_statically_stable(
+    patches: Sequence[ContactPatch], com_world: np.ndarray, tol: float = 1e-6
+) -> tuple[bool, float]:
+    """Whether forces in the linearized cones balance gravity with the CoM at ``com_world``: the QP
+    min ||lambda||^2 s.t. A_f lambda = b - A_c c, lambda >= 0 solved with proxsuite (§2.2).
+    Returns (feasible, primal residual of the equalities per unit weight)."""
+    A, b = _equilibrium_system(patches)
+    A_f, A_c = A[:, :-2], A[:, -2:]
+    rhs = b - A_c.dot(np.asarray(com_world, dtype=float)[:2])
+    n = A_f.shape[1]
+    qp = proxsuite.proxqp.dense.QP(n, A_f.shape[0], n)
+    qp.settings.eps_abs = 1e-9
+    qp.settings.verbose = False
+    qp.init(np.eye(n), np.zeros(n), A_f, rhs, np.eye(n), np.zeros(n), np.full(n, 1e20))
+    qp.solve()
+    lam = np.maximum(qp.results.x, 0.0)
+    residual = float(np.linalg.norm(A_f.dot(lam) - rhs))
+    return residual < max(tol, 1e-4), residual

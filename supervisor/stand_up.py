@@ -1,0 +1,68 @@
+"""The ``stand_up`` action: get out of a chair (script ``stand_up``, console "get up" / "stand up").
+
+Calls ``contacts/plan`` (contact-before-motion planning, Escande et al.) from the robot's current
+configuration in the sim's current scene, then plays the planned multi-contact motion with
+``sim/execute``, the chair and the table allowed as supports. Failure reasons: the planner's typed
+errors (``infeasible`` with the best set reached, ``timeout`` with the partial plan), ``fell`` /
+``collision`` from the execution.
+
+The supervisor imports no planner: the request names the start contacts of the seated robot and the
+goal as data.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from services.bus.schemas import contacts as contacts_msg
+from supervisor.body import Body
+from supervisor.calls import ServiceCaller
+from supervisor.report import ActionError, ActionReport
+
+# The seated robot's contacts (soles on the floor, thighs on the chair's seat) and the goal: the waist
+# beyond y = 0.6 m, standing on both soles (the chair_egress scene, §3.1 of the paper).
+SEATED_CONTACTS = [
+    ["left_sole", "floor"],
+    ["right_sole", "floor"],
+    ["left_thigh", "chair.seat"],
+    ["right_thigh", "chair.seat"],
+]
+GOAL_AXIS, GOAL_VALUE_M = "y", 0.6
+PLAN_BUDGET_S = 300.0
+PLAN_TIMEOUT_S = PLAN_BUDGET_S + 60.0
+SUPPORTS = ("chair", "table")
+
+
+def stand_up(
+    bus: ServiceCaller, body: Body, progress: Callable[[str], None], args: tuple[str, ...] = ()
+) -> ActionReport:
+    """Plan and execute getting up; ``args``: optional goal value [m] of the waist's y."""
+    state = body.state()
+    if state.fallen:
+        raise ActionError("fell", "the robot is on the ground: reset the sim")
+    goal = float(args[0]) if args else GOAL_VALUE_M
+    progress(f"stand up: planning contacts in scene {state.scene} (budget {PLAN_BUDGET_S:.0f} s)")
+    request = contacts_msg.PlanRequest(
+        scene=state.scene,
+        q_start=state.q,
+        start_contacts=SEATED_CONTACTS,
+        goal_axis=GOAL_AXIS,
+        goal_value_m=goal,
+        time_budget_s=PLAN_BUDGET_S,
+    )
+    plan = bus.call(contacts_msg.PLAN, request, PLAN_TIMEOUT_S)
+    for k, (change, contacts) in enumerate(zip(plan.changes, plan.sets, strict=True)):
+        progress(f"  set {k}: {change} -> {len(contacts)} contacts")
+    progress(
+        f"stand up: {len(plan.sets)} sets, {plan.nodes_generated} nodes in {plan.plan_s:.0f} s; "
+        f"playing {plan.q.shape[0] * plan.dt_s:.0f} s of motion"
+    )
+    executed = body.execute(
+        plan.q, what="stand up", dt_s=plan.dt_s, progress=progress, hold_s=1.0, supports=SUPPORTS
+    )
+    return ActionReport(
+        "stand_up",
+        args,
+        message=f"stood up in {len(plan.sets)} contact sets ({executed.duration_s:.0f} s of motion)",
+        details={"sets": len(plan.sets), "nodes_generated": plan.nodes_generated, "plan_s": plan.plan_s},
+    )

@@ -1,0 +1,297 @@
+"""Contact-before-motion planning (services/contacts, Escande et al.): search volumes (§2.6, Fig. 1),
+static stability with non-coplanar contacts (§2.2), the capsule-box collision task, the floating
+contact tasks (Jacobians against finite differences), f_T (§2.7, eq. 1), the posture generator (§2.2)
+and the best-first search's son generation (§2.3, §2.8) on the chair scene."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from services.contacts import chair_egress
+from services.contacts.contact_tasks import InVolumeTask, OnPlaneTask
+from services.contacts.environment import environment_of
+from services.contacts.posture import Floating, PostureGenerator
+from services.contacts.potential import PotentialTask, RoughTrajectory, base_point
+from services.contacts.search import ContactPlanner, Goal, SearchConfig
+from services.contacts.sets import Contact, contact_at
+from services.contacts.spots import robot_spots
+from services.contacts.stability import ContactPatch, equilibrium_region, is_statically_stable
+from services.contacts.volumes import SearchVolume, around, full_volume, subtract
+from services.errors import InvalidRequestError
+from services.ik import compute_kinematics
+from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox, segment_box_distances
+from services.model import load_robot
+from sim.scene import layout, load_scene
+from sim.world import start_configuration
+
+H = 1e-6
+FD_TOL = 1e3 * (H**2 + np.finfo(float).eps / H)
+
+
+@pytest.fixture(scope="module")
+def chair():
+    robot = load_robot("hrp2_like")
+    lay = layout(load_scene("chair_egress"))
+    env = environment_of(lay)
+    gen = PostureGenerator(robot, env, robot_spots(robot))
+    q0 = start_configuration(robot, lay)
+    start = tuple(contact_at(gen.spots[s], e, env, gen.spot_pose(q0, s)) for s, e in chair_egress.START_PAIRS)
+    return robot, env, gen, q0, start
+
+
+# ------------------------------------------------------------------------------------------ volumes
+def test_subtracting_v_leaves_convex_parts_that_cover_c_minus_v():
+    C = full_volume(0.3, 0.2)
+    V = around((0.1, -0.05, 0.5), (0.05, 0.05, 0.3))
+    parts = subtract(C, V, (0.0, 0.0, 0.0))
+    assert len(parts) == 6
+    rng = np.random.default_rng(0)
+    for point in rng.uniform(C.lower, C.upper, size=(2000, 3)):
+        in_v, inside = V.contains(point, tol=0.0), [p.contains(point, tol=0.0) for p in parts]
+        strictly_in_v = all(lo < v < hi for lo, v, hi in zip(V.lower, point, V.upper, strict=True))
+        assert not (strictly_in_v and any(inside))  # parts never enter V's interior
+        assert in_v or any(inside)  # and cover the rest of C
+    volume = sum(math.prod(p.size) for p in parts)
+    assert volume == pytest.approx(math.prod(C.size) - math.prod(V.size))
+
+
+def test_a_volume_outside_c_changes_nothing_and_thin_parts_are_dropped():
+    C = SearchVolume((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    assert subtract(C, around((5.0, 5.0, 5.0), (0.1, 0.1, 0.1)), (0.0, 0.0, 0.0)) == [C]
+    parts = subtract(C, around((0.5, 0.99, 0.5), (0.2, 0.2, 2.0)), (0.05, 0.05, 0.05))
+    assert all(min(p.size) >= 0.05 for p in parts)
+    with pytest.raises(InvalidRequestError, match="above upper"):
+        SearchVolume((1.0, 0.0, 0.0), (0.0, 1.0, 1.0))
+
+
+# ------------------------------------------------------------------------------------------ stability
+def _square(cx: float, cy: float, z: float, half: float = 0.05) -> np.ndarray:
+    return np.array([[cx + a * half, cy + b * half, z] for a, b in ((1, 1), (-1, 1), (-1, -1), (1, -1))])
+
+
+def test_coplanar_region_is_the_convex_hull_of_the_contacts():
+    up = np.array([0.0, 0.0, 1.0])
+    patches = [ContactPatch(_square(0.0, 0.1, 0.0), up, 0.8), ContactPatch(_square(0.0, -0.1, 0.0), up, 0.8)]
+    region = equilibrium_region(patches)
+    assert region[:, 0].min() == pytest.approx(-0.05, abs=3e-3)
+    assert region[:, 0].max() == pytest.approx(0.05, abs=3e-3)
+    assert region[:, 1].min() == pytest.approx(-0.15, abs=3e-3)
+    assert region[:, 1].max() == pytest.approx(0.15, abs=3e-3)
+
+
+def test_non_coplanar_region_differs_from_the_hull_and_the_force_qp_agrees_with_it():
+    up = np.array([0.0, 0.0, 1.0])
+    feet = [ContactPatch(_square(0.0, 0.1, 0.0), up, 0.8), ContactPatch(_square(0.0, -0.1, 0.0), up, 0.8)]
+    hand_high = ContactPatch(_square(0.5, 0.0, 0.8), up, 0.8)
+    region = equilibrium_region([*feet, hand_high])
+    flat = equilibrium_region([*feet, ContactPatch(_square(0.5, 0.0, 0.0), up, 0.8)])
+    # friction at a contact higher up moves the region beyond the flat hull (here wider at the feet)
+    assert _area(region) > _area(flat) + 1e-2
+    rng = np.random.default_rng(1)
+    agree = 0
+    for xy in rng.uniform((-0.2, -0.3), (0.7, 0.3), size=(200, 2)):
+        margin = _signed_margin(region, xy)
+        if abs(margin) < 5e-3:
+            continue  # on the boundary within the projection's tolerance
+        feasible, _ = is_statically_stable([*feet, hand_high], np.array([xy[0], xy[1], 0.7]))
+        assert feasible == (margin > 0.0), (xy, margin)
+        agree += 1
+    assert agree > 150
+
+
+def _area(polygon: np.ndarray) -> float:
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def _signed_margin(polygon: np.ndarray, point: np.ndarray) -> float:
+    """Distance of ``point`` inside the counter-clockwise ``polygon`` (negative outside)."""
+    margins = []
+    for k in range(len(polygon)):
+        a, b = polygon[k], polygon[(k + 1) % len(polygon)]
+        edge = b - a
+        normal = np.array([-edge[1], edge[0]]) / np.linalg.norm(edge)
+        margins.append(float(normal.dot(point - a)))
+    return min(margins)
+
+
+# ------------------------------------------------------------------------------------------ tasks
+def _fd_check(task, model, q, atol=FD_TOL):
+    data = model.createData()
+    compute_kinematics(model, data, q, True)
+    F, J = task.compute(q, data)
+    columns = []
+    for i in range(model.nv):
+        step = np.zeros(model.nv)
+        step[i] = H
+        values = []
+        for sign in (1.0, -1.0):
+            q_i = pin.integrate(model, q, sign * step)
+            compute_kinematics(model, data, q_i, True)
+            values.append(task.compute_error(q_i, data))
+        columns.append((values[0] - values[1]) / (2.0 * H))
+    np.testing.assert_allclose(J, np.column_stack(columns), atol=atol, rtol=0)
+    return F
+
+
+def test_floating_contact_task_jacobians(chair):
+    robot, env, gen, q0, _ = chair
+    rng = np.random.default_rng(3)
+    volume = SearchVolume((-0.3, -0.3, -3.0), (0.3, 0.3, 3.0))
+    for _ in range(3):
+        q = pin.integrate(gen.model, q0, rng.normal(scale=0.3, size=gen.model.nv))
+        q[7:] = np.clip(q[7:], robot.q_lower[7:] + 1e-3, robot.q_upper[7:] - 1e-3)
+        for spot in ("left_sole", "right_hand", "left_thigh"):
+            frame = gen.spots[spot].frame_name
+            _fd_check(OnPlaneTask(gen.model, frame, env.surface("chair.seat")), gen.model, q)
+            _fd_check(InVolumeTask(gen.model, frame, env.surface("table.top"), volume), gen.model, q)
+
+
+def test_capsule_box_distances_and_jacobian(chair):
+    robot, env, gen, _q0, _ = chair
+    # segment above a unit box, and one through it (negative: the depth to the nearest face)
+    R, t, half = np.eye(3)[None], np.zeros((1, 3)), np.full((1, 3), 0.5)
+    d, _, n = segment_box_distances(np.array([[-1.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 1.0]]), R, t, half)
+    assert d[0] == pytest.approx(0.5) and n[0] == pytest.approx([0.0, 0.0, 1.0])
+    d, _, n = segment_box_distances(np.array([[-1.0, 0.0, 0.3]]), np.array([[1.0, 0.0, 0.3]]), R, t, half)
+    assert d[0] == pytest.approx(-0.2) and n[0] == pytest.approx([0.0, 0.0, 1.0])
+    boxes = [ObstacleBox(b.name, b.T_world_box, b.half_extents_m) for b in env.boxes]
+    pairs = [(i, j) for i in range(len(robot.capsules)) for j in range(len(boxes))]
+    task = CapsuleBoxTask(gen.model, robot.capsules, boxes, pairs, margin_m=0.01, activation_m=10.0)
+    data = gen.model.createData()
+    # standing beside the table's corner, arms forward: near the table, clear of it (separated pairs:
+    # a penetrating pair's nearest face is a first-order direction out, not a derivative)
+    q = robot.half_sitting_at(0.25, 0.5, 0.0)
+    q[robot.joint_index("LARM_JOINT0").idx_q] = -1.0
+    q[robot.joint_index("RARM_JOINT0").idx_q] = -1.0
+    compute_kinematics(gen.model, data, q, False)
+    separated = [p for p, d in zip(pairs, task.distances(data), strict=True) if d > 1e-3]
+    assert min(d for d in task.distances(data) if d > 1e-3) < 0.3
+    task = CapsuleBoxTask(gen.model, robot.capsules, boxes, separated, margin_m=0.01, activation_m=10.0)
+    F = _fd_check(task, gen.model, q, atol=1e-4)
+    compute_kinematics(gen.model, data, q, False)
+    np.testing.assert_allclose(F, 0.01 - task.distances(data))
+
+
+# ------------------------------------------------------------------------------------------ f_T
+def test_potential_is_smooth_descends_along_t_and_rounds_corners(chair):
+    robot, _env, gen, q0, _ = chair
+    keys = [q0, robot.half_sitting_at(0.3, 0.0, 0.0), robot.half_sitting_at(0.3, 0.6, 0.0)]
+    T = RoughTrajectory(gen.model, keys, k=30.0, corner_deviation=0.05)
+    assert [p.kind for p in T.pieces] == ["line", "arc", "line"]
+    # the arc stays within the deviation of the corner
+    corner = base_point(keys[1])
+    arc = T.pieces[1]
+    mid = arc.a + arc.radius * (arc.b * math.cos(arc.angle / 2) + arc.c * math.sin(arc.angle / 2))
+    assert np.linalg.norm(mid - corner) == pytest.approx(0.05, abs=1e-6)
+    # on T, f_T = -k s' and it decreases toward the end
+    values = [T.value(q) for q in keys]
+    assert values[0] == pytest.approx(0.0, abs=1e-9)
+    assert values[0] > values[1] > values[2]
+    assert values[2] == pytest.approx(-30.0 * T.length, rel=1e-6)
+    # continuity of s' across the arc: nearby points have nearby abscissas
+    for u in np.linspace(0.0, 1.0, 50):
+        p = T.configuration_at(T.project(base_point(pin.interpolate(gen.model, keys[1], keys[2], u))))
+        assert np.isfinite(T.value(p))
+    with pytest.raises(InvalidRequestError, match="bijective"):
+        RoughTrajectory(gen.model, [keys[1], keys[1]])
+
+
+def test_potential_task_moves_downhill(chair):
+    robot, _env, gen, _q0, _ = chair
+    keys = [robot.half_sitting_at(0.0, 0.0, 0.0), robot.half_sitting_at(0.0, 1.0, 0.0)]
+    T = RoughTrajectory(gen.model, keys, k=4.0)
+    task = PotentialTask(T)
+    q = keys[0].copy()
+    data = gen.model.createData()
+    before = T.value(q)
+    F = task.compute_error(q, data)
+    q = pin.integrate(gen.model, q, -0.05 * F)
+    assert T.value(q) < before
+
+
+# ------------------------------------------------------------------------------------------ posture generator
+def test_seated_start_is_a_witness_of_its_contacts(chair):
+    _robot, _env, gen, q0, start = chair
+    for contact in start:
+        T = gen.spot_pose(q0, contact.spot)
+        target = gen.contact_pose(contact)
+        assert np.linalg.norm(T.translation - target.translation) < 1e-3
+    com = pin.centerOfMass(gen.model, gen.data, q0)
+    assert gen.stable_at(start, com)
+
+
+def test_removed_contact_stays_as_geometry_and_leaves_the_stability(chair):
+    _robot, _env, gen, q0, start = chair
+    thighs_removed = tuple(c for c in start if "thigh" not in c.spot)
+    result = gen.generate(start, thighs_removed, q0)
+    assert result.ok, result.reason
+    for contact in start:  # every contact still matched (§2.3)
+        assert (
+            np.linalg.norm(
+                gen.spot_pose(result.q, contact.spot).translation - gen.contact_pose(contact).translation
+            )
+            < 3e-3
+        )
+    assert gen.stable_at(thighs_removed, pin.centerOfMass(gen.model, gen.data, result.q))
+    # one foot alone cannot hold the seated robot
+    assert not gen.generate(start, (start[0],), q0).ok
+
+
+def test_floating_contact_is_found_inside_its_volume(chair):
+    _robot, env, gen, q0, start = chair
+    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
+    result = gen.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
+    assert result.ok, result.reason
+    c = result.contact
+    assert c is not None and volume.contains((c.x, c.y, c.theta), tol=2e-3)
+    T = gen.spot_pose(result.q, "right_hand")
+    assert abs(T.translation[2] - env.surface("table.top").T_world_surface.translation[2]) < 2e-3
+    # a volume off the table's reach fails
+    far = SearchVolume((0.25, 0.3, -0.1), (0.3, 0.35, 0.1))
+    assert not gen.generate(start, start, q0, None, Floating("right_hand", "table.top", far)).ok
+
+
+# ------------------------------------------------------------------------------------------ search
+def test_first_expansion_one_leaf_per_pair_and_removals(chair):
+    robot, env, gen, q0, start = chair
+    T = RoughTrajectory(gen.model, chair_egress.key_postures(robot, env, q0))
+    goal = Goal("y", 0.6, chair_egress.FINAL_PAIRS)
+    counts = {}
+    for best_first in (True, False):
+        planner = ContactPlanner(
+            gen,
+            T,
+            goal,
+            chair_egress.PAIRS,
+            SearchConfig(best_first_sons=best_first, max_nodes=60, time_budget_s=120),
+        )
+        root = planner._add(None, start, q0, "start")
+        planner._removal_sons(root)
+        planner._addition_sons(root)
+        sons = planner.nodes[1:]
+        for son in sons:  # a son differs from its father by exactly one contact (§2.2)
+            assert len(set(son.contacts) ^ set(start)) == 1
+        added = [s for s in sons if s.change.startswith("+")]
+        pairs = [next(iter(set(s.contacts) - set(start))).pair for s in added]
+        counts[best_first] = len(added)
+        if best_first:  # §2.8: one leaf per pair
+            assert len(pairs) == len(set(pairs))
+        assert sum(s.change.startswith("-") for s in sons) >= 2
+    assert counts[False] > counts[True]
+
+
+def test_goal_needs_the_coordinate_and_the_final_contacts():
+    goal = Goal("y", 0.5, (("left_sole", "floor"),))
+    q = np.zeros(7)
+    q[1] = 0.6
+    assert goal.reached((Contact("left_sole", "floor", 0, 0, 0),), q)
+    assert not goal.reached((Contact("left_hand", "floor", 0, 0, 0),), q)
+    q[1] = 0.4
+    assert not goal.reached((Contact("left_sole", "floor", 0, 0, 0),), q)
+    with pytest.raises(InvalidRequestError, match="axis"):
+        Goal("w", 0.0)
