@@ -14,7 +14,10 @@ class SimConfig:
 
     Attributes:
         model: robot model name (``services.model.load_robot``): ``hrp2_like`` or ``talos``.
-        scene: scene loaded at start-up (a name in ``sim/scenes`` or a YAML path).
+        scene: scene loaded at start-up (a name in the scene folders or a YAML path: the operator's
+            choice; ``sim/reset`` requests name scenes only, never a path).
+        scene_dirs: more folders of scene files ``<name>.yaml`` that ``sim/reset`` may load by name,
+            searched after the shipped ``sim/scenes`` (a request never names a path).
         seed: seed of the start-up layout (None: the nominal layout of the scene file).
         realtime: pace the simulation at wall-clock speed and keep stepping while idle (robot standing);
             off (default): execute as fast as possible and freeze physics between requests.
@@ -24,6 +27,8 @@ class SimConfig:
             ``pybullet_solver_iterations``, 20 for hrp2_like, 50 for talos).
         position_gain, velocity_gain: pybullet position-control gains of every joint (the motor is a
             constraint: ``kp (q* - q) / dt + kd (v* - v)``, forces capped at the URDF effort limits).
+        execute_budget_s: wall-clock budget of a ``sim/execute`` that gives none [s]: past it the
+            robot holds where it is and the reply is ``timeout`` (no request holds the sim longer).
         max_start_jump_rad: a trajectory whose first sample is farther than this from the current
             joint positions is rejected (plan from the current state, ``sim/state``) [rad].
         gripper_timeout_s: longest opening/closing motion of a gripper [s].
@@ -35,6 +40,7 @@ class SimConfig:
 
     model: str = "hrp2_like"
     scene: str = "empty"
+    scene_dirs: tuple[str, ...] = ()
     seed: int | None = None
     realtime: bool = False
     physics_dt_s: float = 0.001
@@ -43,6 +49,7 @@ class SimConfig:
     position_gain: float = 0.3
     velocity_gain: float = 1.0
     max_start_jump_rad: float = 0.2
+    execute_budget_s: float = 300.0
     gripper_timeout_s: float = 2.5
     settle_s: float = 0.3
     loaded_foot_force_n: float = 30.0
@@ -57,6 +64,7 @@ class SimConfig:
             "position_gain",
             "velocity_gain",
             "max_start_jump_rad",
+            "execute_budget_s",
             "gripper_timeout_s",
             "render_near_m",
             "render_far_m",

@@ -19,20 +19,30 @@ from __future__ import annotations
 import argparse
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
+import yaml
 
 from services.bus.schemas import sim as msg
 from services.bus.service import Service, config_with, handles, run_service
-from services.errors import InvalidRequestError
+from services.errors import HumanoidError, InvalidRequestError, NotFoundError, RequestTimeoutError
 from services.model.options import add_model_argument, with_model
 from sim.config import SimConfig
-from sim.scene import load_scene
+from sim.scene import SCENES_DIR, SceneSpec, load_scene, parse_scene
 from sim.world import World
 
 _RESYNC_BEHIND_S = 0.1  # realtime pacing gives up catching up when this far behind the wall clock
+#: Largest scene file ``sim/reset`` reads [bytes] (the shipped ones are 1-3 kB).
+MAX_SCENE_BYTES = 256 * 1024
+#: Longest motion ``sim/execute`` plays: samples x dt_s + hold_s [s of sim time].
+MAX_EXECUTE_S = 120.0
+
+
+class _OverBudgetError(Exception):
+    """Raised from the tick hook when an execution passes its wall-clock budget."""
 
 
 class SimService(Service):
@@ -44,6 +54,12 @@ class SimService(Service):
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--scene", help="scene at start-up (a name in sim/scenes or a YAML path)")
+        parser.add_argument(
+            "--scene-dir",
+            action="append",
+            default=[],
+            help="a folder of more scenes <name>.yaml that sim/reset may load by name (repeatable)",
+        )
         parser.add_argument(
             "--seed", type=int, help="seed of the start-up layout (default: the nominal layout)"
         )
@@ -57,14 +73,17 @@ class SimService(Service):
         changes: dict[str, Any] = {k: v for k in ("scene", "seed") if (v := getattr(args, k)) is not None}
         if args.realtime:
             changes["realtime"] = True
+        if args.scene_dir:
+            changes["scene_dirs"] = (*config.scene_dirs, *args.scene_dir)
         config = with_model(config_with(config, **changes), args.model)
-        load_scene(config.scene)  # fail at start-up with a message rather than inside the running service
+        _startup_scene(config)  # fail at start-up with a message rather than inside the running service
         return config
 
     def start(self) -> None:
         cfg: SimConfig = self.config
         self.lock = threading.RLock()
-        self.world = World(cfg.model, cfg.scene, cfg.seed, cfg)
+        self._deadline: float | None = None  # wall-clock end of the running execute's budget
+        self.world = World(cfg.model, _startup_scene(cfg), cfg.seed, cfg)
         self._pub_state = self.publisher(msg.JOINT_STATE)
         self._pub_base = self.publisher(msg.BASE_POSE)
         self._pub_clock = self.publisher(msg.CLOCK)
@@ -108,6 +127,9 @@ class SimService(Service):
             )
         )
         self._pub_clock.put(msg.Clock(sim_time_s=t))
+        if self._deadline is not None and time.monotonic() > self._deadline:
+            self._deadline = None
+            raise _OverBudgetError
         if self.config.realtime and self._pacing_in_tick:
             delay = self._pace_delay(t)
             if delay > 0.0:
@@ -158,16 +180,38 @@ class SimService(Service):
 
     @handles(msg.EXECUTE)
     def execute(self, request: msg.ExecuteRequest) -> msg.ExecuteReply:
-        with self.lock:
-            r = self.world.execute(
-                np.asarray(request.q, dtype=float),
-                request.dt_s,
-                tuple(request.allowed_contacts),
-                request.stop_on_collision,
-                request.hold_s,
-                tuple(request.leaving),
-                tuple(request.supports),
+        q = np.asarray(request.q, dtype=float)
+        length_s = len(q) * request.dt_s + request.hold_s
+        if length_s > MAX_EXECUTE_S:
+            raise InvalidRequestError(
+                f"the motion lasts {length_s:.1f} s ({len(q)} samples x dt_s {request.dt_s} s + hold_s "
+                f"{request.hold_s} s): at most {MAX_EXECUTE_S:.0f} s in one sim/execute; split it",
+                {"field": "q", "limit_s": MAX_EXECUTE_S},
             )
+        with self.lock:
+            started = time.monotonic()
+            budget = self.config.execute_budget_s if request.time_budget_s is None else request.time_budget_s
+            self._deadline = started + budget
+            t0 = self.world.sim_time_s
+            try:
+                r = self.world.execute(
+                    q,
+                    request.dt_s,
+                    tuple(request.allowed_contacts),
+                    request.stop_on_collision,
+                    request.hold_s,
+                    tuple(request.leaving),
+                    tuple(request.supports),
+                )
+            except _OverBudgetError:
+                played = self.world.sim_time_s - t0
+                raise RequestTimeoutError(
+                    f"sim/execute stopped after its time budget of {budget} s: {played:.3f} s of the "
+                    f"{length_s:.3f} s motion played; the robot holds its last command",
+                    {"played_s": played, "duration_s": length_s},
+                ) from None
+            finally:
+                self._deadline = None
         return msg.ExecuteReply(
             outcome=r.outcome,
             message=r.message,
@@ -242,9 +286,10 @@ class SimService(Service):
 
     @handles(msg.RESET)
     def reset(self, request: msg.ResetRequest) -> msg.ResetReply:
+        scene = self._named_scene(request.scene) if request.scene else None
         with self.lock:
             w = self.world
-            layout = w.reset(request.scene or None, request.seed)
+            layout = w.reset(scene, request.seed)
             self._pace_anchor = None
             return msg.ResetReply(
                 scene=layout.scene.name,
@@ -253,6 +298,26 @@ class SimService(Service):
                 q=w.state().q,
                 sim_time_s=w.sim_time_s,
             )
+
+    def _named_scene(self, name: str) -> SceneSpec:
+        """The scene ``name`` from the scene folders (the request's schema allows names only, never a
+        path); a broken file is logged here and reported without its content."""
+        folders = _scene_folders(self.config)
+        path = next((f / f"{name}.yaml" for f in folders if (f / f"{name}.yaml").is_file()), None)
+        if path is None:
+            raise NotFoundError(
+                f"unknown scene {name!r}; available scenes: {', '.join(_scene_names(folders))}",
+                {"field": "scene"},
+            )
+        if path.stat().st_size > MAX_SCENE_BYTES:
+            raise InvalidRequestError(f"scene {name!r} is larger than {MAX_SCENE_BYTES} bytes")
+        try:
+            return parse_scene(yaml.safe_load(path.read_bytes()), source=name)
+        except (HumanoidError, yaml.YAMLError, RecursionError, ValueError, TypeError) as exc:
+            self.log.warning("scene %s (%s) does not load: %s", name, path, exc)
+            raise InvalidRequestError(
+                f"scene {name!r} is not a valid scene file (the sim's log says why)", {"field": "scene"}
+            ) from None
 
     @handles(msg.GROUND_TRUTH)
     def ground_truth(self, request: msg.GroundTruthRequest) -> msg.GroundTruthReply:
@@ -294,6 +359,24 @@ class SimService(Service):
             png = self.world.snapshot(request.viewpoint, request.width_px, request.height_px, eye, target)
             t = self.world.sim_time_s
         return msg.SnapshotReply(sim_time_s=t, png=np.frombuffer(png, dtype=np.uint8))
+
+
+def _scene_folders(config: SimConfig) -> list[Path]:
+    return [SCENES_DIR, *(Path(d) for d in config.scene_dirs)]
+
+
+def _scene_names(folders: list[Path]) -> list[str]:
+    return sorted({p.stem for f in folders if f.is_dir() for p in f.glob("*.yaml")})
+
+
+def _startup_scene(config: SimConfig) -> SceneSpec:
+    """The start-up scene: a YAML path, or a name looked up in the scene folders (shipped first)."""
+    if config.scene.endswith((".yaml", ".yml")):
+        return load_scene(config.scene)
+    for folder in _scene_folders(config):
+        if (folder / f"{config.scene}.yaml").is_file():
+            return load_scene(folder / f"{config.scene}.yaml")
+    return load_scene(config.scene)  # NotFoundError listing the shipped scenes
 
 
 if __name__ == "__main__":

@@ -148,3 +148,98 @@ def test_shm_cleanup_spares_segments_a_living_process_this_one_included_holds(tm
         holder.kill()
         holder.wait()
     assert {p.name for p in orphaned(tmp_path)} == {"1.zenoh", "2.zenoh", "3.zenoh"}  # their holders are gone
+
+
+def _frame(header: dict, blob: bytes) -> bytes:
+    import json
+    import struct
+
+    raw = json.dumps(header).encode()
+    return b"HRPB" + struct.pack("<I", len(raw)) + raw + blob
+
+
+_NAN = np.array([[0.0, float("nan")]]).tobytes()
+
+
+@pytest.mark.parametrize(
+    ("payload", "type_name", "message"),
+    [
+        (b'{"q": ' + b"[" * 5000 + b"]" * 5000 + b"}", "ExecuteRequest", "nested too deeply"),
+        (b'{"q": [[0.0]], "allowed_contacts": ["\xff"]}', "ExecuteRequest",
+         'not valid UTF-8.*"allowed_contacts"'),
+        (b'{"q": [["a", "b"]]}', "ExecuteRequest", r"array of numbers.*at `\$\.q`"),
+        (b'{"q": [[0.0]], "colour": 1}', "ExecuteRequest", "unknown field `colour`"),
+        (b'{"q": [[0.0]], "dt_s": 1e300}', "ExecuteRequest", r"<= 0.1 - at `\$\.dt_s`"),
+        (b'{"q": [[0.0]], "dt_s": 1e999}', "ExecuteRequest", "out of range"),
+        (b'{"scene": "../../etc/passwd"}', "ResetRequest", r"matching regex.*at `\$\.scene`"),
+        (b'{"seed": -1}', "ResetRequest", r">= 0 - at `\$\.seed`"),
+        (_frame({"q": {"__nd__": [0, 8], "shape": [1]}}, bytes(8)), "ExecuteRequest", "missing dtype"),
+        (_frame({"q": {"__nd__": [0, 8], "dtype": "<M8[s]", "shape": [1]}}, bytes(8)), "ExecuteRequest",
+         "only bool, integer and float"),
+        (_frame({"q": {"__nd__": [0, 16], "dtype": "<f8", "shape": [1, 2]}}, _NAN), "ExecuteRequest",
+         "non-finite"),
+        (_frame({"q": {"__nd__": [0, 16], "dtype": "<f8", "shape": [3]}}, _NAN), "ExecuteRequest",
+         "needs 24 bytes"),
+        (b"HRPB\xff\xff\xff\xff{}", "ExecuteRequest", "truncated binary frame"),
+    ],
+)  # fmt: skip
+def test_requests_are_validated_at_the_edge_with_the_field_and_the_rule(payload, type_name, message):
+    from services.bus.codec import decode_request
+    from services.bus.schemas import sim
+
+    with pytest.raises(InvalidRequestError, match=message):
+        decode_request(payload, getattr(sim, type_name))
+
+
+def test_request_limits_are_schema_constraints():
+    from services.bus.codec import MAX_REQUEST_BYTES, decode_request
+    from services.bus.schemas import navigation, walking
+
+    steps = [{"pose": [0.1 * i, 0.0, 0.0]} for i in range(201)]
+    with pytest.raises(InvalidRequestError, match=r"length <= 200 - at `\$\.steps`"):
+        from_builtins({"steps": steps}, walking.PlanRequest)
+    with pytest.raises(InvalidRequestError, match=r"<= 100.0 - at `\$\.goal_pose\[0\]`"):
+        from_builtins({"q_start": [0.0], "goal_pose": [1000.0, 0.0, 0.0]}, navigation.GotoRequest)
+    with pytest.raises(InvalidRequestError, match=r"> 0.0 - at `\$\.step_height_m`"):
+        from_builtins({"steps": steps[:2], "step_height_m": 0.0}, walking.PlanRequest)
+    with pytest.raises(InvalidRequestError, match="exceeds the limit"):
+        decode_request(b" " * (MAX_REQUEST_BYTES + 1), walking.PlanRequest)
+    # a reply may carry NaN (e.g. an unbounded value); only requests are held to finite arrays
+    nan = encode(EchoRequest(blob=np.array([np.nan])))
+    assert np.isnan(decode(nan, EchoRequest).blob[0])
+
+
+@pytest.mark.parametrize(
+    ("section", "yaml_text", "message"),
+    [
+        ("record", "record:\n  foxglove_views: 'no'\n", r"Expected `bool`, got `str` - at `\$\.foxglove_"),
+        ("bus", "bus:\n  listen: tcp/127.0.0.1:0\n", r"Expected `array`, got `str` - at `\$\.listen`"),
+        ("bus", "bus:\n  robot: 5\n", r"Expected `str`, got `int` - at `\$\.robot`"),
+        ("sim", "sim:\n  seed: [1]\n", r"at `\$\.seed`"),
+    ],
+)
+def test_configuration_errors_name_the_field(tmp_path, section, yaml_text, message):
+    from services.bus.recorder import RecorderConfig
+    from sim.config import SimConfig
+
+    path = tmp_path / "stack.yaml"
+    path.write_text(yaml_text)
+    types = {"record": RecorderConfig, "bus": BusConfig, "sim": SimConfig}
+    with pytest.raises(InvalidRequestError, match=message):
+        load_section(path, section, types[section])
+
+
+def test_identity_selects_each_process_certificate():
+    bus = BusConfig(zenoh={"transport/link/tls/listen_certificate": "/certs/{identity}.pem"})
+    conf = bus.zenoh_config(identity="sim")
+    assert conf.get_json("transport/link/tls/listen_certificate") == '"/certs/sim.pem"'
+    named = BusConfig(identity="supervisor", zenoh=bus.zenoh).zenoh_config(identity="sim")
+    assert named.get_json("transport/link/tls/listen_certificate") == '"/certs/supervisor.pem"'
+
+
+def test_diag_is_started_only_when_asked():
+    from services.bus.discovery import default_services
+
+    found, _problems = discover()
+    names = default_services(found)
+    assert "diag" in found and "diag" not in names and "record" not in names and "sim" in names

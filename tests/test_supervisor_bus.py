@@ -21,9 +21,10 @@ from supervisor.script import parse_script
 
 
 @pytest.fixture(scope="module")
-def stack(module_bus_harness):
+def stack(module_bus_harness, tmp_path_factory):
     h = module_bus_harness
-    h.spawn_service("sim.service", "--scene", "ball_fetch", name="sim")
+    h.scene_dir = tmp_path_factory.mktemp("scenes")  # scenes the tests write; sim/reset loads them by name
+    h.spawn_service("sim.service", "--scene", "ball_fetch", "--scene-dir", str(h.scene_dir), name="sim")
     h.spawn_service("services.perception.service", name="perception")
     return h
 
@@ -151,13 +152,13 @@ def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, 
     from sim import motions
     from supervisor.report import ActionError
 
-    scene = tmp_path / "crate.yaml"
+    scene = stack.scene_dir / "crate.yaml"
     scene.write_text(
         "name: crate\ndescription: a crate beside the right arm\nrobot: {x: 0.0, y: 0.0, yaw: 0.0}\n"
         "floor: {colour: light_grey, friction: 1.0}\nobjects:\n"
         "  - {name: crate, kind: box, size: [0.3, 0.3, 1.0], colour: blue, xy: [0.45, -0.3], yaw: 0.0}\n"
     )
-    stack.client.call(sim_msg.RESET, sim_msg.ResetRequest(scene=str(scene)), 30)
+    stack.client.call(sim_msg.RESET, sim_msg.ResetRequest(scene="crate"), 30)
     body = sup.actions.body
     swing = motions.joint_motion(body.robot, body.q(), {"RARM_JOINT0": -1.2}, 1.0)
     with pytest.raises(ActionError) as stopped:

@@ -15,8 +15,7 @@ import threading
 from pathlib import Path
 
 import pytest
-import yaml
-from conftest import REPO, free_port
+from conftest import free_port
 
 from services.bus.config import BusConfig
 from services.bus.schemas import sim as sim_msg
@@ -117,12 +116,7 @@ def test_console_takes_the_orange_ball(stack) -> None:
 
 def test_without_the_ball_the_robot_looks_around_and_reports_not_found(stack, tmp_path) -> None:
     _launcher, sup = stack
-    scene = yaml.safe_load((REPO / "sim/scenes/ball_fetch.yaml").read_text())
-    scene["objects"] = [o for o in scene["objects"] if o["name"] != "orange_ball"]
-    scene["name"] = "ball_fetch_no_ball"
-    path = tmp_path / "no_ball.yaml"
-    path.write_text(yaml.safe_dump(scene))
-    summary, report = _run_in_thread(lambda: fetch(sup, scene=str(path)), 400)
+    summary, report = _run_in_thread(lambda: fetch(sup, scene="ball_fetch_no_ball"), 400)
     assert not summary.ok
     failure = report.failure
     assert failure.action == "localize" and failure.args == ("orange_ball",)

@@ -74,7 +74,7 @@ def test_step_beyond_the_bounds_is_infeasible_and_named():
         ({"double_support_s": 0.0}, "double_support_s must be > 0 s"),
         ({"steps": []}, "no step"),
         ({"first_side": "middle"}, "first_side must be one of"),
-        ({"steps": [{"pose": [0.2, -0.095]}]}, r"steps\[0\]\.pose must be \[x, y, yaw\]"),
+        ({"steps": [{"pose": [0.2, -0.095]}]}, r"length >= 3 - at `\$\.steps\[0\]\.pose`"),
         ({"model": "nao"}, "unknown robot 'nao'"),
         ({"q_start": [0.0] * 5}, r"q must have shape \(37,\)"),
         ({"left_start": [0.0, 0.3, 0.0]}, "give both left_start and right_start"),

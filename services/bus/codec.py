@@ -15,6 +15,7 @@ Decoding is typed: ``decode(buf, T)`` validates against the msgspec type ``T`` a
 
 from __future__ import annotations
 
+import re
 import struct
 import threading
 from typing import Any, TypeVar
@@ -49,21 +50,98 @@ def _enc_hook(obj: Any) -> Any:
     raise NotImplementedError(f"cannot encode objects of type {type(obj).__name__}")
 
 
+#: Array element kinds a message may carry: bool, signed and unsigned integers, floats (no strings,
+#: objects, datetimes, complex numbers or void records).
+ARRAY_KINDS = "biuf"
+#: Most dimensions of an array in a message (a trajectory is 2-D, an image 3-D).
+MAX_ARRAY_DIMS = 4
+#: Largest magnitude of a value in a float array of a request: configurations are in m and rad,
+#: camera matrices in px; 1e308 would overflow the first sum that uses it.
+MAX_ARRAY_ABS = 1e9
+_REF_KEYS = frozenset((_ND_KEY, "dtype", "shape"))
+
+
 def _dec_hook(type_: type, obj: Any) -> Any:
+    """Arrays from JSON lists of numbers or binary references; a ValueError names what is wrong
+    (msgspec adds the field path)."""
     if type_ is np.ndarray:
-        blob: memoryview | None = getattr(_local, "blob", None)
         if isinstance(obj, list):  # arrays written as JSON lists (e.g. typed by hand on the CLI)
-            return np.asarray(obj, dtype=float)
+            return _array_from_list(obj)
         if not isinstance(obj, dict) or _ND_KEY not in obj:
-            raise ValueError("expected an array (a JSON list or a binary array reference)")
+            raise ValueError("expected an array (a JSON list of numbers or a binary array reference)")
+        blob: memoryview | None = getattr(_local, "blob", None)
         if blob is None:
             raise ValueError("array reference in a plain JSON message")
-        offset, nbytes = obj[_ND_KEY]
-        if offset < 0 or offset + nbytes > len(blob):
-            raise ValueError("array reference points outside the message")
-        arr = np.frombuffer(blob[offset : offset + nbytes], dtype=np.dtype(obj["dtype"]))
-        return arr.reshape(obj["shape"])
+        return _array_from_ref(obj, blob)
     raise NotImplementedError(f"cannot decode type {type_!r}")
+
+
+def _array_from_list(obj: list[Any]) -> np.ndarray:
+    try:
+        arr = np.array(obj)
+    except (ValueError, TypeError, RecursionError):
+        raise ValueError("expected a rectangular array of numbers (rows of equal length)") from None
+    if arr.dtype.kind not in ARRAY_KINDS:
+        raise ValueError(f"expected an array of numbers, got elements of type {arr.dtype}")
+    if arr.ndim > MAX_ARRAY_DIMS:
+        raise ValueError(f"array has {arr.ndim} dimensions, at most {MAX_ARRAY_DIMS} allowed")
+    arr = arr.astype(float)
+    _check_finite(arr)
+    return arr
+
+
+def _array_from_ref(obj: dict[str, Any], blob: memoryview) -> np.ndarray:
+    """A binary array reference ``{"__nd__": [offset, nbytes], "dtype": ..., "shape": [...]}``."""
+    if set(obj) != _REF_KEYS:
+        missing = sorted(_REF_KEYS - set(obj))
+        extra = sorted(set(obj) - _REF_KEYS)
+        raise ValueError(
+            "binary array reference needs exactly the keys __nd__, dtype, shape"
+            + (f"; missing {', '.join(missing)}" if missing else "")
+            + (f"; unknown {', '.join(extra)}" if extra else "")
+        )
+    where, dtype_str, shape = obj[_ND_KEY], obj["dtype"], obj["shape"]
+    if not (isinstance(where, list) and len(where) == 2 and all(_is_count(v) for v in where)):
+        raise ValueError("__nd__ must be [offset, nbytes], two non-negative integers")
+    if not (isinstance(shape, list) and len(shape) <= MAX_ARRAY_DIMS and all(_is_count(v) for v in shape)):
+        raise ValueError(f"shape must be a list of at most {MAX_ARRAY_DIMS} non-negative integers")
+    if not isinstance(dtype_str, str) or len(dtype_str) > 8:
+        raise ValueError("dtype must be a short numpy type string such as '<f8' or '|u1'")
+    try:
+        dtype = np.dtype(dtype_str)
+    except (TypeError, ValueError):
+        raise ValueError(f"dtype {dtype_str!r} is not a numpy type string such as '<f8'") from None
+    if dtype.kind not in ARRAY_KINDS or dtype.hasobject or dtype.fields is not None:
+        raise ValueError(f"dtype {dtype_str!r}: only bool, integer and float arrays travel on the bus")
+    offset, nbytes = where
+    if offset + nbytes > len(blob):
+        raise ValueError("array reference points outside the message")
+    count = 1
+    for n in shape:
+        count *= n
+    if count * dtype.itemsize != nbytes:
+        raise ValueError(f"shape {shape} of {dtype_str} needs {count * dtype.itemsize} bytes, not {nbytes}")
+    arr = np.frombuffer(blob[offset : offset + nbytes], dtype=dtype).reshape(shape)
+    _check_finite(arr)
+    return arr
+
+
+def _is_count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < 2**48
+
+
+def _check_finite(arr: np.ndarray) -> None:
+    """Requests only (``decode(..., finite=True)``): float arrays finite and within MAX_ARRAY_ABS."""
+    if not getattr(_local, "finite", False):
+        return
+    if arr.dtype.kind == "f" and arr.size and not np.isfinite(arr).all():
+        bad = int(np.flatnonzero(~np.isfinite(arr.reshape(-1)))[0])
+        raise ValueError(f"array has a non-finite value (NaN or infinity) at flat index {bad}")
+    if arr.dtype.kind == "f" and arr.size and float(np.abs(arr).max()) > MAX_ARRAY_ABS:
+        bad = int(np.argmax(np.abs(arr).reshape(-1)))
+        raise ValueError(
+            f"array value {arr.reshape(-1)[bad]:g} at flat index {bad} is beyond +-{MAX_ARRAY_ABS:g}"
+        )
 
 
 _encoder = msgspec.json.Encoder(enc_hook=_enc_hook)
@@ -126,8 +204,28 @@ def _decoder(type_: Any) -> msgspec.json.Decoder:
     return dec
 
 
-def decode(buf: bytes | bytearray | memoryview, type_: type[T]) -> T:
-    """Decode one frame as ``type_``; raise InvalidRequestError saying what is wrong and where."""
+#: Largest request a service decodes [bytes] (a 60 s trajectory of 40 joints is 3.8 MB, a 640x480
+#: stereo pair 1.8 MB); larger ones are refused before any parsing.
+MAX_REQUEST_BYTES = 64 * 1024 * 1024
+
+
+def decode(
+    buf: bytes | bytearray | memoryview, type_: type[T], *, max_bytes: int | None = None, finite: bool = False
+) -> T:
+    """Decode one frame as ``type_``; raise InvalidRequestError saying what is wrong and where.
+
+    Every way a payload can be wrong ends here as InvalidRequestError naming the field path (``$.a.b``)
+    and the rule: types, the schema's ``Meta`` constraints (ranges, lengths), unknown fields of
+    structs declared ``forbid_unknown_fields``, non-finite numbers, invalid UTF-8, nesting deeper than
+    the decoder's recursion limit, malformed binary array references. ``max_bytes``: refuse larger
+    frames; ``finite``: refuse NaN and infinities in float arrays too (JSON numbers are always
+    finite). Services decode requests with both (:func:`decode_request`); replies may carry NaN.
+    """
+    if max_bytes is not None and len(buf) > max_bytes:
+        raise InvalidRequestError(
+            f"{_type_name(type_)} payload of {len(buf)} bytes exceeds the limit of {max_bytes} bytes"
+        )
+    _local.finite = finite
     try:
         if buf[:1] != b"H":  # not a binary frame (those start with MAGIC): plain JSON, one call
             return _decoder(type_).decode(buf)
@@ -141,6 +239,36 @@ def decode(buf: bytes | bytearray | memoryview, type_: type[T]) -> T:
         raise InvalidRequestError(f"invalid {_type_name(type_)}: {exc}") from None
     except msgspec.DecodeError as exc:
         raise InvalidRequestError(f"malformed payload for {_type_name(type_)}: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InvalidRequestError(
+            f"malformed payload for {_type_name(type_)}: a string is not valid UTF-8 ({exc.reason})"
+            f"{_near_invalid_utf8(buf)}"
+        ) from None
+    except RecursionError:
+        raise InvalidRequestError(
+            f"malformed payload for {_type_name(type_)}: arrays or objects nested too deeply"
+        ) from None
+
+
+def decode_request(buf: bytes | bytearray | memoryview, type_: type[T]) -> T:
+    """Decode a request as a service does: :data:`MAX_REQUEST_BYTES` and finite arrays enforced."""
+    try:
+        return decode(buf, type_, max_bytes=MAX_REQUEST_BYTES, finite=True)
+    finally:
+        _local.finite = False
+
+
+def _near_invalid_utf8(buf: bytes | bytearray | memoryview) -> str:
+    """``" (byte N, after "key")"``: where the first invalid UTF-8 byte is, for the error message."""
+    raw = bytes(buf)
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        before = raw[max(0, exc.start - 4096) : exc.start]
+        keys_before = re.findall(rb'"([A-Za-z_][A-Za-z0-9_]{0,63})"\s*:', before)
+        after = f', after field "{keys_before[-1].decode()}"' if keys_before else ""
+        return f" (byte {exc.start}{after})"
+    return ""
 
 
 def from_builtins(obj: Any, type_: type[T]) -> T:
@@ -149,6 +277,8 @@ def from_builtins(obj: Any, type_: type[T]) -> T:
         return msgspec.convert(obj, type_, dec_hook=_dec_hook)
     except msgspec.ValidationError as exc:
         raise InvalidRequestError(f"invalid {_type_name(type_)}: {exc}") from None
+    except RecursionError:
+        raise InvalidRequestError(f"invalid {_type_name(type_)}: values nested too deeply") from None
 
 
 def to_builtins(msg: Any) -> Any:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import yaml
 
 from services.errors import InvalidRequestError
@@ -38,7 +39,11 @@ class BusConfig:
             supervisor's 2 MB sim/execute requests in the full test suite, see ``shm.py``), and
             loopback TCP is fast enough (``scripts/bench bus``: 640x480 stereo pairs at 520 pairs/s,
             960 MB/s, without it).
-        zenoh: raw zenoh config overrides, ``{"path/in/config": value}``, applied last.
+        zenoh: raw zenoh config overrides, ``{"path/in/config": value}``, applied last. In string
+            values ``{identity}`` stands for this process's :attr:`identity` (one YAML file gives every
+            service its own TLS certificate: ``certs/{identity}.pem``; see the README, "Access control").
+        identity: who this process is on the bus (the common name of its certificate in a TLS
+            deployment); empty: the service's name, ``hub`` for the launcher, ``client`` otherwise.
     """
 
     robot: str = "hrp2"
@@ -49,8 +54,13 @@ class BusConfig:
     multicast_scouting: bool = False
     shared_memory: bool = False
     zenoh: dict[str, Any] = field(default_factory=dict)
+    identity: str = ""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.robot, str):
+            raise InvalidRequestError(f"robot name must be a string, got {self.robot!r}")
+        if self.identity and not self.identity.replace("_", "").replace("-", "").isalnum():
+            raise InvalidRequestError(f"identity {self.identity!r} must be letters, digits, _ and -")
         if self.mode not in ("peer", "client"):
             raise InvalidRequestError(f"bus mode {self.mode!r} is not one of: peer, client")
         if not self.robot.replace("_", "").isalnum() or not self.robot[:1].isalpha():
@@ -60,9 +70,12 @@ class BusConfig:
         """The same config with the hub on loopback port ``port`` (tests run hubs side by side)."""
         return dataclasses.replace(self, hub=f"tcp/127.0.0.1:{port}")
 
-    def zenoh_config(self, *, as_hub: bool = False) -> Any:
-        """Build the ``zenoh.Config`` (``as_hub``: listen on the hub endpoint instead of connecting)."""
+    def zenoh_config(self, *, as_hub: bool = False, identity: str = "") -> Any:
+        """Build the ``zenoh.Config`` (``as_hub``: listen on the hub endpoint instead of connecting;
+        ``identity``: the process's name when :attr:`identity` is not set, e.g. the service's)."""
         import zenoh
+
+        who = self.identity or identity or ("hub" if as_hub else "client")
 
         listen = [self.hub] if as_hub else list(self.listen)
         connect = list(self.connect) + ([] if as_hub else [self.hub])
@@ -79,13 +92,24 @@ class BusConfig:
             "connect/exit_on_failure": False,
             "transport/shared_memory/enabled": self.shared_memory,
         }
-        entries.update(self.zenoh)
+        entries.update({path: _with_identity(value, who) for path, value in self.zenoh.items()})
         for path, value in entries.items():
             try:
                 conf.insert_json5(path, json.dumps(value))
             except Exception as exc:  # zenoh raises ZError with its own message
                 raise InvalidRequestError(f"bad zenoh config entry {path}={value!r}: {exc}") from None
         return conf
+
+
+def _with_identity(value: Any, identity: str) -> Any:
+    """``value`` with ``{identity}`` replaced in every string inside it."""
+    if isinstance(value, str):
+        return value.replace("{identity}", identity)
+    if isinstance(value, list | tuple):
+        return [_with_identity(v, identity) for v in value]
+    if isinstance(value, dict):
+        return {k: _with_identity(v, identity) for k, v in value.items()}
+    return value
 
 
 def load_bus_config(path: str | Path | None = None, **overrides: Any) -> BusConfig:
@@ -102,7 +126,7 @@ def _yaml_section(path: str | Path, section: str) -> dict[str, Any]:
         doc = yaml.safe_load(Path(path).read_text()) or {}
     except FileNotFoundError:
         raise InvalidRequestError(f"config file {path} does not exist") from None
-    except yaml.YAMLError as exc:
+    except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as exc:
         raise InvalidRequestError(f"config file {path} is not valid YAML: {exc}") from None
     if not isinstance(doc, dict):
         raise InvalidRequestError(f"config file {path} must be a mapping at the top level")
@@ -119,21 +143,25 @@ def load_section(path: str | Path | None, section: str, config_type: type) -> An
 
 
 def from_mapping(config_type: type, values: dict[str, Any], *, where: str) -> Any:
-    """Build a frozen config dataclass, rejecting unknown keys with the list of valid ones."""
+    """Build a frozen config dataclass from YAML values through ``msgspec.convert`` (strict types).
+
+    Unknown keys are refused with the list of valid ones; a wrong type names the field path and
+    what was expected (``foxglove_views: "no"`` -> "Expected `bool`, got `str` - at `$.foxglove_views`";
+    ``listen: "tcp/..."`` -> "Expected `array`, got `str`"); the dataclass's ``__post_init__`` checks
+    the ranges.
+    """
+    if not isinstance(values, dict):
+        raise InvalidRequestError(f"{config_type.__name__} in {where} must be a mapping")
     fields = {f.name: f for f in dataclasses.fields(config_type)}
-    unknown = sorted(set(values) - set(fields))
+    unknown = sorted(str(k) for k in set(values) - set(fields))
     if unknown:
         raise InvalidRequestError(
             f"unknown {config_type.__name__} option(s) {', '.join(unknown)} in {where}; "
             f"valid options: {', '.join(fields)}"
         )
-    converted = {}
-    for name, value in values.items():
-        default = getattr(config_type, name, None)
-        if isinstance(default, tuple) and isinstance(value, list):
-            value = tuple(value)
-        converted[name] = value
     try:
-        return config_type(**converted)
-    except TypeError as exc:
+        return msgspec.convert(values, config_type, strict=True)
+    except msgspec.ValidationError as exc:
         raise InvalidRequestError(f"bad {config_type.__name__} in {where}: {exc}") from None
+    except RecursionError:
+        raise InvalidRequestError(f"bad {config_type.__name__} in {where}: nested too deeply") from None

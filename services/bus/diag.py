@@ -4,7 +4,12 @@
   worker thread, like a planner's endpoint;
 * ``diag/raise``: answers with the error code asked for (``bug``: an unexpected exception);
 * ``diag/ping`` -> ``diag/pong``: republishes every ping (pub/sub round trips);
-* ``diag/stream``: publishes stereo pairs on ``diag/frames`` as fast as the bus takes them.
+* ``diag/stream``: publishes stereo pairs on ``diag/frames`` as fast as the bus takes them, for at
+  most ``time_budget_s`` (then a ``timeout`` error says how many were sent).
+
+Left out of :func:`services.bus.discovery.default_services` (``humanoid up`` is to start it only when
+named in ``--services``): ``diag/raise`` and ``diag/stream`` are tools for tests and benchmarks, not
+for a deployed robot.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from services.bus.schemas.diag import (
     StreamRequest,
 )
 from services.bus.service import Service, handles, run_service, subscribes
-from services.errors import ERROR_CODES, InvalidRequestError, error_from_code
+from services.errors import ERROR_CODES, InvalidRequestError, RequestTimeoutError, error_from_code
 
 MAX_STREAM_PIXELS = 4096 * 4096
 
@@ -84,6 +89,13 @@ class DiagService(Service):
         right = np.roll(left, 8, axis=1)
         started = time.perf_counter()
         for seq in range(request.count):
+            elapsed = time.perf_counter() - started
+            if elapsed > request.time_budget_s:
+                raise RequestTimeoutError(
+                    f"diag/stream stopped at its time budget of {request.time_budget_s} s after {seq} of "
+                    f"{request.count} pairs",
+                    {"sent": seq, "elapsed_s": elapsed},
+                )
             self._frames.put(StereoFrame(seq=seq, stamp_s=time.time(), left=left, right=right))
         return StreamReply(sent=request.count, elapsed_s=time.perf_counter() - started)
 

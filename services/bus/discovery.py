@@ -20,6 +20,9 @@ SERVICE_FILES = ("services/*/service.py", "sim/service.py", "supervisor/service.
 RECORDER = "record"
 #: The live Foxglove view (services/viz): started by ``humanoid up --foxglove [PORT]`` only.
 VIZ = "viz"
+#: Services that ``humanoid up`` starts only when named in ``--services``: tools for tests and
+#: benchmarks (``diag/raise``, ``diag/stream``) that a deployed robot does not expose.
+OPT_IN = ("diag",)
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,12 @@ def discover(root: Path | None = None) -> tuple[dict[str, ServiceEntry], list[st
     recorder = root / "services/bus/recorder.py"
     found.setdefault(RECORDER, ServiceEntry(RECORDER, "services.bus.recorder", recorder))
     return found, problems
+
+
+def default_services(found: dict[str, ServiceEntry]) -> list[str]:
+    """What ``humanoid up`` starts without ``--services``: every service found but the recorder, the
+    live view and the :data:`OPT_IN` ones."""
+    return sorted(name for name in found if name not in (RECORDER, VIZ) and name not in OPT_IN)
 
 
 def _service_names(tree: ast.Module) -> list[str]:

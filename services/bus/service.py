@@ -49,7 +49,7 @@ from typing import Any, ClassVar
 import zenoh
 
 from services.bus import keys
-from services.bus.codec import decode, encode, to_builtins
+from services.bus.codec import decode, decode_request, encode, to_builtins
 from services.bus.config import BusConfig, load_bus_config, load_section
 from services.bus.schemas.common import ErrorInfo, Heartbeat
 from services.bus.session import (
@@ -268,7 +268,7 @@ class _Runtime:
         """Run one request: ``(True, reply frame)`` or ``(False, error frame)``; never raises."""
         log = self.service.log
         try:
-            request = decode(raw or b"{}", spec.request)
+            request = decode_request(raw or b"{}", spec.request)
             reply = handler(request)
             if not isinstance(reply, spec.reply):
                 raise InternalError(
@@ -385,7 +385,7 @@ def serve(
     ready: Callable[[Service], None] | None = None,
 ) -> None:
     """Run ``service_type`` until ``stop`` is set (in this thread; the session is closed on return)."""
-    session = open_session(bus)
+    session = open_session(bus, identity=service_type.name)
     try:
         service = service_type(config, bus, session)
         runtime = _Runtime(service)

@@ -25,10 +25,13 @@ _REQUEST_ID = struct.Struct("<Q")
 _ID_MASK = 0xFFFF_FFFF
 
 
-def open_session(bus: BusConfig, *, as_hub: bool = False) -> zenoh.Session:
-    """Open a zenoh session; close it (or use :func:`bus_session`) before the interpreter exits."""
+def open_session(bus: BusConfig, *, as_hub: bool = False, identity: str = "") -> zenoh.Session:
+    """Open a zenoh session; close it (or use :func:`bus_session`) before the interpreter exits.
+
+    ``identity``: who opens it when the bus config does not say (a service passes its name), see
+    :attr:`BusConfig.identity`."""
     try:
-        return zenoh.open(bus.zenoh_config(as_hub=as_hub))
+        return zenoh.open(bus.zenoh_config(as_hub=as_hub, identity=identity))
     except zenoh.ZError as exc:
         if as_hub:
             raise UnavailableError(

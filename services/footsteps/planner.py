@@ -109,10 +109,11 @@ def initial_stance(robot: RobotModel, q_start: np.ndarray) -> Stance:
     for side in ("left", "right"):
         T = robot.sole_pose(q_start, side, data)
         z_axis = T.rotation[:, 2]
-        if abs(T.translation[2]) > FLAT_TOL_M or math.acos(min(1.0, z_axis[2])) > FLAT_TOL_RAD:
+        tilt = math.acos(max(-1.0, min(1.0, float(z_axis[2]))))  # an upside-down sole gives -1 - eps
+        if abs(T.translation[2]) > FLAT_TOL_M or tilt > FLAT_TOL_RAD:
             raise InvalidRequestError(
                 f"q_start: the {side} sole must be flat on the ground (z = {T.translation[2]:.4f} m, tilt "
-                f"{math.degrees(math.acos(min(1.0, z_axis[2]))):.2f} deg); the planner starts from a "
+                f"{math.degrees(tilt):.2f} deg); the planner starts from a "
                 "double support stance"
             )
         poses[side] = sole_pose_of(T)

@@ -112,7 +112,7 @@ def _stand(args: argparse.Namespace) -> int:
             if i % 100 == 99 or i == steps - 1:
                 q = sim.read_q()
                 R = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
-                tilt_deg = max(tilt_deg, math.degrees(math.acos(min(1.0, R[2, 2]))))
+                tilt_deg = max(tilt_deg, math.degrees(math.acos(max(-1.0, min(1.0, R[2, 2])))))
                 for side, p0 in soles0.items():
                     slip_m = max(
                         slip_m, float(np.linalg.norm(robot.sole_pose(q, side).translation[:2] - p0[:2]))

@@ -31,6 +31,9 @@ from services.navigation.stage2 import Stage2Options
 from services.navigation.upper_body import CarriedBar
 
 DEFAULT_BOUNDS_MARGIN_M = 1.5
+#: Largest side of the floor a request may plan over [m] (given ``bounds`` or the box around start,
+#: goal and obstacles): the path search, the footsteps and the whole-body trajectory grow with it.
+MAX_FLOOR_SIDE_M = 30.0
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,19 @@ def scene_from_request(request: msg.GotoRequest, start: Pose2D) -> Scene:
         m = DEFAULT_BOUNDS_MARGIN_M
         bounds = (min(xs) - m, max(xs) + m, min(ys) - m, max(ys) + m)
     return Scene(obstacles, bounds)  # type: ignore[arg-type]
+
+
+def check_floor(scene: Scene) -> None:
+    """InvalidRequestError before any work for a floor larger than MAX_FLOOR_SIDE_M."""
+    xmin, xmax, ymin, ymax = scene.bounds_xy_m  # increasing: checked by Scene
+    side = max(xmax - xmin, ymax - ymin)
+    if side > MAX_FLOOR_SIDE_M:
+        raise InvalidRequestError(
+            f"the floor to plan over spans {side:.1f} m (bounds, or start, goal and obstacles with a "
+            f"{DEFAULT_BOUNDS_MARGIN_M} m margin): at most {MAX_FLOOR_SIDE_M:.0f} m per navigation/goto; "
+            "walk there in several requests",
+            {"field": "bounds", "limit_m": MAX_FLOOR_SIDE_M},
+        )
 
 
 def goal_from_request(request: msg.GotoRequest) -> Pose2D | ObjectGoal:
@@ -202,6 +218,7 @@ class NavigationService(Service):
         q_start = robot.check_q(np.asarray(request.q_start, dtype=float))
         goal = goal_from_request(request)
         scene = scene_from_request(request, start_pose(robot, q_start))
+        check_floor(scene)
         bar = None
         if request.carried is not None:
             c = request.carried

@@ -242,6 +242,29 @@ def _reply(robot: Any, result: WholeBodyResult, footsteps: FootstepSequence) -> 
     )
 
 
+#: Longest walk one request may ask for [s of motion]: the planning work grows with it (issue 16);
+#: a longer walk is planned in several requests.
+MAX_WALK_S = 120.0
+
+
+def check_walk_length(request: msg.PlanRequest) -> None:
+    """InvalidRequestError before any work when the walk asked for lasts more than MAX_WALK_S."""
+    per_step = request.single_support_s + request.double_support_s
+    total = (
+        request.initial_hold_s
+        + request.initial_double_support_s
+        + len(request.steps) * per_step
+        + request.final_double_support_s
+        + (request.final_hold_s if request.stop_at_end else 0.0)
+    )
+    if total > MAX_WALK_S:
+        raise InvalidRequestError(
+            f"the walk asked for lasts {total:.1f} s ({len(request.steps)} steps of {per_step:.2f} s plus "
+            f"the holds and transfers): at most {MAX_WALK_S:.0f} s per walking/plan request; split it",
+            {"field": "steps", "limit_s": MAX_WALK_S},
+        )
+
+
 class WalkingService(Service):
     """Walking pattern generator: footsteps -> 5 ms whole-body walk (ZMP preview control, Kajita 2003)."""
 
@@ -254,6 +277,7 @@ class WalkingService(Service):
 
     @handles(msg.PLAN)
     def plan(self, request: msg.PlanRequest) -> msg.PlanReply:
+        check_walk_length(request)
         started = time.perf_counter()
         reply = plan_reply(request, self.config)
         self.log.info(

@@ -8,9 +8,13 @@ ground at z = 0. A contact is a (spot, surface) pair with (x, y, theta) in the s
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import numpy as np
+from msgspec import Meta
 
+from services.bus.limits import Coord, Gain, Name, NameLists, Names, SceneName
 from services.bus.spec import EndpointSpec, TopicSpec
 
 
@@ -25,30 +29,31 @@ class ContactMsg(msgspec.Struct, kw_only=True, frozen=True):
     theta: float
 
 
-class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
+class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Plan from ``q_start`` (the robot's measured configuration) with the ``start_contacts`` holding there
     (pairs [spot, surface]) until the waist coordinate ``goal_axis`` exceeds ``goal_value_m`` with exactly
     the contacts ``final_contacts`` (empty: any). ``key_postures`` (k x nq) define the rough trajectory T
     (§2.7); None: the scenario's default (the ``chair_egress`` scene only)."""
 
-    scene: str  # a scene of sim/scenes (its surfaces and obstacles are read from the scene file)
+    scene: SceneName  # a scene of sim/scenes (its surfaces and obstacles are read from the scene file)
     q_start: np.ndarray  # (nq,) float64
-    start_contacts: list[list[str]]  # [[spot, surface], ...] in contact at q_start
-    goal_axis: str = "y"  # "x", "y" or "z"
-    goal_value_m: float = 0.75
-    final_contacts: list[list[str]] = msgspec.field(
+    start_contacts: NameLists  # [[spot, surface], ...] in contact at q_start
+    goal_axis: Name = "y"  # "x", "y" or "z"
+    goal_value_m: Coord = 0.75
+    final_contacts: NameLists = msgspec.field(
         default_factory=lambda: [["left_sole", "floor"], ["right_sole", "floor"]]
     )
     key_postures: np.ndarray | None = None  # (k, nq) float64
-    time_budget_s: float = 300.0  # the whole request (search + interpolation) [s]
-    max_nodes: int = 1000  # nodes generated
-    spots: list[str] | None = None  # allowed contact spots (None: all of the robot's)
-    surfaces: list[str] | None = None  # allowed surfaces (None: all of the scene's)
-    pairs: list[list[str]] | None = None  # allowed [spot, surface] pairs (overrides spots x surfaces)
+    # the whole request (search + interpolation) [s]
+    time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] = 300.0
+    max_nodes: Annotated[int, Meta(ge=1, le=100_000)] = 1000  # nodes generated
+    spots: Names | None = None  # allowed contact spots (None: all of the robot's)
+    surfaces: Names | None = None  # allowed surfaces (None: all of the scene's)
+    pairs: NameLists | None = None  # allowed [spot, surface] pairs (overrides spots x surfaces)
     best_first_sons: bool = True  # §2.8: one leaf per (spot, surface) pair, sons in f_T order
-    slope_k: float = 30.0  # k of f_T (eq. 1)
+    slope_k: Gain = 30.0  # k of f_T (eq. 1)
     interpolate: bool = True  # compute the 5 ms motion (§3.3)
-    n_interpolation: int = 20  # posture generations per transition (§3.3's n)
+    n_interpolation: Annotated[int, Meta(ge=1, le=1000)] = 20  # posture generations per transition (§3.3's n)
 
 
 class PlanReply(msgspec.Struct, kw_only=True, frozen=True):

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import numpy as np
+from msgspec import Meta
 
+from services.bus.limits import Budget, ImageSide
 from services.bus.spec import EndpointSpec, TopicSpec
 
 
-class EchoRequest(msgspec.Struct, kw_only=True, frozen=True):
+class EchoRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Anything to send back. ``blob`` travels as raw bytes (binary frame)."""
 
     text: str = ""
@@ -22,7 +26,7 @@ class EchoReply(msgspec.Struct, kw_only=True, frozen=True):
     blob: np.ndarray | None = None
 
 
-class RaiseRequest(msgspec.Struct, kw_only=True, frozen=True):
+class RaiseRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Ask for an error reply, to check a client's error handling end to end.
 
     ``code`` is one of services.errors.ERROR_CODES, or ``bug`` for an unexpected exception in the
@@ -45,12 +49,13 @@ class Ping(msgspec.Struct, kw_only=True, frozen=True):
     blob: np.ndarray | None = None
 
 
-class StreamRequest(msgspec.Struct, kw_only=True, frozen=True):
+class StreamRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Publish ``count`` stereo pairs of ``width`` x ``height`` RGB images on ``diag/frames``."""
 
-    count: int = 100
-    width: int = 640  # [px]
-    height: int = 480  # [px]
+    count: Annotated[int, Meta(ge=1, le=100_000)] = 100
+    width: ImageSide = 640  # [px]
+    height: ImageSide = 480  # [px]
+    time_budget_s: Budget = 10.0  # stop publishing after this long and reply timeout [s]
 
 
 class StreamReply(msgspec.Struct, kw_only=True, frozen=True):

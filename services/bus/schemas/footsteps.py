@@ -17,68 +17,87 @@ A request typed by hand needs only the tasks::
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import numpy as np
+from msgspec import Meta
 
+from services.bus.limits import (
+    MAX_OBSTACLES,
+    MAX_TASKS,
+    Budget,
+    Coord,
+    Fraction,
+    Gain,
+    Iterations,
+    Margin,
+    Name,
+    Point3,
+    Size,
+    StepCount,
+    Tolerance,
+)
 from services.bus.schemas.common import Footstep
 from services.bus.spec import EndpointSpec
 
 
-class Task(msgspec.Struct, kw_only=True, frozen=True):
+class Task(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """A desired task (section 4 of the paper); the order of ``PlanRequest.tasks`` is the priority order.
 
     ``reach``: the grasp frame of ``hand`` at ``target``; ``gaze``: the gaze axis through ``target``
     (OG x OB = 0, section 4.3); ``posture``: q - q_rest = 0 over the actuated joints (eq. 14).
     """
 
-    kind: str  # "reach", "gaze" or "posture"
-    target: list[float] | None = None  # reach/gaze: [x, y, z] world [m]
-    hand: str = "right"  # reach: "left" or "right"
-    tolerance: float | None = None  # solved below this value: [m] reach/gaze, [rad] posture; None: 2 mm,
+    kind: Name  # "reach", "gaze" or "posture"
+    target: Point3 | None = None  # reach/gaze: [x, y, z] world [m]
+    hand: Name = "right"  # reach: "left" or "right"
+    tolerance: Tolerance | None = None  # solved below this value: [m] reach/gaze, [rad] posture; None: 2 mm,
     #                                 5 mm, and for the posture none (an objective, never required)
-    epsilon: float | None = None  # minimum value decrease per iteration of eq. (15) [m or rad]; None: default
+    # minimum value decrease per iteration of eq. (15) [m or rad]; None: default
+    epsilon: Tolerance | None = None
     q_rest: np.ndarray | None = None  # posture: (nq,) float64 rest configuration; None: half-sitting
 
 
-class Disk(msgspec.Struct, kw_only=True, frozen=True):
+class Disk(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """A disk on the ground that no footprint may enter (section 4.1): centre (x, y), radius [m]."""
 
-    x: float
-    y: float
-    radius: float
+    x: Coord
+    y: Coord
+    radius: Size
 
 
-class Options(msgspec.Struct, kw_only=True, frozen=True):
+class Options(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Numerical settings of the planner (``services.footsteps.request.PlannerOptions``); None keeps
     the planner's default."""
 
-    gain: float | None = None  # lambda of eqs. (2), (4), (11), (13)
-    alpha: float | None = None  # integration step of q <- q + alpha dq, in (0, 1]
-    dq_max: float | None = None  # bound on |alpha dq| per coordinate per iteration [rad or m]
-    com_margin_m: float | None = None  # CoM projection kept this far inside the support polygon [m]
-    overlap_margin_m: float | None = None  # gap between the footprints of a support polygon [m]
-    disk_margin_m: float | None = None  # gap between a footprint and a disk [m]
-    collision_margin_m: float | None = None  # gap between capsules (eq. 12) [m]
+    gain: Gain | None = None  # lambda of eqs. (2), (4), (11), (13)
+    alpha: Fraction | None = None  # integration step of q <- q + alpha dq, in (0, 1]
+    dq_max: Tolerance | None = None  # bound on |alpha dq| per coordinate per iteration [rad or m]
+    com_margin_m: Margin | None = None  # CoM projection kept this far inside the support polygon [m]
+    overlap_margin_m: Margin | None = None  # gap between the footprints of a support polygon [m]
+    disk_margin_m: Margin | None = None  # gap between a footprint and a disk [m]
+    collision_margin_m: Margin | None = None  # gap between capsules (eq. 12) [m]
     self_collision: bool | None = None  # eq. (13) on/off
-    joint_margin_rad: float | None = None  # joint limits kept this far inside the range [rad]
-    step_region_scale: float | None = None  # step bounds shrunk towards their middle, in (0, 1]
-    max_rate_m: float | None = None  # saturation of the reach/gaze desired rate [m per IK time]
-    max_rate_rad: float | None = None  # saturation of the posture desired rate [rad per IK time]
+    joint_margin_rad: Margin | None = None  # joint limits kept this far inside the range [rad]
+    step_region_scale: Fraction | None = None  # step bounds shrunk towards their middle, in (0, 1]
+    max_rate_m: Gain | None = None  # saturation of the reach/gaze desired rate [m per IK time]
+    max_rate_rad: Gain | None = None  # saturation of the posture desired rate [rad per IK time]
 
 
-class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
+class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """What to plan. The planner is stateless: plan from the robot's measured configuration."""
 
-    tasks: list[Task]  # highest priority first
-    model: str = "hrp2_like"  # services.model.load_robot name: hrp2_like or talos
+    tasks: Annotated[list[Task], Meta(max_length=MAX_TASKS)]  # highest priority first
+    model: Name = "hrp2_like"  # services.model.load_robot name: hrp2_like or talos
     q_start: np.ndarray | None = None  # (nq,) float64, both soles flat on the ground; None: half-sitting
-    disks: list[Disk] = []
-    front_foot: str = "auto"  # foot of the last step, "left"/"right"; "auto": both solved, the one with
+    disks: Annotated[list[Disk], Meta(max_length=MAX_OBSTACLES)] = []
+    front_foot: Name = "auto"  # foot of the last step, "left"/"right"; "auto": both solved, the one with
     #                           fewer steps kept (section 5.2: this is the choice of the start foot)
-    initial_steps: int = 0  # initial guess of the number of steps (section 5.1)
-    max_steps: int = 20  # Algorithm 1 never grows the chain beyond this many steps
-    max_iterations: int = 2000  # IK iterations per front-foot choice
-    time_budget_s: float = 10.0  # wall-clock budget; past it: infeasible with the residuals reached [s]
+    initial_steps: StepCount = 0  # initial guess of the number of steps (section 5.1)
+    max_steps: StepCount = 20  # Algorithm 1 never grows the chain beyond this many steps
+    max_iterations: Iterations = 2000  # IK iterations per front-foot choice
+    time_budget_s: Budget = 10.0  # wall-clock budget; past it: infeasible with the residuals reached [s]
     options: Options | None = None
     trace: bool = False  # also return the task values at every iteration (Fig. 10)
 

@@ -8,34 +8,38 @@ not the sim's ground truth) and the robot's current configuration come with ever
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import numpy as np
+from msgspec import Meta
 
+from services.bus.limits import MAX_OBSTACLES, Angle, Budget, Coord, Name, Point3, PositiveSize, Seed, Size
 from services.bus.spec import EndpointSpec
 
 
-class ObstacleMsg(msgspec.Struct, kw_only=True, frozen=True):
+class ObstacleMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """An obstacle: ``kind`` ``box`` (vertical-axis box: ``size`` = full extents [sx, sy, sz], ``yaw``) or
     ``cylinder`` (vertical: ``radius``, ``height``); ``center`` = [x, y, z] of its middle [m]."""
 
-    name: str
-    kind: str = "box"
-    center: list[float]  # [x, y, z] [m]
-    size: list[float] = []  # box: [sx, sy, sz] full extents [m]
-    yaw: float = 0.0  # box: rotation about z [rad]
-    radius: float = 0.0  # cylinder [m]
-    height: float = 0.0  # cylinder [m]
+    name: Name
+    kind: Name = "box"
+    center: Point3  # [x, y, z] [m]
+    size: Annotated[list[Size], Meta(max_length=3)] = []  # box: [sx, sy, sz] full extents [m]
+    yaw: Angle = 0.0  # box: rotation about z [rad]
+    radius: Size = 0.0  # cylinder [m]
+    height: Size = 0.0  # cylinder [m]
 
 
-class CarriedBarMsg(msgspec.Struct, kw_only=True, frozen=True):
+class CarriedBarMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """A bar held in both hands (as in the starting configuration): the paper's 1.8 m, 2.4 cm, 0.5 kg."""
 
-    length_m: float = 1.8
-    radius_m: float = 0.012
-    mass_kg: float = 0.5
+    length_m: PositiveSize = 1.8
+    radius_m: PositiveSize = 0.012
+    mass_kg: Annotated[float, Meta(gt=0.0, le=20.0)] = 0.5
 
 
-class GotoRequest(msgspec.Struct, kw_only=True, frozen=True):
+class GotoRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Walk from ``q_start`` to a goal among ``obstacles``.
 
     The goal is ``goal_pose`` = [x, y, theta] of the base (mid-feet point, heading), or ``goal_object``:
@@ -46,18 +50,18 @@ class GotoRequest(msgspec.Struct, kw_only=True, frozen=True):
     """
 
     q_start: np.ndarray  # (nq,) the robot's current configuration, standing on flat ground
-    obstacles: list[ObstacleMsg] = []
-    goal_pose: list[float] = []  # [x, y, theta] [m, m, rad]
-    goal_object: str = ""  # name of an obstacle to stand in front of
-    goal_distance_m: float = 0.4
-    goal_side: str = ""
-    bounds: list[float] = []  # [xmin, xmax, ymin, ymax] [m]
+    obstacles: Annotated[list[ObstacleMsg], Meta(max_length=MAX_OBSTACLES)] = []
+    goal_pose: Annotated[list[Coord], Meta(max_length=3)] = []  # [x, y, theta] [m, m, rad]
+    goal_object: Name = ""  # name of an obstacle to stand in front of
+    goal_distance_m: Size = 0.4
+    goal_side: Name = ""
+    bounds: Annotated[list[Coord], Meta(max_length=4)] = []  # [xmin, xmax, ymin, ymax] [m]
     carried: CarriedBarMsg | None = None  # a bar held in both hands; None: nothing carried
-    carry_height_m: float | None = None  # bar centre height while walking [m]; None: as held at the start
-    turning_radius_m: float = 0.5  # minimum turning radius of the path [m]
-    time_budget_s: float = 1.0  # stage-1 search budget [s]
-    max_iterations: int = 5  # whole-body solutions of the reshaping loop at most
-    seed: int = 1  # OMPL seed (same request, same plan)
+    carry_height_m: Size | None = None  # bar centre height while walking [m]; None: as held at the start
+    turning_radius_m: Annotated[float, Meta(gt=0.0, le=5.0)] = 0.5  # minimum turning radius of the path [m]
+    time_budget_s: Budget = 1.0  # stage-1 search budget [s]
+    max_iterations: Annotated[int, Meta(ge=1, le=50)] = 5  # whole-body solutions of the reshaping loop
+    seed: Seed = 1  # OMPL seed (same request, same plan)
 
 
 class LiftSegment(msgspec.Struct, kw_only=True, frozen=True):

@@ -11,12 +11,13 @@ from __future__ import annotations
 import msgspec
 import numpy as np
 
+from services.bus.limits import ImageSide, Name
 from services.bus.spec import EndpointSpec
 
 # ---------------------------------------------------------------------------------------------- locate
 
 
-class StereoImages(msgspec.Struct, kw_only=True, frozen=True):
+class StereoImages(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """A rectified stereo pair sent with the request instead of rendered by ``sim/render``."""
 
     left_rgb: np.ndarray  # (H, W, 3) uint8, RGB channel order (as sim/render)
@@ -24,17 +25,17 @@ class StereoImages(msgspec.Struct, kw_only=True, frozen=True):
     K: np.ndarray | None = None  # (3, 3) [px]; None: the robot model's camera scaled to the image size
 
 
-class LocateRequest(msgspec.Struct, kw_only=True, frozen=True):
+class LocateRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Where is ``object``? The camera pose comes from the robot's kinematics at ``q``."""
 
-    object: str  # a learned object name (perception/models), e.g. "orange_ball"
-    model: str = ""  # robot model (services.model); "": the sim's model when q is None, else hrp2_like
+    object: Name  # a learned object name (perception/models), e.g. "orange_ball"
+    model: Name = ""  # robot model (services.model); "": the sim's model when q is None, else hrp2_like
     q: np.ndarray | None = None  # (nq,) robot configuration; None: the robot's current one (sim/state)
-    camera: str = "wide"  # stereo pair of the robot model: "wide" (0.144 m baseline) or "narrow"
-    width_px: int = 640  # image size asked of sim/render (ignored when images are given)
-    height_px: int = 480
+    camera: Name = "wide"  # stereo pair of the robot model: "wide" (0.144 m baseline) or "narrow"
+    width_px: ImageSide = 640  # image size asked of sim/render (ignored when images are given)
+    height_px: ImageSide = 480
     images: StereoImages | None = None  # None: the service renders the pair through sim/render
-    method: str = ""  # stereo estimator: "" (service default), "centroid", "bm", "sgbm" or "edges"
+    method: Name = ""  # stereo estimator: "" (service default), "centroid", "bm", "sgbm" or "edges"
 
 
 class PixelBox(msgspec.Struct, kw_only=True, frozen=True):
@@ -95,7 +96,7 @@ LOCATE = EndpointSpec(
 # ---------------------------------------------------------------------------------------------- models
 
 
-class ModelsRequest(msgspec.Struct, kw_only=True, frozen=True):
+class ModelsRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """No fields."""
 
 

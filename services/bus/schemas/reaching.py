@@ -12,18 +12,19 @@ from __future__ import annotations
 import msgspec
 import numpy as np
 
+from services.bus.limits import Margin, Name, Point3, Quaternion
 from services.bus.schemas.common import Footstep
 from services.bus.spec import EndpointSpec
 
 
-class ReachRequest(msgspec.Struct, kw_only=True, frozen=True):
+class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Reach ``target`` with the grasp frame of ``hand``, starting from ``q_start`` (planners are
     stateless: plan from the robot's measured configuration, e.g. ``sim/state``)."""
 
-    hand: str  # "left" or "right"
-    target: list[float]  # [x, y, z] of the grasp frame origin, world frame [m]
+    hand: Name  # "left" or "right"
+    target: Point3  # [x, y, z] of the grasp frame origin, world frame [m]
     q_start: np.ndarray  # (nq,) float64 starting configuration, both soles flat on the ground
-    orientation: list[float] | None = (
+    orientation: Quaternion | None = (
         None  # [qx, qy, qz, qw] of the grasp frame at the target; None: position only
     )
     gaze: bool = True  # keep the gaze on the target (task iv)
@@ -31,7 +32,8 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True):
     weighted: bool | None = (
         None  # weighted pseudo-inverse of eq. (4) (link mass ratios); None: service default
     )
-    joint_limit_selection_rad: float | None = None  # selection matrix S_l margin [rad]; None: service default
+    # selection matrix S_l margin [rad]; None: service default
+    joint_limit_selection_rad: Margin | None = None
 
 
 class Monitors(msgspec.Struct, kw_only=True, frozen=True):

@@ -8,9 +8,13 @@ joint velocities]``; ``StateReply.joint_names`` gives the joint order. Times are
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import numpy as np
+from msgspec import Meta
 
+from services.bus.limits import ImageSide, Name, Names, Phase, Point3, SceneName, Seed
 from services.bus.spec import EndpointSpec, TopicSpec
 
 # ---------------------------------------------------------------------------------------------- topics
@@ -47,7 +51,7 @@ CLOCK = TopicSpec("sim", "clock", Clock, "sim time at 200 Hz of sim time")
 # ---------------------------------------------------------------------------------------------- state
 
 
-class StateRequest(msgspec.Struct, kw_only=True, frozen=True):
+class StateRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """No fields: asks for the current state."""
 
 
@@ -68,20 +72,23 @@ STATE = EndpointSpec("sim", "state", StateRequest, StateReply, "current q, v, he
 # ---------------------------------------------------------------------------------------------- execute
 
 
-class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True):
+class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """A whole-body trajectory played through position control of every joint."""
 
     q: np.ndarray  # (N, nq) configurations every dt_s; q[0] is the start (within 0.2 rad of the state)
-    dt_s: float = 0.005  # sample period [s], a multiple of the 1 ms physics step
-    allowed_contacts: list[str] = []  # objects the hands / held objects may touch (grasp target, table)
+    dt_s: Annotated[float, Meta(gt=0.0, le=0.1)] = 0.005  # sample period [s], a multiple of 1 ms
+    allowed_contacts: Names = []  # objects the hands / held objects may touch (grasp target, table)
     stop_on_collision: bool = True  # stop at the first unplanned contact (else report at the end)
-    hold_s: float = 0.0  # keep commanding the last sample this long after the end [s]
+    hold_s: Phase = 0.0  # keep commanding the last sample this long after the end [s]
     # Objects the robot touches at the start and moves away from (backing out of a collision): any link
     # may keep touching one of them until that contact first breaks; touching it again is a collision.
-    leaving: list[str] = []
+    leaving: Names = []
     # Objects any link may touch during the whole motion: the supports of a multi-contact motion (the
     # chair the robot gets up from, the table it leans on), chosen by the contact planner.
-    supports: list[str] = []
+    supports: Names = []
+    # Wall-clock limit of the execution [s]: past it the robot holds where it is and the reply is a
+    # timeout error saying how much was played. None: the sim's execute_budget_s (300 s by default).
+    time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] | None = None
 
 
 class Contact(msgspec.Struct, kw_only=True, frozen=True):
@@ -124,10 +131,10 @@ EXECUTE = EndpointSpec(
 # ---------------------------------------------------------------------------------------------- render
 
 
-class RenderRequest(msgspec.Struct, kw_only=True, frozen=True):
-    camera: str = "wide"  # a stereo pair ("wide": 0.144 m baseline, "narrow": 0.058 m) or one camera
-    width_px: int = 640
-    height_px: int = 480
+class RenderRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    camera: Name = "wide"  # a stereo pair ("wide": 0.144 m baseline, "narrow": 0.058 m) or one camera
+    width_px: ImageSide = 640
+    height_px: ImageSide = 480
     depth: bool = False  # also return depth along the optical axis
     segmentation: bool = False  # also return a per-pixel body id mask (see CameraImage.labels)
 
@@ -159,9 +166,9 @@ RENDER = EndpointSpec("sim", "render", RenderRequest, RenderReply, "images of a 
 # ---------------------------------------------------------------------------------------------- gripper
 
 
-class GripperRequest(msgspec.Struct, kw_only=True, frozen=True):
-    side: str  # "left" or "right"
-    action: str  # "open" or "close"
+class GripperRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    side: Name  # "left" or "right"
+    action: Name  # "open" or "close"
 
 
 class GripperReply(msgspec.Struct, kw_only=True, frozen=True):
@@ -184,9 +191,9 @@ GRIPPER = EndpointSpec(
 # ---------------------------------------------------------------------------------------------- reset
 
 
-class ResetRequest(msgspec.Struct, kw_only=True, frozen=True):
-    scene: str = ""  # scene name (sim/scenes) or YAML path; "" keeps the current scene
-    seed: int | None = None  # layout seed; None: the scene's nominal layout
+class ResetRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    scene: SceneName = ""  # scene name (a file <name>.yaml of the sim's scene folders); "": the current one
+    seed: Seed | None = None  # layout seed; None: the scene's nominal layout
 
 
 class ResetReply(msgspec.Struct, kw_only=True, frozen=True):
@@ -204,7 +211,7 @@ RESET = EndpointSpec(
 # ---------------------------------------------------------------------------------------------- ground truth
 
 
-class GroundTruthRequest(msgspec.Struct, kw_only=True, frozen=True):
+class GroundTruthRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """No fields."""
 
 
@@ -244,12 +251,12 @@ GROUND_TRUTH = EndpointSpec(
 # ---------------------------------------------------------------------------------------------- snapshot
 
 
-class SnapshotRequest(msgspec.Struct, kw_only=True, frozen=True):
-    viewpoint: str = "overview"  # overview, front, side, back, top (around the robot and the scene)
-    width_px: int = 640
-    height_px: int = 480
-    eye: list[float] | None = None  # custom camera position [m] (with target)
-    target: list[float] | None = None  # custom point looked at [m] (with eye)
+class SnapshotRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    viewpoint: Name = "overview"  # overview, front, side, back, top (around the robot and the scene)
+    width_px: ImageSide = 640
+    height_px: ImageSide = 480
+    eye: Point3 | None = None  # custom camera position [m] (with target)
+    target: Point3 | None = None  # custom point looked at [m] (with eye)
 
 
 class SnapshotReply(msgspec.Struct, kw_only=True, frozen=True):

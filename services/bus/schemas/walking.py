@@ -17,20 +17,24 @@ model puts them, e.g. y = +-0.095 m for ``hrp2_like``).
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import numpy as np
+from msgspec import Meta
 
+from services.bus.limits import MAX_STEPS, Margin, Name, Phase, Point3, Pose2, Tolerance
 from services.bus.spec import EndpointSpec
 
 
-class Step(msgspec.Struct, kw_only=True, frozen=True):
+class Step(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """One footstep: foot ``side`` lands with its sole at ``pose`` = [x, y, yaw] ([m], [m], [rad])."""
 
-    pose: list[float]
-    side: str = ""  # "left" or "right"; "" alternates, starting with PlanRequest.first_side
+    pose: Pose2
+    side: Name = ""  # "left" or "right"; "" alternates, starting with PlanRequest.first_side
 
 
-class HandTask(msgspec.Struct, kw_only=True, frozen=True):
+class HandTask(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Keep a hand (its grasp frame) at its starting pose in ``frame``, or move it along waypoints.
 
     ``frame``: "walk" (moves with the walk: origin on the ground below the planned CoM, x along the
@@ -39,22 +43,22 @@ class HandTask(msgspec.Struct, kw_only=True, frozen=True):
     the walk, strictly increasing, > 0; [x, y, z] [m] in ``frame``) and stays at the last one.
     """
 
-    side: str  # "left" or "right"
-    frame: str = "walk"
-    times_s: list[float] = []
-    positions_m: list[list[float]] = []
+    side: Name  # "left" or "right"
+    frame: Name = "walk"
+    times_s: Annotated[list[Phase], Meta(max_length=MAX_STEPS)] = []
+    positions_m: Annotated[list[Point3], Meta(max_length=MAX_STEPS)] = []
     keep_orientation: bool = True  # also hold the starting orientation (in frame)
 
 
-class GazeTask(msgspec.Struct, kw_only=True, frozen=True):
+class GazeTask(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Look at ``point_m`` = [x, y, z] [m] in ``frame`` ("world" or "walk"), blended in over ``blend_s``."""
 
-    point_m: list[float]
-    frame: str = "world"
-    blend_s: float = 1.0
+    point_m: Point3
+    frame: Name = "world"
+    blend_s: Phase = 1.0
 
 
-class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
+class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Footsteps, timing and options of one walk.
 
     ``left_start`` / ``right_start``: the soles before the first step ([x, y, yaw]); omitted (null):
@@ -63,31 +67,33 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True):
     given they must agree within 5 mm.
     """
 
-    steps: list[Step]
-    first_side: str = "right"  # foot that moves first when steps[0].side is ""
-    model: str = "hrp2_like"  # services.model.load_robot name: hrp2_like or talos
+    steps: Annotated[list[Step], Meta(max_length=MAX_STEPS)]
+    first_side: Name = "right"  # foot that moves first when steps[0].side is ""
+    model: Name = "hrp2_like"  # services.model.load_robot name: hrp2_like or talos
     q_start: np.ndarray | None = None  # (nq,) starting configuration, pinocchio layout
-    left_start: list[float] | None = None  # [x, y, yaw] of the left sole before the first step
-    right_start: list[float] | None = None  # [x, y, yaw] of the right sole before the first step
+    left_start: Pose2 | None = None  # [x, y, yaw] of the left sole before the first step
+    right_start: Pose2 | None = None  # [x, y, yaw] of the right sole before the first step
     # timing [s]
-    single_support_s: float = 0.8
-    double_support_s: float = 0.3  # between two steps (0.1 is fragile in the sim: see the README)
-    initial_double_support_s: float = 1.0  # first weight transfer onto the first stance foot
-    final_double_support_s: float = 1.0  # last weight transfer back between the feet
-    initial_hold_s: float = 0.8  # standing still before the first transfer (preview lead-in)
+    single_support_s: Phase = 0.8
+    double_support_s: Phase = 0.3  # between two steps (0.1 is fragile in the sim: see the README)
+    initial_double_support_s: Phase = 1.0  # first weight transfer onto the first stance foot
+    final_double_support_s: Phase = 1.0  # last weight transfer back between the feet
+    initial_hold_s: Phase = 0.8  # standing still before the first transfer (preview lead-in)
     stop_at_end: bool = True  # stand still final_hold_s at the end (else end with the last transfer)
-    final_hold_s: float = 1.0
+    final_hold_s: Phase = 1.0
     # pattern options
-    step_height_m: float | None = None  # swing apex [m]; None: the robot's parameter
-    com_height_m: float | None = None  # cart-table z_c above the ground [m]; None: CoM of q_start
-    preview_horizon_s: float = 1.6  # preview control horizon [s]
-    zmp_margin_m: float = 0.010  # multibody ZMP inside the support polygon by this much [m]
-    max_corrections: int = 2  # passes of the second preview stage at most
+    # swing apex [m]; None: the robot's parameter
+    step_height_m: Annotated[float, Meta(gt=0.0, le=0.5)] | None = None
+    # cart-table z_c above the ground [m]; None: CoM of q_start
+    com_height_m: Annotated[float, Meta(gt=0.0, le=3.0)] | None = None
+    preview_horizon_s: Annotated[float, Meta(gt=0.0, le=5.0)] = 1.6  # preview control horizon [s]
+    zmp_margin_m: Margin = 0.010  # multibody ZMP inside the support polygon by this much [m]
+    max_corrections: Annotated[int, Meta(ge=0, le=20)] = 2  # passes of the second preview stage at most
     # upper body (below feet > CoM > waist/chest orientation, above the rest posture)
-    hands: list[HandTask] = []
+    hands: Annotated[list[HandTask], Meta(max_length=2)] = []
     gaze: GazeTask | None = None
-    hand_tolerance_m: float = 0.01  # a hand farther than this from its target: infeasible [m]
-    gaze_tolerance_m: float = 0.02  # target point farther than this from the gaze axis: infeasible [m]
+    hand_tolerance_m: Tolerance = 0.01  # a hand farther than this from its target: infeasible [m]
+    gaze_tolerance_m: Tolerance = 0.02  # target point farther than this from the gaze axis: infeasible [m]
 
 
 class StepTiming(msgspec.Struct, kw_only=True, frozen=True):
