@@ -28,8 +28,9 @@ from services.bus.schemas.diag import (
     RaiseRequest,
     StreamRequest,
 )
+from services.bus.schemas.sim import CLOCK
 from services.bus.service import Service, handles, run_service, subscribes
-from services.bus.session import TypedPublisher, close_session, open_session
+from services.bus.session import TypedPublisher, TypedSubscriber, close_session, open_session
 from services.bus.spec import EndpointSpec
 from services.errors import (
     InfeasibleError,
@@ -115,6 +116,27 @@ def test_request_reply_and_pub_sub_between_two_services(bus):
     pub.undeclare()
     assert reply.echoed == "via probe"
     assert reply.pongs[-5:] == [0, 1, 2, 3, 4]
+
+
+def test_a_publisher_knows_whether_anyone_subscribes(bus):
+    pub = TypedPublisher(bus.session, bus.bus.robot, CLOCK, track_matching=True)  # no sim here
+    other = open_session(bus.bus)  # another peer, as a recorder or a viewer would be
+
+    def becomes(expected: bool) -> bool:
+        deadline = time.monotonic() + 5.0
+        while pub.matching != expected and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return pub.matching == expected
+
+    try:
+        assert becomes(False)
+        sub = TypedSubscriber(other, bus.bus.robot, CLOCK)
+        assert becomes(True)
+        sub.undeclare()
+        assert becomes(False)
+    finally:
+        pub.undeclare()
+        close_session(other)
 
 
 @pytest.mark.parametrize(

@@ -54,6 +54,7 @@ from services.bus.config import BusConfig, load_bus_config, load_section
 from services.bus.schemas.common import ErrorInfo, Heartbeat
 from services.bus.session import (
     Client,
+    MatchingFlag,
     RequestIds,
     TypedPublisher,
     close_session,
@@ -157,20 +158,18 @@ class _Mirror:
     """
 
     def __init__(self, session: zenoh.Session, key: str) -> None:
-        self.matching = False
         self._pub = session.declare_publisher(key)
-        self._listener = self._pub.declare_matching_listener(self._on_matching)  # zenoh thread, rare
-        self.matching = self._pub.matching_status.matching
+        self._flag = MatchingFlag(self._pub)
 
-    def _on_matching(self, status: Any) -> None:
-        self.matching = status.matching
+    @property
+    def matching(self) -> bool:
+        return self._flag.matching
 
     def put(self, payload: bytes, attachment: bytes) -> None:
         self._pub.put(payload, attachment=attachment)
 
     def undeclare(self) -> None:
-        with contextlib.suppress(zenoh.ZError):
-            self._listener.undeclare()
+        self._flag.undeclare()
         self._pub.undeclare()
 
 

@@ -88,6 +88,26 @@ class RequestIds:
                 return value
 
 
+class MatchingFlag:
+    """Whether any subscriber matches a zenoh publisher, kept current by a matching listener.
+
+    Reading :attr:`matching` costs nothing, so a publisher can skip building messages nobody
+    receives (the sim's 200 Hz state, the request/reply mirrors).
+    """
+
+    def __init__(self, publisher: zenoh.Publisher) -> None:
+        self.matching = False
+        self._listener = publisher.declare_matching_listener(self._on_matching)  # zenoh thread, rare
+        self.matching = publisher.matching_status.matching
+
+    def _on_matching(self, status: Any) -> None:
+        self.matching = status.matching
+
+    def undeclare(self) -> None:
+        with contextlib.suppress(zenoh.ZError):
+            self._listener.undeclare()
+
+
 class TypedPublisher:
     """Publishes messages of one :class:`TopicSpec` (encoded with the bus codec)."""
 
@@ -98,13 +118,21 @@ class TypedPublisher:
         spec: TopicSpec,
         *,
         congestion_control: zenoh.CongestionControl | None = None,
+        track_matching: bool = False,
     ) -> None:
         """``congestion_control``: zenoh's default DROP drops messages to a subscriber whose queue is
-        full (right for camera streams); BLOCK makes ``put`` wait instead."""
+        full (right for camera streams); BLOCK makes ``put`` wait instead. ``track_matching``: keep
+        :attr:`matching` current (a :class:`MatchingFlag`, one listener thread)."""
         self.spec = spec
         self.key = keys.key(robot, spec.service, spec.name)
         options = {} if congestion_control is None else {"congestion_control": congestion_control}
         self._pub = session.declare_publisher(self.key, **options)
+        self._matching = MatchingFlag(self._pub) if track_matching else None
+
+    @property
+    def matching(self) -> bool:
+        """Whether a subscriber receives this topic now (always True without ``track_matching``)."""
+        return self._matching is None or self._matching.matching
 
     def put(self, msg: Any) -> None:
         if not isinstance(msg, self.spec.message):
@@ -112,6 +140,8 @@ class TypedPublisher:
         self._pub.put(encode(msg))
 
     def undeclare(self) -> None:
+        if self._matching is not None:
+            self._matching.undeclare()
         with contextlib.suppress(zenoh.ZError):
             self._pub.undeclare()
 
