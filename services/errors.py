@@ -9,6 +9,10 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 ERROR_CODES = ("invalid_request", "infeasible", "not_found", "timeout", "unavailable", "internal")
+#: Outcomes in the world (the sim reports them; the supervisor fails an action with them): not bus codes.
+WORLD_CODES = ("fell", "collision", "not_grasped", "stopped")
+#: Every failure reason of a supervisor action: a bus error code or a world outcome.
+REASONS = ERROR_CODES + WORLD_CODES
 
 
 class HumanoidError(Exception):
@@ -65,6 +69,38 @@ class InternalError(HumanoidError):
     code = "internal"
 
 
+class WorldOutcomeError(HumanoidError):
+    """An action failed in the world (the robot fell, touched something, grasped nothing, was stopped):
+    the request was fine, the execution was not. ``details`` says where and what (collisions: a list
+    of :class:`services.bus.schemas.sim.Contact`-like dicts)."""
+
+    code = "collision"  # overridden by every subclass
+
+
+class FellError(WorldOutcomeError):
+    """The robot fell."""
+
+    code = "fell"
+
+
+class CollisionError(WorldOutcomeError):
+    """A motion was stopped by a contact it was not allowed."""
+
+    code = "collision"
+
+
+class NotGraspedError(WorldOutcomeError):
+    """A hand closed on nothing, or lost what it held."""
+
+    code = "not_grasped"
+
+
+class StoppedError(WorldOutcomeError):
+    """The operator said stop."""
+
+    code = "stopped"
+
+
 _BY_CODE: dict[str, type[HumanoidError]] = {
     cls.code: cls
     for cls in (
@@ -74,12 +110,17 @@ _BY_CODE: dict[str, type[HumanoidError]] = {
         RequestTimeoutError,
         UnavailableError,
         InternalError,
+        FellError,
+        CollisionError,
+        NotGraspedError,
+        StoppedError,
     )
 }
 
 
 def error_from_code(code: str, message: str, details: dict[str, Any] | None = None) -> HumanoidError:
-    """Rebuild the typed exception for an error ``code`` received on the bus."""
+    """The typed exception of an error ``code`` (one of :data:`REASONS`: received on the bus, or a
+    world outcome)."""
     cls = _BY_CODE.get(code, InternalError)
     if cls is InternalError and code != "internal":
         message = f"[unknown error code {code!r}] {message}"

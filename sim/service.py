@@ -32,6 +32,7 @@ from services.bus.service import Service, config_with, handles, run_service
 from services.errors import HumanoidError, InvalidRequestError, NotFoundError, RequestTimeoutError
 from services.model.options import add_model_argument, with_model
 from sim.config import SimConfig
+from sim.robot_info import kinematics_reply, robot_info_reply
 from sim.scene import SCENES_DIR, SceneSpec, load_scene, parse_scene
 from sim.world import World
 
@@ -183,6 +184,14 @@ class SimService(Service):
                 held=dict(w.held),
                 fallen=w.fallen(),
             )
+
+    @handles(msg.ROBOT_INFO)
+    def robot_info(self, request: msg.RobotInfoRequest) -> msg.RobotInfoReply:
+        return robot_info_reply(self.world.robot)
+
+    @handles(msg.KINEMATICS)
+    def kinematics(self, request: msg.KinematicsRequest) -> msg.KinematicsReply:
+        return kinematics_reply(self.world.robot, request)
 
     @handles(msg.EXECUTE)
     def execute(self, request: msg.ExecuteRequest) -> msg.ExecuteReply:

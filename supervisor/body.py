@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from services.bus.schemas import sim as sim_msg
-from services.model import RobotModel, load_robot
+from services.errors import CollisionError, FellError, InternalError, StoppedError, WorldOutcomeError
 from supervisor.calls import ServiceCaller
-from supervisor.report import ActionError
+from supervisor.robot import Robot
 
 #: Samples of one chunk of an executed trajectory (1 s at 5 ms).
 CHUNK_SAMPLES = 200
@@ -68,7 +68,7 @@ class Body:
     def __init__(self, bus: ServiceCaller, stop: threading.Event | None = None) -> None:
         self.bus = bus
         self.stop = stop or threading.Event()
-        self._robot: RobotModel | None = None
+        self.robot = Robot(bus)  # facts and kinematics from sim/robot_info, sim/kinematics
         self._commanded: np.ndarray | None = None  # last sample of the last completed trajectory
         self.interrupted: Interrupted | None = None  # the last motion a collision stopped, until backed out
 
@@ -76,17 +76,10 @@ class Body:
     def state(self) -> sim_msg.StateReply:
         return self.bus.call(sim_msg.STATE, sim_msg.StateRequest(), 10.0)
 
-    @property
-    def robot(self) -> RobotModel:
-        """The robot model the sim simulates (loaded on first use from ``sim/state``)."""
-        if self._robot is None:
-            self._robot = load_robot(self.state().model)
-        return self._robot
-
     def q(self) -> np.ndarray:
         state = self.state()
         if state.fallen:
-            raise ActionError("fell", "the robot is on the ground: reset the sim (`humanoid fetch` does)")
+            raise FellError("the robot is on the ground: reset the sim (`humanoid fetch` does)")
         return np.asarray(state.q, dtype=float)
 
     def plan_q(self) -> np.ndarray:
@@ -103,14 +96,14 @@ class Body:
         if commanded is None:
             return q
         robot = self.robot
-        grippers = [robot.joint_index(robot.gripper_joint(side)).idx_q for side in ("left", "right")]
+        grippers = [robot.gripper_index(side) for side in ("left", "right")]
         body = np.ones(robot.nq, dtype=bool)
         body[:7] = False
         body[grippers] = False  # they move with sim/gripper, not with trajectories
         if float(np.max(np.abs(commanded[body] - q[body]))) > PLAN_FROM_COMMAND_RAD:
             return q
         x, y, yaw = robot.mid_feet_pose(q)
-        planned = np.asarray(robot.place_on_ground(commanded, x, y, yaw), dtype=float)
+        planned = np.array(robot.place_on_ground(commanded, x, y, yaw), dtype=float)
         planned[grippers] = q[grippers]
         return planned
 
@@ -135,7 +128,7 @@ class Body:
         leaving: Sequence[str] = (),
         supports: Sequence[str] = (),
     ) -> Executed:
-        """Play the (N, nq) trajectory ``Q`` in chunks; ActionError(fell | collision | stopped).
+        """Play the (N, nq) trajectory ``Q`` in chunks; FellError | CollisionError | StoppedError.
 
         ``touch``: an object the motion is expected to bump into (a guarded move: lowering a held object
         onto a table of uncertain height); stopping on contacts with it only is a success with
@@ -146,7 +139,7 @@ class Body:
         """
         Q = np.asarray(Q, dtype=float)
         if Q.ndim != 2 or Q.shape[0] < 2:
-            raise ActionError("internal", f"{what}: a trajectory needs (N >= 2, nq) samples, got {Q.shape}")
+            raise InternalError(f"{what}: a trajectory needs (N >= 2, nq) samples, got {Q.shape}")
         total = (Q.shape[0] - 1) * dt_s
         self.interrupted = None  # a new motion: the last stopped one is not undone any more
         spent = 0.0
@@ -155,7 +148,7 @@ class Body:
         self._commanded = None
         while start < Q.shape[0] - 1:
             if self.stop.is_set():
-                raise ActionError("stopped", f"{what}: stopped by the operator after {spent:.1f} s")
+                raise StoppedError(f"{what}: stopped by the operator after {spent:.1f} s")
             end = min(Q.shape[0], start + CHUNK_SAMPLES + 1)
             last = end == Q.shape[0]
             request = sim_msg.ExecuteRequest(
@@ -190,10 +183,7 @@ class Body:
     def standing(self, q: np.ndarray | None = None) -> bool:
         """Whether both soles are on the floor (within ``FLAT_SOLE_M``) at ``q`` (default: now)."""
         q = self.q() if q is None else q
-        return all(
-            abs(float(self.robot.sole_pose(q, side).translation[2])) < FLAT_SOLE_M
-            for side in ("left", "right")
-        )
+        return bool(np.all(np.abs(self.robot.sole_heights(q)) < FLAT_SOLE_M))
 
     def back_out(self, progress: Progress | None = None) -> float:
         """Undo the end of the motion a collision stopped: play its executed part backward (the same
@@ -207,7 +197,8 @@ class Body:
         Q = interrupted.q
         last = Q.shape[0] - 1
         k = max(0, last - round(BACK_OUT_MIN_S / interrupted.dt_s))
-        while k > 0 and not self.standing(Q[k]):
+        flat = np.all(np.abs(self.robot.sole_heights(Q[: k + 1])) < FLAT_SOLE_M, axis=1)
+        while k > 0 and not flat[k]:
             k -= 1
         what = f"back out of {interrupted.what} ({', '.join(interrupted.touched)})"
         if progress is not None:
@@ -222,23 +213,17 @@ class Body:
         return done.duration_s
 
     @staticmethod
-    def _failure(what: str, reply: sim_msg.ExecuteReply, spent: float, total: float) -> ActionError:
+    def _failure(what: str, reply: sim_msg.ExecuteReply, spent: float, total: float) -> WorldOutcomeError:
         details = {
             "outcome": reply.outcome,
             "at_s": spent,
             "of_s": total,
-            "collisions": [
-                {"robot_link": c.robot_link, "other": c.other, "position": c.position}
-                for c in reply.collisions
-            ],
+            "collisions": list(reply.collisions),  # sim_msg.Contact structs
             "tracking_error_rad": reply.tracking_error_rad,
         }
         if reply.outcome == "fell":
-            return ActionError(
-                "fell", f"{what}: the robot fell after {spent:.1f} s: {reply.message}", details
-            )
-        return ActionError(
-            "collision",
+            return FellError(f"{what}: the robot fell after {spent:.1f} s: {reply.message}", details)
+        return CollisionError(
             f"{what}: stopped by a collision after {spent:.1f} of {total:.1f} s: {reply.message}",
             details,
         )
@@ -257,7 +242,7 @@ class Body:
         robot = self.robot
         q1 = q0.copy()
         for name, value in targets.items():
-            i = robot.joint_index(name).idx_q
+            i = robot.index(name)
             q1[i] = float(np.clip(value, robot.q_lower[i], robot.q_upper[i]))
         travel = float(np.max(np.abs(q1 - q0))) if q1.size else 0.0
         if travel < 1e-3:
@@ -277,31 +262,27 @@ class Body:
         """
         q = self.q()
         robot = self.robot
-        names = [n for n in robot.joint_names if n.upper().startswith(("CHEST", "TORSO"))]
-        targets = {n: float(robot.q_half_sitting[robot.joint_index(n).idx_q]) for n in names}
-        if all(abs(q[robot.joint_index(n).idx_q] - v) < tolerance_rad for n, v in targets.items()):
+        half_sitting = robot.q_half_sitting
+        targets = {n: float(half_sitting[robot.index(n)]) for n in robot.info.chest_joints}
+        if all(abs(q[robot.index(n)] - v) < tolerance_rad for n, v in targets.items()):
             return None
         return self.move_joints(targets, what=what, speed_rad_s=0.5, q=q)
 
     # Head --------------------------------------------------------------------------------------------
     def head_joints(self) -> tuple[str, str]:
-        """(pan, tilt) joint names of the robot model."""
-        names = self.robot.joint_names
-        if "HEAD_JOINT0" in names:
-            return "HEAD_JOINT0", "HEAD_JOINT1"
-        return "head_1_joint", "head_2_joint"  # talos: head_1 = yaw, head_2 = pitch
+        """(pan, tilt) joint names of the robot (perception/look_around)."""
+        head = self.robot.head
+        return head.head_pan_joint, head.head_tilt_joint
 
     def head_angles(self, q: np.ndarray) -> tuple[float, float]:
         pan, tilt = self.head_joints()
-        return float(q[self.robot.joint_index(pan).idx_q]), float(q[self.robot.joint_index(tilt).idx_q])
+        return float(q[self.robot.index(pan)]), float(q[self.robot.index(tilt)])
 
     def head_limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """((pan min, pan max), (tilt min, tilt max)) [rad]."""
-        out = []
-        for name in self.head_joints():
-            i = self.robot.joint_index(name).idx_q
-            out.append((float(self.robot.q_lower[i]), float(self.robot.q_upper[i])))
-        return out[0], out[1]
+        head = self.robot.head
+        (pan_lo, pan_hi), (tilt_lo, tilt_hi) = head.pan_limits_rad, head.tilt_limits_rad
+        return (float(pan_lo), float(pan_hi)), (float(tilt_lo), float(tilt_hi))
 
     def move_head(self, pan_rad: float, tilt_rad: float, *, what: str = "head") -> Executed | None:
         pan, tilt = self.head_joints()
@@ -314,15 +295,15 @@ class Body:
         """
         robot = self.robot
         pan_name, tilt_name = self.head_joints()
-        i_pan, i_tilt = robot.joint_index(pan_name).idx_q, robot.joint_index(tilt_name).idx_q
+        i_pan, i_tilt = robot.index(pan_name), robot.index(tilt_name)
         q = np.asarray(q, dtype=float).copy()
         target = np.asarray(point_world, dtype=float)
         (pan_lo, pan_hi), (tilt_lo, tilt_hi) = self.head_limits()
         for _ in range(3):
-            T_world_gaze = robot.frame_pose(q, robot.frames.gaze)
+            T_world_gaze = robot.frame_pose(q, robot.info.frames["gaze"])
             d = T_world_gaze.rotation.T @ (target - T_world_gaze.translation)  # in the gaze frame
             pan = q[i_pan] + math.atan2(d[1], d[0])
-            tilt = q[i_tilt] - math.atan2(d[2], math.hypot(d[0], d[1]))
+            tilt = q[i_tilt] - self.robot.head.tilt_sign * math.atan2(d[2], math.hypot(d[0], d[1]))
             q[i_pan] = float(np.clip(pan, pan_lo, pan_hi))
             q[i_tilt] = float(np.clip(tilt, tilt_lo, tilt_hi))
         return float(q[i_pan]), float(q[i_tilt])

@@ -9,9 +9,8 @@ from typing import Any
 
 from services.bus.session import Client
 from services.bus.spec import EndpointSpec
-from services.errors import HumanoidError, RequestTimeoutError, UnavailableError
+from services.errors import HumanoidError, RequestTimeoutError, StoppedError, UnavailableError
 from supervisor.health import HealthMonitor
-from supervisor.report import ActionError
 
 
 class ServiceCaller:
@@ -33,9 +32,9 @@ class ServiceCaller:
         self.on_call: Callable[[EndpointSpec], None] | None = None
 
     def call(self, spec: EndpointSpec, request: Any, timeout_s: float) -> Any:
-        """The reply; the typed error of the service; ActionError("stopped") once stop is set."""
+        """The reply; the typed error of the service; StoppedError once stop is set."""
         if self.stop.is_set():
-            raise ActionError("stopped", f"stopped by the operator before calling {spec.path}")
+            raise StoppedError(f"stopped by the operator before calling {spec.path}")
         if self.on_call is not None:
             self.on_call(spec)
         started = time.monotonic()

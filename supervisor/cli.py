@@ -107,7 +107,9 @@ def add_cli(subparsers: Any) -> None:
 
 def _bus_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("bus")
-    group.add_argument("--config", help="YAML file with a 'bus:' section")
+    group.add_argument(
+        "--config", help="YAML file with a 'bus:' section (and a 'supervisor:' one: supervisor/config.py)"
+    )
     group.add_argument("--hub", help="zenoh endpoint of the hub (default tcp/127.0.0.1:7447)")
     group.add_argument("--robot", help="robot name in the keys hrp/<robot>/... (default hrp2)")
     group.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the services (30)")
@@ -124,6 +126,12 @@ def _bus(args: argparse.Namespace) -> Any:
     from services.bus.config import load_bus_config
 
     return load_bus_config(args.config, hub=args.hub, robot=args.robot)
+
+
+def _config(args: argparse.Namespace) -> Any:
+    from supervisor.config import load_supervisor_config
+
+    return load_supervisor_config(args.config)
 
 
 def _connect(args: argparse.Namespace, sup: Any, services: tuple[str, ...] | None = None) -> None:
@@ -159,7 +167,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from supervisor.script import load_script
 
     steps = load_script(args.script)  # parse errors before connecting
-    with Supervisor.connect(_bus(args), out=sys.stdout) as sup:
+    with Supervisor.connect(_bus(args), out=sys.stdout, config=_config(args)) as sup:
         _connect(args, sup)
         _prepare_scene(args, sup)
         started = time.monotonic()
@@ -211,7 +219,7 @@ def cmd_console(args: argparse.Namespace) -> int:
     from supervisor.fetch import save_snapshot
     from supervisor.repl import ConsoleLoop, stdin_lines
 
-    with Supervisor.connect(_bus(args), out=sys.stdout) as sup:
+    with Supervisor.connect(_bus(args), out=sys.stdout, config=_config(args)) as sup:
         _connect(args, sup)
         _prepare_scene(args, sup)
         loop = ConsoleLoop(sup, sup.known_objects(), sys.stdout, hand=args.hand, prompt=sys.stdin.isatty())
@@ -231,6 +239,7 @@ def cmd_fetch(args: argparse.Namespace) -> int:
 
     steps = load_script(args.script) if args.script else None
     bus = _bus(args)
+    _config(args)  # a bad supervisor section fails before the services start
     configure_logging("WARNING")
     with contextlib.ExitStack() as stack:
         if not args.connect:
@@ -239,7 +248,7 @@ def cmd_fetch(args: argparse.Namespace) -> int:
                 flush=True,
             )
             stack.enter_context(running_stack(bus, record=args.record, log_dir=args.log_dir, out=sys.stdout))
-        sup = stack.enter_context(Supervisor.connect(bus, out=sys.stdout))
+        sup = stack.enter_context(Supervisor.connect(bus, out=sys.stdout, config=_config(args)))
         _connect(args, sup)
         summary, _report = fetch(
             sup, scene=args.scene, seed=args.seed, steps=steps, snapshot=args.snapshot or None

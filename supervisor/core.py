@@ -24,15 +24,16 @@ from services.bus.schemas import perception as perception_msg
 from services.bus.schemas.supervisor import EVENTS, SupervisorEvent
 from services.bus.session import Client, TypedPublisher, close_session, open_session
 from services.errors import HumanoidError
-from supervisor.actions import ActionOptions, Actions
+from supervisor.actions import Actions
 from supervisor.calls import ServiceCaller
+from supervisor.config import SupervisorConfig
 from supervisor.health import HealthMonitor
 from supervisor.retry import DEFAULT_POLICY, RetryPolicy
 from supervisor.runner import Event, Runner, RunReport
 from supervisor.script import Step
 
 #: Services the actions use.
-SERVICES = ("sim", "perception", "navigation", "walking", "reaching")
+SERVICES = ("sim", "perception", "navigation", "footsteps", "walking", "reaching")
 
 
 class Supervisor:
@@ -45,7 +46,7 @@ class Supervisor:
         *,
         out: IO[str] | None = None,
         policy: RetryPolicy = DEFAULT_POLICY,
-        options: ActionOptions | None = None,
+        config: SupervisorConfig | None = None,
         owns_session: bool = False,
     ) -> None:
         self.session = session
@@ -55,9 +56,7 @@ class Supervisor:
         self.health = HealthMonitor(session, robot)
         self.client = Client(session, robot)
         self.bus = ServiceCaller(self.client, self.health, self.stop)
-        self.actions = Actions(
-            self.bus, self.health, stop=self.stop, progress=self._progress, options=options
-        )
+        self.actions = Actions(self.bus, self.health, stop=self.stop, progress=self._progress, config=config)
         self.runner = Runner(
             self.actions.table(),
             policy=policy,

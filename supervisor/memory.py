@@ -12,21 +12,19 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from services.bus.schemas.perception import FootprintMsg
 from services.errors import NotFoundError
-from vision.footprint import Footprint
 
 #: A sighting without a footprint inherits the last one when it lies this close to it [m].
 KEEP_FOOTPRINT_MARGIN_M = 0.25
 
 
-def _inside(footprint: Footprint, xy: np.ndarray, margin_m: float) -> bool:
+def _inside(footprint: FootprintMsg, xy: np.ndarray, margin_m: float) -> bool:
     """Whether the point ``xy`` [m] lies in the footprint rectangle grown by ``margin_m`` [m]."""
-    c, s = math.cos(footprint.yaw_rad), math.sin(footprint.yaw_rad)
-    dx, dy = float(xy[0]) - footprint.center_m[0], float(xy[1]) - footprint.center_m[1]
+    c, s = math.cos(footprint.yaw), math.sin(footprint.yaw)
+    dx, dy = float(xy[0]) - footprint.center[0], float(xy[1]) - footprint.center[1]
     along, across = c * dx + s * dy, -s * dx + c * dy
-    return (
-        abs(along) <= footprint.size_m[0] / 2 + margin_m and abs(across) <= footprint.size_m[1] / 2 + margin_m
-    )
+    return abs(along) <= footprint.size[0] / 2 + margin_m and abs(across) <= footprint.size[1] / 2 + margin_m
 
 
 @dataclass(frozen=True)
@@ -47,7 +45,7 @@ class Sighting:
     confidence: float
     sim_time_s: float
     camera_m: np.ndarray
-    footprint: Footprint | None = None
+    footprint: FootprintMsg | None = None
 
     def describe(self) -> str:
         x, y, z = self.position_m

@@ -1,8 +1,8 @@
 """Seeing objects: one ``perception/locate`` call, and the look-around search when not in view.
 
-The search follows services/perception/look_around.py (the perception helper's plan for it): the head
-scans rows of pan angles at a few gaze depressions (:func:`scan_angles`), then the body turns on the
-spot (:func:`turn_offsets`, relative to the heading at the start) and the head scans again. An object
+The search follows perception's plan for it (``perception/look_around``, services/perception/look_around.py):
+the head scans rows of pan angles at a few gaze depressions (``views``), then the body turns on the
+spot (``turns_rad``, relative to the heading at the start) and the head scans again. An object
 that is seen off the image centre is looked at and localized again: the paper "localizes precisely the
 colored ball" once it is close (Fig. 11 (c)); the centroid stereo is most accurate away from borders.
 """
@@ -16,29 +16,28 @@ import numpy as np
 
 from services.bus.schemas import perception as perception_msg
 from services.errors import NotFoundError
-from services.perception.look_around import scan_angles, turn_offsets
 from supervisor.body import Body, Progress
 from supervisor.calls import ServiceCaller
+from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory, Sighting
-from vision.footprint import Footprint
 
-#: NotFoundError reasons of perception/locate that another viewpoint may fix.
-LOOK_AROUND_REASONS = ("not_in_view", "not_in_right_view", "no_disparity", "stereo_mismatch", "ambiguous", "")
-#: Re-centre and localize again when the object's image is farther than this from the centre
-#: (fraction of the half-width) [-].
-RECENTRE_FRACTION = 0.4
+#: NotFoundError reasons of perception/locate that another viewpoint may fix ("": none given).
+LOOK_AROUND_REASONS = (*perception_msg.VIEWPOINT_REASONS, "")
 LOCATE_TIMEOUT_S = 20.0
 
 
 class Eyes:
     """``perception/locate`` from the robot's current configuration, and the look-around search."""
 
-    def __init__(self, bus: ServiceCaller, body: Body, memory: Memory) -> None:
+    def __init__(
+        self, bus: ServiceCaller, body: Body, memory: Memory, config: SupervisorConfig | None = None
+    ) -> None:
         self.bus = bus
+        self.config = config or SupervisorConfig()
         self.body = body
         self.memory = memory
         self._blob_models: list[str] | None = None  # perception's non-ball models, asked once
-        self._last_box = (320.0, 240.0)  # image centre [px] of the last sighting (off_centre)
+        self._last_box: tuple[float, float] | None = None  # image box centre [px] of the last sighting
 
     def locate(self, name: str, q: np.ndarray | None = None, camera: str = "wide") -> Sighting:
         """Localize ``name`` now (no motion) with the head's ``camera`` pair; NotFoundError from
@@ -58,15 +57,7 @@ class Eyes:
             confidence=float(reply.confidence),
             sim_time_s=float(reply.sim_time_s),
             camera_m=T[:3, 3].copy(),
-            footprint=None
-            if reply.footprint is None
-            else Footprint(
-                (reply.footprint.center[0], reply.footprint.center[1]),
-                (reply.footprint.size[0], reply.footprint.size[1]),
-                reply.footprint.yaw,
-                reply.footprint.top_z,
-                reply.footprint.n_points,
-            ),
+            footprint=reply.footprint,
         )
         self.memory.remember(sighting)
         self._last_box = (reply.box_left.u_px, reply.box_left.v_px)
@@ -90,7 +81,7 @@ class Eyes:
             try:
                 self.locate(name, q)
             except NotFoundError as exc:
-                if exc.details.get("reason") == "not_in_view":
+                if exc.details.get("reason") == perception_msg.REASON_NOT_IN_VIEW:
                     continue
                 try:  # close by (out of one wide camera's view, cut by the borders): the near pair
                     self.locate(name, q, camera="narrow")
@@ -104,9 +95,11 @@ class Eyes:
 
     def off_centre(self) -> float:
         """How far the last sighting's image box is from the image centre (fraction of the half-width)."""
+        if self._last_box is None:
+            return 0.0
         u, v = self._last_box
-        width = 640.0
-        return max(abs(u - width / 2), abs(v - 240.0) * width / 480.0) / (width / 2)
+        width, height = (float(n) for n in self.body.robot.head.image_size_px)
+        return max(abs(u - width / 2), abs(v - height / 2) * width / height) / (width / 2)
 
     def look_at(self, point_m: np.ndarray, what: str) -> None:
         q = self.body.q()
@@ -155,7 +148,7 @@ class Eyes:
                 f"spot all around) and perception did not find it ({tried})",
                 {"object": name, "reason": "not_found_around", "views": views},
             )
-        if self.off_centre() > RECENTRE_FRACTION:
+        if self.off_centre() > self.config.recentre_fraction:
             progress(f"{name} seen at the image border: looking at it to localize it precisely")
             self.look_at(found.position_m, f"look at {name}")
             again = attempt()
@@ -163,9 +156,9 @@ class Eyes:
         return found, views
 
     def _scan_order(self) -> list[tuple[float, float]]:
-        """The head views of :func:`scan_angles`, nearest pan first and, at one pan, every tilt: what is
-        ahead (the usual place of what is looked for) is seen before the sides."""
-        views = scan_angles(self.body.robot)
+        """The head views of perception's look-around plan, nearest pan first and, at one pan, every
+        tilt: what is ahead (the usual place of what is looked for) is seen before the sides."""
+        views = [(float(pan), float(tilt)) for pan, tilt in self.body.robot.head.views]
         return sorted(views, key=lambda view: (round(abs(view[0]), 3), view[0], views.index(view)))
 
     def _search(
@@ -175,9 +168,8 @@ class Eyes:
         turn: Callable[[float, str], None],
         progress: Progress,
     ) -> Sighting | None:
-        robot = self.body.robot
         turned = 0.0
-        for offset in [0.0, *turn_offsets(robot)]:
+        for offset in [0.0, *self.body.robot.head.turns_rad]:
             if offset != 0.0:
                 progress(
                     f"{name} not in view: turning by {math.degrees(offset - turned):.0f} deg to look further"

@@ -5,20 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-# Reason codes of failed actions. The first six are the bus error codes (services.errors); the others
-# are outcomes of execution in the world.
-REASONS = (
-    "invalid_request",
-    "infeasible",
-    "not_found",
-    "timeout",
-    "unavailable",
-    "internal",
-    "fell",
-    "collision",
-    "not_grasped",
-    "stopped",
-)
+from services.errors import REASONS as ERROR_REASONS
+
+# Reason codes of failed actions (services/errors.py): the bus error codes, then outcomes in the world.
+REASONS = ERROR_REASONS
 
 
 @dataclass(frozen=True)
@@ -55,19 +45,3 @@ class ActionReport:
         if self.ok:
             return f"{call}: ok ({self.attempts} attempt(s)) {self.message}".rstrip()
         return f"{call}: FAILED [{self.reason}] {self.message} ({self.attempts} attempt(s))"
-
-
-class ActionError(Exception):
-    """Raised inside an action for a failure in the world (``fell``, ``collision``, ``not_grasped``,
-    ``stopped``...); the runner turns it into a failed :class:`ActionReport` like a bus error."""
-
-    def __init__(self, reason: str, message: str, details: dict[str, Any] | None = None) -> None:
-        if reason not in REASONS:
-            raise ValueError(f"unknown failure reason {reason!r}; known: {', '.join(REASONS)}")
-        super().__init__(message)
-        self.reason = reason
-        self.message = message
-        self.details: dict[str, Any] = dict(details or {})
-
-    def __str__(self) -> str:
-        return f"{self.reason}: {self.message}"

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from services.errors import HumanoidError, InvalidRequestError
-from supervisor.report import ActionError, ActionReport
+from supervisor.report import ActionReport
 from supervisor.retry import DEFAULT_POLICY, RetryPolicy
 from supervisor.script import Step
 
@@ -118,15 +118,6 @@ class Runner:
                     message=exc.message,
                     details=exc.details,
                 )
-            except ActionError as exc:
-                report = ActionReport(
-                    step.action,
-                    resolved.args,
-                    ok=False,
-                    reason=exc.reason,
-                    message=exc.message,
-                    details=exc.details,
-                )
             report = dataclasses.replace(report, attempts=attempt, wall_time_s=time.monotonic() - began)
             if report.ok:
                 if step.bind:
@@ -150,10 +141,6 @@ class Runner:
                 except HumanoidError as exc:
                     self._emit(
                         "failed", step, attempt, exc.code, f"remedy {rule.remedy} failed: {exc.message}"
-                    )
-                except ActionError as exc:
-                    self._emit(
-                        "failed", step, attempt, exc.reason, f"remedy {rule.remedy} failed: {exc.message}"
                     )
 
     def _emit(self, kind: str, step: Step, attempt: int, reason: str = "", message: str = "") -> None:

@@ -42,6 +42,23 @@ class BoxEstimate:
     def top_z_m(self) -> float:
         return self.size_m[2]
 
+    def disks(self) -> list[tuple[float, float, float]]:
+        """(x, y, radius) [m] of disks covering the footprint rectangle: as many as it is times longer
+        than wide, each over its square-ish cell (footsteps/plan's obstacles are disks, paper 000 §4.1)."""
+        length, width = self.size_m[0], self.size_m[1]
+        along = 0 if length >= width else 1
+        long_side, short_side = max(length, width), min(length, width)
+        n = max(1, math.ceil(long_side / short_side - 1e-9))
+        cell = long_side / n
+        radius = 0.5 * math.hypot(cell, short_side)
+        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        axis = (c, s) if along == 0 else (-s, c)
+        out = []
+        for k in range(n):
+            offset = (k + 0.5) * cell - long_side / 2.0
+            out.append((self.center_m[0] + offset * axis[0], self.center_m[1] + offset * axis[1], radius))
+        return out
+
     def to_msg(self) -> nav_msg.ObstacleMsg:
         return nav_msg.ObstacleMsg(
             name=self.name, kind="box", center=list(self.center_m), size=list(self.size_m), yaw=self.yaw_rad
@@ -71,21 +88,21 @@ def box_estimate(sighting: Sighting) -> BoxEstimate:
 def _from_footprint(sighting: Sighting) -> BoxEstimate:
     fp = sighting.footprint
     assert fp is not None
-    length, width = fp.size_m
-    centre = np.asarray(fp.center_m, dtype=float)
+    length, width = fp.size
+    centre = np.asarray(fp.center, dtype=float)
     depth = max(width, min(length, DEPTH_RANGE_M[1]))
     if width < MIN_DEPTH_FRACTION * length:  # extend away from the camera that saw it
-        across = np.array([-math.sin(fp.yaw_rad), math.cos(fp.yaw_rad)])
+        across = np.array([-math.sin(fp.yaw), math.cos(fp.yaw)])
         if float(np.dot(across, centre - np.asarray(sighting.camera_m, dtype=float)[:2])) < 0.0:
             across = -across
         centre = centre + across * (depth - width) / 2.0
         width = depth
-    top = max(0.05, fp.top_z_m)
+    top = max(0.05, fp.top_z)
     return BoxEstimate(
         name=sighting.name,
         center_m=(float(centre[0]), float(centre[1]), top / 2.0),
         size_m=(float(length), float(width), top),
-        yaw_rad=fp.yaw_rad,
+        yaw_rad=fp.yaw,
     )
 
 

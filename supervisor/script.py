@@ -49,6 +49,11 @@ ACTIONS: dict[str, Signature] = {
     "localize": Signature(("object",), help="find the object's 3D position, looking around if needed"),
     "goto": Signature(("target",), ("distance",), help="walk in front of a place/object or to 'x,y,yaw'"),
     "turn": Signature(("angle_deg",), help="turn in place (positive = left)"),
+    "walk": Signature(
+        ("forward_m", "left_m", "yaw_deg"),
+        optional_positional=1,
+        help="walk relative to the robot (forward, left [m], then facing yaw_deg more; -0.3 0 steps back)",
+    ),
     "reach": Signature(("hand", "target"), help="reach a hand to an object or 'x,y,z', stepping if needed"),
     "grasp": Signature(("hand",), help="close the hand; returns the object held"),
     "open": Signature(("hand",), help="open the hand, releasing what it holds"),
@@ -147,3 +152,19 @@ def load_script(path: str | Path) -> list[Step]:
     except FileNotFoundError:
         raise InvalidRequestError(f"script {path} does not exist") from None
     return parse_script(text)
+
+
+def parse_point(text: str, n: int, what: str) -> tuple[float, ...] | None:
+    """An action argument 'x,y,z' (``n`` comma-separated numbers) -> floats, or None if ``text`` is a
+    name; InvalidRequestError naming ``what`` if it is neither."""
+    if not any(c.isdigit() for c in text) or "," not in text:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise InvalidRequestError(
+            f"{what} {text!r}: expected {n} comma-separated numbers or an object name"
+        ) from None
+    if len(values) != n:
+        raise InvalidRequestError(f"{what} {text!r}: expected {n} numbers, got {len(values)}")
+    return values

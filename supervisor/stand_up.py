@@ -15,9 +15,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from services.bus.schemas import contacts as contacts_msg
+from services.errors import FellError
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
-from supervisor.report import ActionError, ActionReport
+from supervisor.report import ActionReport
 
 # The seated robot's contacts (soles on the floor, thighs on the chair's seat) and the goal: the waist
 # beyond y = 0.6 m, standing on both soles (the chair_egress scene, §3.1 of the paper).
@@ -39,7 +40,7 @@ def stand_up(
     """Plan and execute getting up; ``args``: optional goal value [m] of the waist's y."""
     state = body.state()
     if state.fallen:
-        raise ActionError("fell", "the robot is on the ground: reset the sim")
+        raise FellError("the robot is on the ground: reset the sim")
     goal = float(args[0]) if args else GOAL_VALUE_M
     progress(f"stand up: planning contacts in scene {state.scene} (budget {PLAN_BUDGET_S:.0f} s)")
     request = contacts_msg.PlanRequest(

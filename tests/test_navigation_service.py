@@ -98,3 +98,30 @@ def test_goto_over_the_bus(module_bus_harness) -> None:
     # a malformed request names the field
     with pytest.raises(InvalidRequestError, match="exactly one goal"):
         client.call(msg.GOTO, msg.GotoRequest(q_start=q, goal_pose=[1.0, 0.0, 0.0], goal_object="crate"))
+
+
+def test_a_near_goal_beside_the_robot_is_walked_straight_and_planned_once() -> None:
+    """Half a metre to the left and 0.3 m ahead, turned by 20 deg: the forward car-like path loops
+    around, so navigation walks there straight (sideways, forward and turning in the same steps) and
+    stage 2 plans that walk: the reply's q ends standing at the goal. A box on the line: no straight
+    walk (navigation keeps its path)."""
+    import math
+
+    from services.navigation.geometry import Pose2D, Scene
+    from services.navigation.goto import plan_goto, start_soles
+    from services.navigation.straight import StraightWalkOptions, straight_walk
+
+    q = np.array(ROBOT.q_half_sitting)
+    x, y, yaw = ROBOT.mid_feet_pose(q)
+    goal = Pose2D(x + 0.3, y + 0.5, yaw + math.radians(20.0))
+    scene = Scene((), (x - 3.0, x + 3.0, y - 3.0, y + 3.0))
+    result = plan_goto(ROBOT, scene, q, goal)
+    assert result.path.curve == "straight"
+    gx, gy, gyaw = ROBOT.mid_feet_pose(result.motion.q[-1])
+    assert math.hypot(gx - goal.x_m, gy - goal.y_m) < 0.01
+    assert abs(math.remainder(gyaw - goal.theta_rad, 2 * math.pi)) < math.radians(1.0)
+    blocked = Scene((BoxObstacle("crate", (x + 0.15, y + 0.25, 0.3), (0.2, 0.2, 0.6)),), scene.bounds_xy_m)
+    start = Pose2D(x, y, yaw)
+    soles = start_soles(ROBOT, q)
+    assert straight_walk(ROBOT, blocked, soles, start, goal, StraightWalkOptions()) is None
+    assert straight_walk(ROBOT, scene, soles, start, goal, StraightWalkOptions()) is not None

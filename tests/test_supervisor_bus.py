@@ -1,4 +1,5 @@
-"""The supervisor on a real bus with the sim and perception services: events, health, perception actions.
+"""The supervisor on a real bus with the sim, perception and walking services: events, health,
+perception actions, walks relative to the robot.
 
 The planner-dependent actions and the whole fetch are in test_supervisor_fetch.py.
 """
@@ -26,6 +27,7 @@ def stack(module_bus_harness, tmp_path_factory):
     h.scene_dir = tmp_path_factory.mktemp("scenes")  # scenes the tests write; sim/reset loads them by name
     h.spawn_service("sim.service", "--scene", "ball_fetch", "--scene-dir", str(h.scene_dir), name="sim")
     h.spawn_service("services.perception.service", name="perception")
+    h.spawn_service("services.walking.service", name="walking")
     return h
 
 
@@ -149,8 +151,8 @@ def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, 
     """The right arm swings into a crate and stops pressing on it; backing out plays the executed part
     backward (the crate may be touched until the contact breaks), after which the robot can hold still
     without touching anything."""
+    from services.errors import CollisionError
     from sim import motions
-    from supervisor.report import ActionError
 
     scene = stack.scene_dir / "crate.yaml"
     scene.write_text(
@@ -160,10 +162,12 @@ def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, 
     )
     stack.client.call(sim_msg.RESET, sim_msg.ResetRequest(scene="crate"), 30)
     body = sup.actions.body
-    swing = motions.joint_motion(body.robot, body.q(), {"RARM_JOINT0": -1.2}, 1.0)
-    with pytest.raises(ActionError) as stopped:
+    from services.model import load_robot
+
+    swing = motions.joint_motion(load_robot(body.robot.name), body.q(), {"RARM_JOINT0": -1.2}, 1.0)
+    with pytest.raises(CollisionError) as stopped:
         body.execute(swing, what="swing")
-    assert stopped.value.reason == "collision" and body.interrupted is not None
+    assert stopped.value.code == "collision" and body.interrupted is not None
     assert body.interrupted.touched == ("crate",)
     executed_s = (body.interrupted.q.shape[0] - 1) * body.interrupted.dt_s
     assert executed_s < 0.5  # stopped early: backing out undoes all of it (at least 0.5 s otherwise)
@@ -171,3 +175,59 @@ def test_a_motion_stopped_by_a_collision_is_backed_out_over_the_bus(stack, sup, 
     q = body.q()
     body.execute(np.repeat(q[None, :], 20, axis=0), what="hold still")  # completes: no contact left
     assert body.back_out() == 0.0  # nothing left to undo
+
+
+def test_walk_relative_to_the_robot_and_back(sup) -> None:
+    """``walk 0.4 0.1 30``: 0.4 m forward, 0.1 m to the left, turned 30 deg left, the walking planner
+    making the steps (walking/goal); ``walk -0.3 0`` then steps back along the new heading."""
+    import math
+
+    body = sup.actions.body
+    x0, y0, yaw0 = body.base_xy_yaw()
+    report = sup.run(parse_script("walk 0.4 0.1 30\nwalk -0.3 0"))
+    assert report.ok, [r.message for r in report.reports]
+    first = report.reports[0]
+    assert first.details["steps"] >= 3
+    x1, y1, yaw1 = first.details["pose"]
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    forward, left = c * (x1 - x0) + s * (y1 - y0), -s * (x1 - x0) + c * (y1 - y0)
+    assert (forward, left) == pytest.approx((0.4, 0.1), abs=0.05)
+    assert math.degrees(math.remainder(yaw1 - yaw0, 2 * math.pi)) == pytest.approx(30.0, abs=4.0)
+    x2, y2, _ = report.reports[1].details["pose"]
+    back = math.cos(yaw1) * (x2 - x1) + math.sin(yaw1) * (y2 - y1)
+    assert back == pytest.approx(-0.3, abs=0.05)
+
+
+def test_the_robot_facts_come_from_the_services_and_match_the_model(sup) -> None:
+    """The supervisor loads no model: sim/robot_info, sim/kinematics and perception/look_around give it
+    the same joints, frames and kinematics as services.model (loaded here, by the test only)."""
+    from services.model import load_robot
+    from services.perception.look_around import head_joints, scan_angles
+
+    robot = sup.actions.body.robot
+    model = load_robot(robot.name)
+    assert robot.joint_names == list(model.joint_names) and robot.nq == model.nq
+    np.testing.assert_allclose(robot.q_half_sitting, model.q_half_sitting)
+    assert robot.index("RARM_JOINT0") == model.joint_index("RARM_JOINT0").idx_q
+    q = sup.actions.body.q()
+    assert robot.mid_feet_pose(q) == pytest.approx(model.mid_feet_pose(q), abs=1e-9)
+    np.testing.assert_allclose(
+        robot.grasp_position(q, "right"), model.frame_pose(q, model.frames.grasp("right")).translation
+    )
+    offset = model.held_object_offset("right", 0.04)
+    np.testing.assert_allclose(robot.held_object_offset("right", 0.04), offset)
+    placed = robot.place_on_ground(model.q_half_sitting, 1.0, -0.5, 0.3)
+    np.testing.assert_allclose(placed, model.place_on_ground(model.q_half_sitting, 1.0, -0.5, 0.3))
+    heights = robot.sole_heights(np.stack([q, placed]))
+    assert heights.shape == (2, 2) and np.all(np.abs(heights[1]) < 1e-9)
+    head = head_joints(model)
+    assert sup.actions.body.head_joints() == (head.pan, head.tilt)
+    assert robot.head.views == [list(v) for v in scan_angles(model)]
+    assert robot.head.image_size_px == [640, 480]
+    # A bad request is a typed error naming what was wrong.
+    from services.errors import InvalidRequestError
+
+    with pytest.raises(InvalidRequestError, match="nq"):
+        robot.kinematics(np.zeros(5))
+    with pytest.raises(InvalidRequestError, match="no frame"):
+        robot.frame_pose(q, "nowhere")

@@ -67,10 +67,10 @@ def test_fetch_succeeds_when_walking_is_killed_during_the_turn(stack, tmp_path) 
             in_turn.set() if event.step.startswith("turn") else in_turn.clear()
 
     def kill_during_walking_plan(spec) -> None:
-        if spec.path == "walking/plan" and in_turn.is_set() and not killed.is_set():
-            # As the request goes out: the kill lands while walking plans (the first walking/plan of the
-            # turn step may be a short step back, planned in a few tens of ms; a later kill could miss
-            # it and the service would be back before the turn's own plan).
+        if spec.service == "walking" and in_turn.is_set() and not killed.is_set():
+            # As the request goes out: the kill lands while walking plans (the first walking request of
+            # the turn step may be a short step back, planned in a few tens of ms; a later kill could
+            # miss it and the service would be back before the turn's own plan).
             killed.set()
             threading.Thread(target=os.killpg, args=(first_pid, signal.SIGKILL)).start()
 
@@ -129,7 +129,7 @@ def test_without_the_ball_the_robot_looks_around_and_reports_not_found(stack, tm
 
 def test_a_near_goal_beside_the_robot_is_walked_to_straight(stack) -> None:
     """Half a metre to the left and 0.3 m ahead, turned by 20 deg: navigation's forward-only car-like
-    path would loop around; the supervisor walks there directly (sideways, forward and turning in the
+    path would loop around; navigation walks there directly (sideways, forward and turning in the
     same steps) and the robot stands at the goal."""
     import math
 
@@ -140,7 +140,7 @@ def test_a_near_goal_beside_the_robot_is_walked_to_straight(stack) -> None:
     x, y, yaw = body.base_xy_yaw()
     goal = (x + 0.3, y + 0.5, yaw + math.radians(20.0))
     plan = planners.goto_pose(*goal)
-    assert plan.planner.startswith("walking/plan, straight"), plan.describe()
+    assert plan.planner == "navigation/goto, straight", plan.describe()
     executed = body.execute(plan.q, what="walk")
     ex, ey, eyaw = body.base_xy_yaw(executed.q)
     assert math.hypot(ex - goal[0], ey - goal[1]) < 0.03

@@ -7,12 +7,16 @@ import math
 import numpy as np
 import pytest
 
+from services.bus.schemas.perception import FootprintMsg
 from supervisor.memory import Sighting
 from supervisor.scene_map import box_estimate, distance_to_box, ray_entry
-from vision.footprint import Footprint
 
 
-def _sighting(footprint: Footprint | None, camera_xy=(0.0, 0.0), name: str = "yellow_table") -> Sighting:
+def _fp(center, size, yaw, top_z, n_points) -> FootprintMsg:
+    return FootprintMsg(center=list(center), size=list(size), yaw=yaw, top_z=top_z, n_points=n_points)
+
+
+def _sighting(footprint: FootprintMsg | None, camera_xy=(0.0, 0.0), name: str = "yellow_table") -> Sighting:
     return Sighting(
         name=name,
         position_m=np.array([2.0, 0.0, 0.5]),
@@ -26,7 +30,7 @@ def _sighting(footprint: Footprint | None, camera_xy=(0.0, 0.0), name: str = "ye
 
 
 def test_a_footprint_becomes_the_box_up_to_its_top():
-    box = box_estimate(_sighting(Footprint((2.1, 0.2), (1.0, 0.6), 0.3, 0.72, 500)))
+    box = box_estimate(_sighting(_fp((2.1, 0.2), (1.0, 0.6), 0.3, 0.72, 500)))
     assert box.center_m == pytest.approx((2.1, 0.2, 0.36))
     assert box.size_m == pytest.approx((1.0, 0.6, 0.72))
     assert box.yaw_rad == pytest.approx(0.3)
@@ -34,7 +38,7 @@ def test_a_footprint_becomes_the_box_up_to_its_top():
 
 def test_a_thin_footprint_hides_its_depth_behind_what_was_seen():
     """A chair seen from behind shows its back only: the box extends away from the camera to a square."""
-    box = box_estimate(_sighting(Footprint((2.0, 0.0), (0.46, 0.06), math.pi / 2, 0.9, 300), name="chair"))
+    box = box_estimate(_sighting(_fp((2.0, 0.0), (0.46, 0.06), math.pi / 2, 0.9, 300), name="chair"))
     assert box.size_m[:2] == pytest.approx((0.46, 0.46))
     assert box.center_m[:2] == pytest.approx((2.2, 0.0))  # pushed back, away from the camera at x = 0
     assert distance_to_box(box, 1.96, 0.0) == pytest.approx(0.01)  # the seen back stays the near face
@@ -47,7 +51,7 @@ def test_without_a_footprint_the_box_faces_the_camera():
 
 
 def test_a_ray_enters_a_yawed_box_at_its_face():
-    box = box_estimate(_sighting(Footprint((2.0, 0.0), (1.0, 0.6), math.pi / 2, 0.72, 500)))
+    box = box_estimate(_sighting(_fp((2.0, 0.0), (1.0, 0.6), math.pi / 2, 0.72, 500)))
     # Yawed by 90 deg: 0.6 m deep along x, its near face at x = 1.7.
     assert ray_entry(box, np.array([0.0, 0.0]), np.array([1.0, 0.0])) == pytest.approx(1.7)
     assert ray_entry(box, np.array([2.0, 0.1]), np.array([1.0, 0.0])) == 0.0  # from inside
@@ -61,7 +65,7 @@ def test_a_sighting_without_footprint_keeps_the_last_one_where_it_still_fits():
     from supervisor.memory import Memory
 
     memory = Memory()
-    table = Footprint((2.0, 0.0), (1.0, 0.6), 0.0, 0.72, 500)
+    table = _fp((2.0, 0.0), (1.0, 0.6), 0.0, 0.72, 500)
     memory.remember(_sighting(table))
     close_up = replace(_sighting(None), position_m=np.array([2.3, 0.2, 0.6]))  # cut by the image border
     memory.remember(close_up)

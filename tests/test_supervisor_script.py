@@ -139,36 +139,18 @@ def test_runner_turns_typed_exceptions_into_reports_and_honours_stop() -> None:
     assert report.attempts <= 2
 
 
-@pytest.mark.parametrize("front", ["left", "right"])
-def test_a_turn_from_a_staggered_stance_squares_up_first_and_stays_within_the_bounds(front):
-    """After a reaching step one foot is 0.2 m ahead: the rear foot first steps beside it (parallel, at the
-    same lateral distance), then every step of the turn is within HRP-2's bounds."""
-    import math
+def test_supervisor_config_defaults_yaml_override_and_errors(tmp_path):
+    from services.errors import InvalidRequestError
+    from supervisor.config import SupervisorConfig, load_supervisor_config
 
-    from services.walking.footsteps import (
-        FootstepLimits,
-        FootstepSequence,
-        SolePose,
-        turn_in_place,
-        validate_footsteps,
-    )
-    from supervisor.planners import square_up
-
-    limits = FootstepLimits()
-    yaw = 0.7
-    c, s = math.cos(yaw), math.sin(yaw)
-
-    def sole(ahead: float, left: float) -> SolePose:
-        return SolePose(1.0 + c * ahead - s * left, 2.0 + s * ahead + c * left, yaw)
-
-    soles = {"left": sole(0.2 if front == "left" else 0.0, 0.095)}
-    soles["right"] = sole(0.2 if front == "right" else 0.0, -0.095)
-    step = square_up(soles, limits)
-    rear = "right" if front == "left" else "left"
-    assert step is not None and step.side == rear
-    squared = {**soles, rear: step.pose}
-    assert square_up(squared, limits) is None
-    left, right = squared["left"], squared["right"]
-    assert math.dist((left.x_m, left.y_m), (right.x_m, right.y_m)) == pytest.approx(0.19)
-    turn = turn_in_place(-2.1, 6, left_start=squared["left"], right_start=squared["right"], limits=limits)
-    validate_footsteps(FootstepSequence(soles["left"], soles["right"], (step, *turn.steps)), limits)
+    assert load_supervisor_config(None) == SupervisorConfig()
+    path = tmp_path / "stack.yaml"
+    path.write_text("bus: {}\nsupervisor:\n  far_m: 3\n  carry_m: [0.3, 0.2, 0.9]\n")
+    config = load_supervisor_config(path)
+    assert config.far_m == 3 and config.carry_m == (0.3, 0.2, 0.9) and config.near_m == 1.8
+    path.write_text("supervisor:\n  far: 3\n")
+    with pytest.raises(InvalidRequestError, match=r"unknown SupervisorConfig option.*far.*valid options"):
+        load_supervisor_config(path)
+    path.write_text("supervisor:\n  near_m: 2.5\n")
+    with pytest.raises(InvalidRequestError, match=r"near_m .* must be below far_m"):
+        load_supervisor_config(path)

@@ -18,8 +18,10 @@ from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
+from services.model.ground import mid_feet
 from services.walking.footsteps import SolePose, straight_walk
-from services.walking.service import plan_reply
+from services.walking.goals import soles_on, square_up
+from services.walking.service import goal_reply, goal_steps, plan_reply
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -137,6 +139,119 @@ def test_unreachable_hand_target_is_infeasible_and_named():
         plan_reply(_request(hands=[far]))
 
 
+# ------------------------------------------------------------------------------- walks to a goal, no bus
+
+
+def _goal(**fields) -> msg.GoalRequest:
+    robot = load_robot("hrp2_like")
+    return from_builtins({"q_start": list(robot.q_half_sitting), **fields}, msg.GoalRequest)
+
+
+def _box(name: str, x: float, y: float, sx: float = 0.4, sy: float = 0.4) -> dict:
+    return {"name": name, "center": [x, y, 0.3], "size": [sx, sy, 0.6], "yaw": 0.0}
+
+
+def _final_mid(sequence) -> SolePose:
+    left, right = sequence.final_stance()
+    return mid_feet(left, right)
+
+
+def test_goal_pose_relative_to_the_robot_is_reached_within_the_bounds():
+    robot = load_robot("hrp2_like")
+    # One metre forward, 0.2 m to the left, turned by 30 deg: the planner picks the steps.
+    _q, seq = goal_steps(_goal(pose=[1.0, 0.2, math.radians(30)]), robot)
+    end = _final_mid(seq)
+    assert (end.x_m, end.y_m) == pytest.approx((1.0, 0.2), abs=1e-6)
+    assert end.yaw_rad == pytest.approx(math.radians(30), abs=1e-6)
+    assert len(seq.steps) >= 6  # 1 m does not fit in fewer steps of at most 0.22 m
+    # Stepping back: the same in the other direction; a world-frame goal is the same walk.
+    _q, back = goal_steps(_goal(pose=[-0.3, 0.0, 0.0]), robot)
+    assert _final_mid(back).x_m == pytest.approx(-0.3, abs=1e-6)
+    _q, world = goal_steps(_goal(pose=[-0.3, 0.0, 0.0], frame="world"), robot)
+    assert [s.pose for s in world.steps] == pytest.approx([s.pose for s in back.steps])
+
+
+def test_goal_turn_on_the_spot_and_the_walk_it_plans():
+    robot = load_robot("hrp2_like")
+    reply = goal_reply(_goal(kind="turn", angle_rad=math.radians(90)))
+    assert len(reply.steps) == 6 and reply.figures.worst_zmp_outside_m == 0.0  # pairs of <= 0.98 pi/4
+    left, right = reply.final_left_sole, reply.final_right_sole
+    assert [left[2], right[2]] == pytest.approx([math.pi / 2] * 2, abs=1e-6)
+    soles = soles_on(robot, np.array(robot.q_half_sitting))
+    start = mid_feet(soles["left"], soles["right"])
+    assert 0.5 * (left[0] + right[0]) == pytest.approx(start.x_m, abs=0.03)  # on the spot
+
+
+@pytest.mark.parametrize("front", ["left", "right"])
+def test_a_turn_from_a_staggered_stance_squares_up_first_and_stays_within_the_bounds(front):
+    """After a reaching step one foot is 0.2 m ahead: the rear foot first steps beside it (parallel, at the
+    same lateral distance), then every step of the turn is within HRP-2's bounds."""
+    from services.model.ground import FootstepBounds, validate_footsteps
+    from services.walking.goals import turn_steps
+
+    limits = FootstepBounds()
+    yaw = 0.7
+    c, s = math.cos(yaw), math.sin(yaw)
+
+    def sole(ahead: float, left: float) -> SolePose:
+        return SolePose(1.0 + c * ahead - s * left, 2.0 + s * ahead + c * left, yaw)
+
+    soles = {"left": sole(0.2 if front == "left" else 0.0, 0.095)}
+    soles["right"] = sole(0.2 if front == "right" else 0.0, -0.095)
+    step = square_up(soles, limits)
+    rear = "right" if front == "left" else "left"
+    assert step is not None and step.side == rear
+    squared = {**soles, rear: step.pose}
+    assert square_up(squared, limits) is None
+    left, right = squared["left"], squared["right"]
+    assert math.dist((left.x_m, left.y_m), (right.x_m, right.y_m)) == pytest.approx(0.19)
+    turn = turn_steps(soles, -2.1, limits)
+    assert turn.steps[0] == step
+    validate_footsteps(turn, limits)
+    end = _final_mid(turn)
+    assert end.yaw_rad == pytest.approx(math.remainder(yaw - 2.1, 2 * math.pi), abs=1e-6)
+
+
+def test_goal_walks_are_checked_against_the_map_boxes():
+    robot = load_robot("hrp2_like")
+    # A box right behind: stepping back 0.5 m would put the heels in it.
+    with pytest.raises(InfeasibleError) as err:
+        goal_steps(_goal(pose=[-0.5, 0.0, 0.0], obstacles=[_box("chair", -0.6, 0.0)]), robot)
+    assert err.value.details["reason"] == msg.REASON_BLOCKED and err.value.details["obstacle"] == "chair"
+    assert "chair" in err.value.message
+    # A walk forward past a box beside the line: it keeps clear by less than the clearance.
+    with pytest.raises(InfeasibleError) as err:
+        goal_steps(_goal(pose=[1.2, 0.0, 0.0], obstacles=[_box("box", 0.6, 0.35)]), robot)
+    assert err.value.details["reason"] == msg.REASON_BLOCKED
+    # The same box far enough to the side is no obstacle; nor is a table ahead stepped away from.
+    goal_steps(_goal(pose=[1.2, 0.0, 0.0], obstacles=[_box("box", 0.6, 0.8)]), robot)
+    goal_steps(_goal(pose=[-0.3, 0.0, 0.0], obstacles=[_box("table", 0.45, 0.0)]), robot)
+    # No room to turn next to a box; room enough a step away.
+    with pytest.raises(InfeasibleError) as err:
+        goal_steps(_goal(kind="turn", angle_rad=1.0, obstacles=[_box("table", 0.4, 0.0)]), robot)
+    assert err.value.details["reason"] == msg.REASON_NO_ROOM_TO_TURN and "table" in err.value.message
+    goal_steps(_goal(kind="turn", angle_rad=1.0, obstacles=[_box("table", 0.6, 0.0)]), robot)
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"kind": "jump"}, "kind must be one of"),
+        ({"pose": [1.0, 0.0]}, r"pose must be \[x, y, yaw\]"),
+        ({"pose": [1.0, 0.0, 0.0], "frame": "moon"}, "frame must be 'robot' or 'world'"),
+        ({"kind": "square"}, "already square"),
+        ({"pose": [0.1, 0.0, 0.0], "clearance_m": -1.0}, r">= 0\.0 - at `\$\.clearance_m`"),
+        (
+            {"pose": [0.1, 0.0, 0.0], "obstacles": [{"name": "b", "center": [1.0, 0.0, 0.0], "size": [1.0]}]},
+            r"obstacles\[0\]\.size",
+        ),
+    ],
+)
+def test_malformed_goal_requests_are_invalid(fields, message):
+    with pytest.raises(InvalidRequestError, match=message):
+        goal_steps(_goal(**fields), load_robot("hrp2_like"))
+
+
 # ------------------------------------------------------------------------------------------- over the bus
 
 
@@ -178,6 +293,12 @@ def test_plan_over_the_bus_and_walk_in_the_sim(services):
     with pytest.raises(InfeasibleError) as err:
         client.call(msg.PLAN, far, timeout_s=60)
     assert err.value.details["step_index"] == 0
+    # A goal instead of footsteps: turn on the spot by 45 deg, walked in the sim.
+    turn = client.call(msg.GOAL, msg.GoalRequest(q_start=result.q, kind="turn", angle_rad=math.pi / 4), 120)
+    done = client.call(sim_msg.EXECUTE, sim_msg.ExecuteRequest(q=turn.q, hold_s=0.5), timeout_s=300)
+    assert done.outcome == "completed", done.message
+    yaws = [_yaw(robot, done.q, side)[1] for side in ("left", "right")]
+    assert yaws == pytest.approx([math.pi / 4] * 2, abs=math.radians(3.0))
 
 
 @pytest.mark.integration

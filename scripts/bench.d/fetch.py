@@ -9,8 +9,13 @@ supervisor never does) has the orange ball resting on the yellow table: not held
 table top's rectangle and 0 to 6 cm above the top plus its radius.
 
 Writes ``bench/out/fetch.json``: ``n``, ``success_rate``, ``median_wall_s``, ``median_sim_s`` (over all
-runs), ``retries`` (total), ``real_time_factor`` (median sim / wall), and per run: seed, ok, script_ok,
-on_table, wall_s, sim_s, retries, failure. Goals (issue 10): success >= 95 %, wall time <= sim time.
+runs), ``retries`` (total), ``real_time_factor`` (median sim / wall), ``median_think_s`` (median wall
+time from an action attempt's start to its first ``sim/execute`` chunk, over every attempt that moved
+the robot: how long the robot stands still thinking), ``footsteps_plan_calls`` (median calls to
+``footsteps/plan`` per fetch: the supervisor's requests as they go out on the bus), and per run: seed,
+ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure.
+Goals (issues 10, 15): success >= 95 %, wall time <= sim time, median think <= 1 s, >= 2 footstep
+plans per fetch.
 
 Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR]
 """
@@ -26,6 +31,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[2]
 OUT = REPO / "bench" / "out" / "fetch.json"
@@ -35,6 +41,34 @@ def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+class CallWatch:
+    """Per fetch: the wall time from each action attempt's start (the runner's ``started`` event) to
+    its first ``sim/execute`` request, and the ``footsteps/plan`` requests (the supervisor's bus hook)."""
+
+    def __init__(self, sup: Any) -> None:  # supervisor.core.Supervisor
+        self.think_s: list[float] = []
+        self.footsteps_plans = 0
+        self._started: float | None = None
+        self._forward = sup.runner.on_event
+        sup.runner.on_event = self._on_event
+        sup.bus.on_call = self._on_call
+
+    def reset(self) -> None:
+        self.think_s, self.footsteps_plans, self._started = [], 0, None
+
+    def _on_event(self, event: Any) -> None:  # supervisor.runner.Event
+        self._forward(event)
+        if event.kind == "started":
+            self._started = time.monotonic()
+
+    def _on_call(self, spec: Any) -> None:  # services.bus.spec.EndpointSpec
+        if spec.path == "footsteps/plan":
+            self.footsteps_plans += 1
+        elif spec.path == "sim/execute" and self._started is not None:
+            self.think_s.append(time.monotonic() - self._started)
+            self._started = None
 
 
 def main(argv: list[str]) -> int:
@@ -57,7 +91,9 @@ def main(argv: list[str]) -> int:
         missing = sup.wait_for_services(30.0)
         if missing:
             print(f"services missing: {', '.join(missing)}", file=sys.stderr)
+        watch = CallWatch(sup)
         for seed in range(args.seed0, args.seed0 + args.n):
+            watch.reset()
             summary, _report = fetch(sup, seed=seed)
             gt = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
             on_table, why = ball_on_table(gt)
@@ -69,12 +105,16 @@ def main(argv: list[str]) -> int:
                 "wall_s": round(summary.wall_s, 2),
                 "sim_s": round(summary.sim_s, 2),
                 "retries": summary.retries,
+                "think_s": round(statistics.median(watch.think_s), 2) if watch.think_s else None,
+                "think_samples_s": [round(t, 2) for t in watch.think_s],
+                "footsteps_plan_calls": watch.footsteps_plans,
                 "failure": summary.failure or why,
             }
             runs.append(run)
             print(
                 f"seed {seed:3d}  {'ok  ' if run['ok'] else 'FAIL'}  wall {run['wall_s']:6.1f} s  "
-                f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  {run['failure']}",
+                f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  think {run['think_s']} s  "
+                f"footsteps/plan x{run['footsteps_plan_calls']}  {run['failure']}",
                 flush=True,
             )
     n = len(runs)
@@ -87,7 +127,16 @@ def main(argv: list[str]) -> int:
         "real_time_factor": statistics.median(r["sim_s"] / max(r["wall_s"], 1e-9) for r in runs)
         if runs
         else None,
-        "goals": {"success_rate": 0.95, "real_time_factor": 1.0},
+        "median_think_s": statistics.median(t for r in runs for t in r["think_samples_s"])
+        if any(r["think_samples_s"] for r in runs)
+        else None,
+        "footsteps_plan_calls": statistics.median(r["footsteps_plan_calls"] for r in runs) if runs else None,
+        "goals": {
+            "success_rate": 0.95,
+            "real_time_factor": 1.0,
+            "median_think_s": 1.0,
+            "footsteps_plan_calls": 2,
+        },
         "runs": runs,
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "load_avg": os.getloadavg()},
         "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
@@ -95,12 +144,13 @@ def main(argv: list[str]) -> int:
     print()
     print(
         f"{'n':>4} {'success':>8} {'median wall [s]':>16} {'median sim [s]':>15} "
-        f"{'retries':>8} {'sim/wall':>9}"
+        f"{'retries':>8} {'sim/wall':>9} {'think [s]':>10} {'footsteps/plan':>15}"
     )
     print(
         f"{n:>4} {result['success_rate']:>8.0%} {result['median_wall_s']:>16.1f} "
         f"{result['median_sim_s']:>15.1f} "
-        f"{result['retries']:>8} {result['real_time_factor']:>9.2f}"
+        f"{result['retries']:>8} {result['real_time_factor']:>9.2f} "
+        f"{result['median_think_s'] or 0.0:>10.2f} {result['footsteps_plan_calls'] or 0:>15}"
     )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.navigation.body_extents import with_arms_of
 from services.navigation.carry import grip_from_configuration
@@ -28,6 +29,7 @@ from services.navigation.geometry import Pose2D, Scene, body_model
 from services.navigation.goals import ObjectGoal
 from services.navigation.path import PlannerConfig, SampledPath, plan_path
 from services.navigation.stage2 import Stage2Options, WholeBodyMotion, plan_motion
+from services.navigation.straight import StraightWalkOptions, straight_walk
 from services.navigation.upper_body import CarriedBar, SweepResult, sweep_carried_object
 from services.walking.footsteps import FootstepLimits, SolePose
 
@@ -40,13 +42,16 @@ MAX_START_SOLE_HEIGHT_M = 0.005
 @dataclass(frozen=True)
 class GotoOptions:
     """Options of :func:`plan_goto`: stage 1 (``planner``), footstep placement (``footsteps``; None:
-    :meth:`FootstepOptions.for_body` of the robot), stage 2 (``stage2``) and ``max_replans``: how many
-    times a ``body_collision`` of stage 2 sends stage 1 back for a path with a larger margin."""
+    :meth:`FootstepOptions.for_body` of the robot), stage 2 (``stage2``), ``max_replans``: how many
+    times a ``body_collision`` of stage 2 sends stage 1 back for a path with a larger margin, and
+    ``straight``: when a near goal is walked straight instead of along a detour (None: never;
+    :mod:`services.navigation.straight`)."""
 
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     footsteps: FootstepOptions | None = None
     stage2: Stage2Options = field(default_factory=Stage2Options)
     max_replans: int = 2
+    straight: StraightWalkOptions | None = field(default_factory=StraightWalkOptions)
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,10 +113,12 @@ def plan_goto(
     """Plan the walk of ``robot`` (a ``services.model.RobotModel``) from ``q_start`` to ``goal`` among
     ``scene``'s obstacles, holding ``bar`` in both hands as at ``q_start`` (None: nothing carried).
 
-    A ``body_collision`` of stage 2 (the body or an arm too close to an obstacle: the floor boxes were
-    too small for the dynamic motion) sends stage 1 back for a path with the footprint margin grown by
-    the clearance missing (+ 2 cm), at most ``max_replans`` times ("the planner goes back to the first
-    stage", "Two-stage Planning Method").
+    A near goal whose stage-1 path is a detour, or to which stage 1 finds no path within its budget, is
+    walked straight when that is clear of the obstacles (``options.straight``; the path's ``curve`` is
+    then "straight"); nothing is carried then. A ``body_collision`` of stage 2 (the body or an arm too
+    close to an obstacle: the floor boxes were too small for the dynamic motion) sends stage 1 back for
+    a path with the footprint margin grown by the clearance missing (+ 2 cm), at most ``max_replans``
+    times ("the planner goes back to the first stage", "Two-stage Planning Method").
 
     Raises the errors of the stages: InfeasibleError (``details["reason"]`` from :func:`plan_path`,
     :func:`footsteps_along_path` and :func:`plan_motion`), NotFoundError (unknown object or robot),
@@ -125,9 +132,33 @@ def plan_goto(
     grip = grip_from_configuration(robot, q_start, bar) if bar is not None else None
     timings = {"path_s": 0.0, "footsteps_s": 0.0, "stage2_s": 0.0}
     replans = 0
+    start = start_pose(robot, q_start)
+    straight_options = options.straight if bar is None else None
     while True:
         t1 = time.perf_counter()
-        path = plan_path(scene, body, start_pose(robot, q_start), goal, options.planner)
+        steps = None
+        try:
+            path = plan_path(scene, body, start, goal, options.planner)
+            if straight_options is not None and straight_options.is_detour(start, path.goal, path.length_m):
+                straight = straight_walk(robot, scene, soles, start, path.goal, straight_options)
+                if straight is not None:
+                    path, steps = straight
+        except InfeasibleError as error:
+            # No car-like path in the budget: a near goal is walked straight if that is clear.
+            if (
+                error.details.get("reason") != nav_msg.REASON_NO_PATH_WITHIN_BUDGET
+                or straight_options is None
+            ):
+                raise
+            for tried in error.details.get("goals", []):
+                near = Pose2D(*(float(v) for v in tried))
+                if straight_options.is_near(start, near):
+                    straight = straight_walk(robot, scene, soles, start, near, straight_options)
+                    if straight is not None:
+                        path, steps = straight
+                        break
+            else:
+                raise
         t2 = time.perf_counter()
         sweep = None
         if bar is not None and grip is not None:
@@ -137,10 +168,11 @@ def plan_goto(
             forward = float(ahead @ (math.cos(start.theta_rad), math.sin(start.theta_rad)))
             height = options.stage2.carry_height_m or float(grip.centre_world_m[2])
             sweep = sweep_carried_object(scene, path, replace(bar, forward_m=forward, height_m=height), body)
-        footstep_options = options.footsteps or FootstepOptions.for_body(body)
-        steps = footsteps_along_path(
-            path, FootstepLimits.from_robot(robot), footstep_options, start_soles=soles
-        )
+        if steps is None:
+            footstep_options = options.footsteps or FootstepOptions.for_body(body)
+            steps = footsteps_along_path(
+                path, FootstepLimits.from_robot(robot), footstep_options, start_soles=soles
+            )
         t3 = time.perf_counter()
         timings["path_s"] += t2 - t1
         timings["footsteps_s"] += t3 - t2
@@ -150,8 +182,9 @@ def plan_goto(
             timings["stage2_s"] += time.perf_counter() - t3
             # "the planner goes back to the first stage": the body's boxes were too small for the
             # dynamic motion (sway, swing); plan the path again with the margin grown by what was missing
-            if error.details.get("reason") != "body_collision" or replans >= options.max_replans:
+            if error.details.get("reason") != nav_msg.REASON_BODY_COLLISION or replans >= options.max_replans:
                 raise
+            straight_options = None  # the straight line came too near: stage 1's path, with more margin
             missing = options.stage2.reshape.required_clearance_m - float(error.details["distance_m"])
             body = body.with_margin(body.margin_m + missing + REPLAN_EXTRA_MARGIN_M)
             replans += 1

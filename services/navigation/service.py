@@ -6,7 +6,9 @@ holds :class:`NavigationConfig`).
 
 Endpoint ``navigation/goto`` (:mod:`services.bus.schemas.navigation`): obstacles, the robot's starting
 configuration, a goal pose or object and an optional carried bar in; the path, footsteps, 5 ms whole-body
-trajectory and reshaping report out. Stateless: the reply is a function of the request.
+trajectory and reshaping report out: the trajectory stage 2 checked for collisions and reshaped, to be
+executed as it is. A near goal whose car-like path is a detour is walked straight (``path_curve``
+"straight", services/navigation/straight.py). Stateless: the reply is a function of the request.
 """
 
 from __future__ import annotations
@@ -28,7 +30,9 @@ from services.navigation.goto import GotoOptions, GotoResult, plan_goto, start_p
 from services.navigation.path import PlannerConfig
 from services.navigation.reshaping import ReshapeOptions
 from services.navigation.stage2 import Stage2Options
+from services.navigation.straight import StraightWalkOptions
 from services.navigation.upper_body import CarriedBar
+from services.walking.timing import WalkTiming
 
 DEFAULT_BOUNDS_MARGIN_M = 1.5
 #: Largest side of the floor a request may plan over [m] (given ``bounds`` or the box around start,
@@ -230,9 +234,11 @@ class NavigationService(Service):
                 seed=request.seed,
             ),
             stage2=Stage2Options(
+                timing=WalkTiming(double_support_s=request.double_support_s),
                 carry_height_m=request.carry_height_m,
                 reshape=ReshapeOptions(max_iterations=request.max_iterations),
             ),
+            straight=StraightWalkOptions() if request.straight_walks else None,
         )
         result = plan_goto(robot, scene, q_start, goal, bar, options)
         return reply_from_result(robot.name, result)

@@ -10,6 +10,8 @@ Endpoints (services/bus/schemas/perception.py; README.md has the details and fai
   boxes. The images come with the request or from ``sim/render``; the camera pose always comes from the
   robot's kinematics at ``q`` (never from the simulator's ground truth).
 * ``perception/models``: the objects it knows.
+* ``perception/look_around``: the head joints and the views to visit to look all around for an object
+  (the plan of services/perception/look_around.py for the request's robot model).
 
 Stateless: models are loaded once at start-up (restart to pick up newly learned ones). Looking around
 for an object that is not in view is the supervisor's job (services/perception/look_around.py).
@@ -39,6 +41,7 @@ from services.perception.locate import (
     object_model,
     stereo_pair,
 )
+from services.perception.look_around import head_joints, scan_angles, turn_offsets
 from vision.footprint import Footprint
 from vision.histogram import DEFAULT_MODELS_DIR, load_models
 from vision.localize import ObjectLocation
@@ -140,6 +143,22 @@ class PerceptionService(Service):
                 for n in names
             ],
             models_dir=str(self.models_dir),
+        )
+
+    @handles(msg.LOOK_AROUND)
+    def look_around(self, request: msg.LookAroundRequest) -> msg.LookAroundReply:
+        robot = load_robot(request.model or self.config.robot_model)
+        head = head_joints(robot, request.camera)
+        left = robot.cameras[stereo_pair(robot, request.camera).left]
+        return msg.LookAroundReply(
+            head_pan_joint=head.pan,
+            head_tilt_joint=head.tilt,
+            pan_limits_rad=list(head.pan_limits),
+            tilt_limits_rad=list(head.tilt_limits),
+            tilt_sign=head.tilt_sign,
+            views=[[pan, tilt] for pan, tilt in scan_angles(robot, request.camera)],
+            turns_rad=turn_offsets(robot, request.camera),
+            image_size_px=[left.width_px, left.height_px],
         )
 
     @handles(msg.LOCATE)

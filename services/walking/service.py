@@ -8,6 +8,11 @@ robot's starting configuration in; the 5 ms whole-body trajectory, CoM, ZMPs, so
 out. Stateless: the reply is a deterministic function of the request (no wall-clock figures in it; the
 planning time is logged). :func:`plan_reply` is the whole adapter without the bus.
 
+Endpoint ``walking/goal``: a goal relative to the stance now (a pose to reach, an angle to turn on the
+spot, a stance to square; :mod:`services.walking.goals`) and the map's boxes in; the planner makes the
+footsteps within the robot's bounds, checks them against the boxes and plans them as ``walking/plan``
+does (:func:`goal_reply`). ``infeasible`` replies carry ``details.reason`` (``REASON_*`` of the schema).
+
 Failure codes: ``invalid_request`` (malformed request: unknown model, q of the wrong size, overlapping
 soles, a zero duration, a bad upper-body task, q_start and the starting soles more than 5 mm apart);
 ``infeasible`` (a step beyond the robot's bounds - the message and ``details.step_index`` name it -; a
@@ -28,7 +33,23 @@ from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
-from services.walking.footsteps import SIDES, Footstep, FootstepSequence, SolePose, other_side
+from services.model.ground import Rectangle, mid_feet
+from services.walking.footsteps import (
+    SIDES,
+    Footstep,
+    FootstepBounds,
+    FootstepSequence,
+    SolePose,
+    other_side,
+)
+from services.walking.goals import (
+    MapBox,
+    check_clear,
+    soles_on,
+    square_steps,
+    turn_steps,
+    walk_to_steps,
+)
 from services.walking.pattern import PatternOptions
 from services.walking.timing import WalkTiming
 from services.walking.upper_body import GazeTarget, HandTarget
@@ -67,13 +88,6 @@ def _pose(value: Any, name: str) -> SolePose:
     return SolePose(x, y, yaw)
 
 
-def _sole_on(robot: Any, q: np.ndarray, side: str) -> SolePose:
-    T = robot.sole_pose(q, side)
-    return SolePose(
-        float(T.translation[0]), float(T.translation[1]), math.atan2(T.rotation[1, 0], T.rotation[0, 0])
-    )
-
-
 def start_of(request: msg.PlanRequest, robot: Any) -> tuple[np.ndarray, SolePose, SolePose]:
     """(q_start, left sole, right sole) of a request: given, or measured, or half-sitting on the soles."""
     if (request.left_start is None) != (request.right_start is None):
@@ -90,7 +104,8 @@ def start_of(request: msg.PlanRequest, robot: Any) -> tuple[np.ndarray, SolePose
     else:
         q = np.array(robot.q_half_sitting)
     if left is None or right is None:
-        left, right = _sole_on(robot, q, "left"), _sole_on(robot, q, "right")
+        soles = soles_on(robot, q)
+        left, right = soles["left"], soles["right"]
     return q, left, right
 
 
@@ -165,6 +180,97 @@ def plan_reply(request: msg.PlanRequest, config: WalkingConfig | None = None) ->
     result = plan_walk(robot, footsteps, q_start, timing, options, wb_options, hands=hands, gaze=gaze)
     _check_result(result, request)
     return _reply(robot, result, footsteps)
+
+
+def _floor_boxes(obstacles: list[Any]) -> list[MapBox]:
+    """The map's boxes of a request as floor rectangles (cylinders as their bounding squares)."""
+    out = []
+    for i, o in enumerate(obstacles):
+        if len(o.center) != 3:
+            raise InvalidRequestError(f"obstacles[{i}].center must be [x, y, z] [m], got {o.center!r}")
+        if o.kind == "box":
+            if len(o.size) != 3:
+                raise InvalidRequestError(f"obstacles[{i}].size must be [sx, sy, sz] [m], got {o.size!r}")
+            size, yaw = (float(o.size[0]), float(o.size[1])), float(o.yaw)
+        elif o.kind == "cylinder":
+            size, yaw = (2.0 * float(o.radius), 2.0 * float(o.radius)), 0.0
+        else:
+            raise InvalidRequestError(f"obstacles[{i}].kind must be 'box' or 'cylinder', got {o.kind!r}")
+        out.append(MapBox(o.name, Rectangle((float(o.center[0]), float(o.center[1])), size, yaw)))
+    return out
+
+
+def goal_steps(request: msg.GoalRequest, robot: Any) -> tuple[np.ndarray, FootstepSequence]:
+    """(q_start, the footsteps) of a ``walking/goal`` request, checked against its obstacles.
+
+    Raises:
+        InvalidRequestError: unknown kind or frame, a pose not [x, y, yaw], negative distances, a
+            square stance asked to be squared.
+        InfeasibleError: ``details.reason`` ``REASON_OUT_OF_BOUNDS`` (no count of steps fits the
+            bounds), ``REASON_BLOCKED`` or ``REASON_NO_ROOM_TO_TURN`` (:func:`check_clear`).
+    """
+    if request.kind not in msg.GOAL_KINDS:
+        raise InvalidRequestError(f"kind must be one of {list(msg.GOAL_KINDS)}, got {request.kind!r}")
+    for name in ("clearance_m", "sole_margin_m", "turn_room_m"):
+        value = getattr(request, name)
+        if not (math.isfinite(value) and value >= 0.0):
+            raise InvalidRequestError(f"{name} must be >= 0 m, got {value}")
+    q = robot.check_q(request.q_start)
+    soles = soles_on(robot, q)
+    limits = FootstepBounds.from_robot(robot)
+    boxes = _floor_boxes(request.obstacles)
+    turn_room = None
+    try:
+        if request.kind == "pose":
+            if request.frame not in ("robot", "world"):
+                raise InvalidRequestError(f"frame must be 'robot' or 'world', got {request.frame!r}")
+            goal = _pose(request.pose, "pose")
+            if request.frame == "world":
+                mid = mid_feet(soles["left"], soles["right"])
+                dx, dy, _ = SolePose(goal.x_m, goal.y_m, 0.0).relative_to(mid)
+                dyaw = math.remainder(goal.yaw_rad - mid.yaw_rad, 2.0 * math.pi)
+            else:
+                dx, dy, dyaw = goal.x_m, goal.y_m, math.remainder(goal.yaw_rad, 2.0 * math.pi)
+            sequence = walk_to_steps(soles, dx, dy, dyaw, limits)
+        elif request.kind == "turn":
+            if not math.isfinite(request.angle_rad):
+                raise InvalidRequestError(f"angle_rad must be finite, got {request.angle_rad}")
+            sequence = turn_steps(soles, request.angle_rad, limits)
+            turn_room = request.turn_room_m
+        else:
+            sequence = square_steps(soles, limits)
+            if not sequence.steps:
+                raise InvalidRequestError("the stance is already square: no step to make")
+    except InfeasibleError as exc:
+        if "reason" in exc.details:
+            raise
+        raise InfeasibleError(exc.message, {**exc.details, "reason": msg.REASON_OUT_OF_BOUNDS}) from exc
+    check_clear(
+        sequence,
+        boxes,
+        clearance_m=request.clearance_m,
+        sole_margin_m=request.sole_margin_m,
+        sole_size_m=(limits.sole_length_m, limits.sole_width_m),
+        turn_room_m=turn_room,
+    )
+    return q, sequence
+
+
+def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) -> msg.PlanReply:
+    """The whole ``walking/goal`` endpoint without the bus: the footsteps of the goal
+    (:func:`goal_steps`), then :func:`plan_reply` of them with the request's timing."""
+    robot = load_robot(request.model)
+    q, sequence = goal_steps(request, robot)
+    plan = msg.PlanRequest(
+        steps=[msg.Step(pose=s.pose.as_array().tolist(), side=s.side) for s in sequence.steps],
+        model=request.model,
+        q_start=q,
+        left_start=sequence.left_start.as_array().tolist(),
+        right_start=sequence.right_start.as_array().tolist(),
+        single_support_s=request.single_support_s,
+        double_support_s=request.double_support_s,
+    )
+    return plan_reply(plan, config)
 
 
 def _check_result(result: WholeBodyResult, request: msg.PlanRequest) -> None:
@@ -288,6 +394,20 @@ class WalkingService(Service):
             time.perf_counter() - started,
             1e3 * reply.figures.min_zmp_margin_m,
             reply.figures.second_stage_passes,
+        )
+        return reply
+
+    @handles(msg.GOAL)
+    def goal(self, request: msg.GoalRequest) -> msg.PlanReply:
+        started = time.perf_counter()
+        reply = goal_reply(request, self.config)
+        self.log.info(
+            "%s goal %s: %d steps, %.2f s of walk planned in %.2f s",
+            request.kind,
+            request.pose if request.kind == "pose" else f"{request.angle_rad:.3f} rad",
+            len(reply.steps),
+            reply.figures.duration_s,
+            time.perf_counter() - started,
         )
         return reply
 

@@ -17,6 +17,13 @@ from msgspec import Meta
 from services.bus.limits import MAX_OBSTACLES, Angle, Budget, Coord, Name, Point3, PositiveSize, Seed, Size
 from services.bus.spec import EndpointSpec
 
+#: ``details["reason"]`` of ``navigation/goto``'s ``infeasible`` replies (sub-reasons across processes).
+REASON_NO_PATH_WITHIN_BUDGET = "no_path_within_budget"  # stage 1 found no path in time_budget_s
+REASON_NO_FREE_APPROACH_POSE = "no_free_approach_pose"  # no place to stand goal_distance_m from the object
+REASON_GOAL_ENCLOSED = "goal_enclosed"
+REASON_BODY_COLLISION = "body_collision"  # stage 2: the body (not the bar) meets an obstacle
+REASON_ZMP_OUTSIDE_SUPPORT = "zmp_outside_support"
+
 
 class ObstacleMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """An obstacle: ``kind`` ``box`` (vertical-axis box: ``size`` = full extents [sx, sy, sz], ``yaw``) or
@@ -62,6 +69,8 @@ class GotoRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     time_budget_s: Budget = 1.0  # stage-1 search budget [s]
     max_iterations: Annotated[int, Meta(ge=1, le=50)] = 5  # whole-body solutions of the reshaping loop
     seed: Seed = 1  # OMPL seed (same request, same plan)
+    double_support_s: Annotated[float, Meta(gt=0.0, le=5.0)] = 0.3  # between two steps of the walk [s]
+    straight_walks: bool = True  # a near goal whose path is a detour (or none found) may be walked straight
 
 
 class LiftSegment(msgspec.Struct, kw_only=True, frozen=True):
@@ -100,7 +109,9 @@ class ReshapingReport(msgspec.Struct, kw_only=True, frozen=True):
 
 class GotoReply(msgspec.Struct, kw_only=True, frozen=True):
     """The plan. Path samples every <= 2 cm (``path_xy_m`` (N, 2), ``path_theta_rad`` (N,),
-    ``path_s_m`` (N,) arc length, ``path_forward`` (N,) 1 where walking forward); footsteps (start soles
+    ``path_s_m`` (N,) arc length, ``path_forward`` (N,) 1 where walking forward; ``path_curve``
+    "straight" when a near goal was walked straight, stepping sideways and turning, instead of along a
+    car-like detour); footsteps (start soles
     [x, y, yaw], then ``step_sides`` and ``step_poses`` (K, 3)); the whole-body trajectory ``q`` (T, nq)
     every ``dt_s`` (send it to ``sim/execute``) with its CoM (T, 3) and multibody ZMP (T, 2)."""
 
@@ -110,7 +121,7 @@ class GotoReply(msgspec.Struct, kw_only=True, frozen=True):
     path_theta_rad: np.ndarray
     path_s_m: np.ndarray
     path_forward: np.ndarray  # (N,) uint8
-    path_curve: str  # "dubins" or "reeds_shepp"
+    path_curve: str  # "dubins", "reeds_shepp" or "straight"
     left_start: list[float]
     right_start: list[float]
     step_sides: list[str]

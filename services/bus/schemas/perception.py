@@ -48,6 +48,22 @@ class PixelBox(msgspec.Struct, kw_only=True, frozen=True):
     angle_deg: float
 
 
+#: ``details["reason"]`` of ``perception/locate``'s ``not_found`` replies (sub-reasons across processes).
+REASON_NOT_IN_VIEW = "not_in_view"  # not in the left image
+REASON_NOT_IN_RIGHT_VIEW = "not_in_right_view"
+REASON_NO_DISPARITY = "no_disparity"
+REASON_STEREO_MISMATCH = "stereo_mismatch"
+REASON_AMBIGUOUS = "ambiguous"
+#: The reasons another viewpoint may fix (the supervisor then looks around).
+VIEWPOINT_REASONS = (
+    REASON_NOT_IN_VIEW,
+    REASON_NOT_IN_RIGHT_VIEW,
+    REASON_NO_DISPARITY,
+    REASON_STEREO_MISMATCH,
+    REASON_AMBIGUOUS,
+)
+
+
 class FootprintMsg(msgspec.Struct, kw_only=True, frozen=True):
     """An object's rectangle on the floor from the stereo points of its silhouette's outline
     (vision/footprint.py): what navigation needs of a box, a table or a chair."""
@@ -115,4 +131,38 @@ class ModelsReply(msgspec.Struct, kw_only=True, frozen=True):
 
 MODELS = EndpointSpec(
     "perception", "models", ModelsRequest, ModelsReply, "the objects perception knows (learned colour models)"
+)
+
+
+class LookAroundRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """The look-around plan of a robot model's stereo pair ``camera`` (services/perception/look_around.py)."""
+
+    model: str = ""  # "" = the service's robot model
+    camera: str = "wide"
+
+
+class LookAroundReply(msgspec.Struct, kw_only=True, frozen=True):
+    """How the head moves the pair's gaze and where to look: ``head_pan_joint`` (turns the gaze sideways)
+    and ``head_tilt_joint`` with their [lower, upper] limits [rad] and ``tilt_sign`` (+1: increasing the
+    tilt joint lowers the gaze); ``views``: head [pan, tilt] joint values [rad] to visit in order (rows
+    of pan at a few gaze depressions); ``turns_rad``: body yaw offsets from the heading at the start of
+    a search, each followed by a scan, so that together they see all around; ``image_size_px``: [width,
+    height] of the pair's images."""
+
+    head_pan_joint: str
+    head_tilt_joint: str
+    pan_limits_rad: list[float]
+    tilt_limits_rad: list[float]
+    tilt_sign: float
+    views: list[list[float]]
+    turns_rad: list[float]
+    image_size_px: list[int]
+
+
+LOOK_AROUND = EndpointSpec(
+    "perception",
+    "look_around",
+    LookAroundRequest,
+    LookAroundReply,
+    "the head joints and the views (head pan/tilt, then body turns) that look all around for an object",
 )

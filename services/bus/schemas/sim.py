@@ -267,3 +267,66 @@ class SnapshotReply(msgspec.Struct, kw_only=True, frozen=True):
 SNAPSHOT = EndpointSpec(
     "sim", "snapshot", SnapshotRequest, SnapshotReply, "a PNG of the world from an external camera"
 )
+
+
+# ------------------------------------------------------------------------------------- robot facts
+
+
+class RobotInfoRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """No fields: the facts of the simulated robot model."""
+
+
+class RobotInfoReply(msgspec.Struct, kw_only=True, frozen=True):
+    """What a client that does not load the model (the supervisor) needs to know of the robot (the
+    head's joints and views: ``perception/look_around``).
+
+    Joint values are in the pinocchio ``q`` layout (``q_*`` arrays (nq,): base [x, y, z, qx, qy, qz, qw],
+    then the joints of ``joint_names``); frame names are those ``sim/kinematics`` takes.
+    """
+
+    model: str
+    nq: int
+    joint_names: list[str]
+    q_half_sitting: np.ndarray  # (nq,)
+    q_lower: np.ndarray  # (nq,) joint lower limits (base coordinates: -inf)
+    q_upper: np.ndarray  # (nq,)
+    chest_joints: list[str]  # straightened (half-sitting values) before a walk
+    gripper_joints: dict[str, str]  # side -> joint (moved by sim/gripper only)
+    frames: dict[str, str]  # role -> frame: left_sole, right_sole, left_grasp, right_grasp, gaze, torso
+    fixed_finger_y_m: dict[str, float]  # side -> y of the fixed finger in the grasp frame [m] (0: symmetric)
+    cameras: dict[str, list[int]]  # camera name -> [width, height] of its images [px]
+    stereo_pairs: dict[str, list[str]]  # pair name ("wide", "narrow") -> [left camera, right camera]
+
+
+ROBOT_INFO = EndpointSpec(
+    "sim", "robot_info", RobotInfoRequest, RobotInfoReply, "the robot model's joints, frames, cameras"
+)
+
+
+class KinematicsRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Forward kinematics of the robot model at configurations ``q`` ((k, nq) or (nq,)).
+
+    ``frames``: frame names (``RobotInfoReply.frames`` values) whose world poses to return.
+    ``place_at``: [x, y, yaw] ([m], [m], [rad]): also return the last configuration moved so that its
+    mid-feet frame is there and its soles at z = 0 (joints unchanged).
+    """
+
+    q: np.ndarray
+    frames: list[str] = []
+    place_at: list[float] = []
+
+
+class KinematicsReply(msgspec.Struct, kw_only=True, frozen=True):
+    """Per configuration: the mid-feet pose on the ground ``mid_feet`` (k, 3) [x, y, yaw], the sole
+    heights ``sole_z_m`` (k, 2) [left, right] [m], the requested frames' world poses ``poses``
+    (k, n_frames, 4, 4) (homogeneous, [m]); ``q_placed`` (nq,) when ``place_at`` was given (else empty)."""
+
+    mid_feet: np.ndarray
+    sole_z_m: np.ndarray
+    poses: np.ndarray
+    q_placed: np.ndarray
+
+
+KINEMATICS = EndpointSpec(
+    "sim", "kinematics", KinematicsRequest, KinematicsReply, "mid-feet pose, sole heights, frame poses at q"
+)

@@ -23,7 +23,20 @@ import msgspec
 import numpy as np
 from msgspec import Meta
 
-from services.bus.limits import MAX_STEPS, Margin, Name, Phase, Point3, Pose2, Tolerance
+from services.bus.limits import (
+    MAX_OBSTACLES,
+    MAX_STEPS,
+    Angle,
+    Coord,
+    Margin,
+    Name,
+    Phase,
+    Point3,
+    Pose2,
+    Size,
+    Tolerance,
+)
+from services.bus.schemas.navigation import ObstacleMsg
 from services.bus.spec import EndpointSpec
 
 
@@ -152,4 +165,58 @@ PLAN = EndpointSpec(
     PlanRequest,
     PlanReply,
     "footsteps -> 5 ms whole-body walk (ZMP preview control + IK); infeasible names the step out of bounds",
+)
+
+
+# ------------------------------------------------------------------------------------------ walks to a goal
+
+#: ``GoalRequest.kind`` values.
+GOAL_KINDS = ("pose", "turn", "square")
+#: ``details["reason"]`` of an ``infeasible`` reply of ``walking/goal`` (sub-reasons across processes).
+REASON_BLOCKED = "blocked_by_obstacle"  # a step or the mid-feet path comes too near a box of the map
+REASON_NO_ROOM_TO_TURN = "no_room_to_turn"  # a box nearer than turn_room_m to the mid-feet point
+REASON_OUT_OF_BOUNDS = "out_of_bounds"  # no count of steps fits the robot's stepping bounds
+
+
+class GoalRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """Walk to a goal relative to the stance now; the walking planner makes the footsteps itself (each as
+    long as the robot's stepping bounds allow), checks them against ``obstacles`` and plans the walk.
+
+    ``kind``:
+
+    * ``"pose"``: the mid-feet frame to ``pose`` = [x, y, yaw] ([m], [m], [rad]) in ``frame``
+      (``"robot"``: the mid-feet frame at ``q_start``, x forward, y left; ``"world"``), stepping
+      forward, sideways and turning together (or there first, then turning on the spot), the feet side
+      by side at the end. ``[-0.3, 0, 0]`` steps back 0.3 m; ``[0, 0, 0]`` squares a staggered stance.
+    * ``"turn"``: turn on the spot by ``angle_rad`` (> 0: left), a staggered stance squared up first;
+      needs no box nearer than ``turn_room_m`` to the mid-feet point.
+    * ``"square"``: the one step that brings the rear foot beside the front one (``invalid_request``
+      if the stance is already square).
+
+    Obstacle test (``obstacles``: the map's boxes, ``kind`` "box"): the mid-feet path keeps
+    ``clearance_m`` from every box (or as far as its start or its end is, if nearer), every landing sole
+    ``sole_margin_m``. Failures: ``infeasible`` with ``details.reason`` one of ``REASON_*``.
+    """
+
+    q_start: np.ndarray  # (nq,) the robot's configuration now, standing on both soles
+    kind: Name = "pose"
+    pose: Annotated[list[Coord], Meta(max_length=3)] = []  # kind "pose": [x, y, yaw] of the mid-feet frame
+    frame: Name = "robot"  # kind "pose": "robot" or "world"
+    angle_rad: Angle = 0.0  # kind "turn"
+    model: Name = "hrp2_like"
+    obstacles: Annotated[list[ObstacleMsg], Meta(max_length=MAX_OBSTACLES)] = []
+    clearance_m: Size = 0.35
+    sole_margin_m: Size = 0.03
+    turn_room_m: Size = 0.3
+    single_support_s: Phase = 0.8
+    double_support_s: Phase = 0.3  # 0.1 tipped the simulated robot over in about half of the 60-90 deg turns
+
+
+GOAL = EndpointSpec(
+    "walking",
+    "goal",
+    GoalRequest,
+    PlanReply,
+    "walk to a pose relative to the robot (or in the world), turn on the spot, square the stance: the "
+    "planner makes the footsteps within the bounds, checks them against the map's boxes, plans the walk",
 )

@@ -1,0 +1,104 @@
+"""The supervisor's tunables: one frozen dataclass, defaults in code, optional YAML override.
+
+``humanoid run|console|fetch --config FILE`` reads the ``supervisor:`` section of FILE (the same file as
+the ``bus:`` section); unknown keys and values of the wrong type are refused at start-up, naming them::
+
+    supervisor:
+      goto_distance_m: 0.45
+      far_m: 2.5
+      carry_m: [0.25, 0.22, 0.85]
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from services.bus.config import load_section
+from services.errors import InvalidRequestError
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    """Tunables of the supervisor's actions (lengths [m], times [s]).
+
+    Locomotion:
+        goto_distance_m: ``goto OBJECT`` stands this far from the object's face by default;
+        clearance_m: before turning or walking away, the robot steps back until the objects seen are
+            this far from its mid-feet point; max_step_back_m: by at most this much at once;
+        far_m, near_m: an object farther than far_m is first approached to near_m and localized again
+            (near_face_m from a free face of it when there is no walk to the pose near_m short of it,
+            and not at all when there is none to a face either);
+        retry_budget_s, retry_turning_radius_m: when navigation finds no path in its default budget,
+            the second search's budget and turning radius (the first's is navigation's 0.5 m);
+        walk_double_support_s: double support between the steps of a walk (with 0.1 s the simulated
+            robot fell in about half of the 60-90 deg turns; 0.3 s turned every time).
+    Manipulation:
+        last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
+            the end of the approach) for the last steps, within last_steps_max steps and
+            last_steps_budget_s of planning, and walk them (reaching still steps if the object moved);
+        back_off_m: after a collision, the touching hand moves this far back and up;
+        put_height_m: the object is brought this high above the estimated top of the place, then
+            lowered until it touches; put_highest_m, put_lowest_m: bounds of a place's top height (the
+            estimate is capped at the first, the object is lowered down to the second at most);
+            put_depth_m: and at most this far; put_inside_m: the release point is this far inside the
+            place's near face;
+        approach_m: the hand first goes this far above a reach or put point, then down;
+        lift_m: a grasped object (or an emptied hand) is raised by this first;
+        carry_m: (forward, lateral, height) of the carry point in front of the chest;
+        raise_ahead_m: a hand below the approach height is first raised at least this far ahead of
+            the mid-feet point;
+        upright_hand: also ask reaching for the grasp frame upright along the heading (fingers down,
+            jaws sideways); off by default: on hrp2_like the planner then often fails its joint-speed
+            or end-effector criteria, while position-only reaches grasp the ball.
+    Perception and remedies:
+        recentre_fraction: an object seen farther than this fraction of the half-width from the image
+            centre is looked at and localized again;
+        mapped_margin_m: a contact farther than this from every mapped box hit something the map lacks;
+        wait_service_s: how long ``wait_service`` waits for a restarted service's liveliness token;
+        plan_timeout_s: how long a planner request may take.
+    """
+
+    goto_distance_m: float = 0.4
+    clearance_m: float = 0.6
+    max_step_back_m: float = 0.45
+    far_m: float = 2.2
+    near_m: float = 1.8
+    near_face_m: float = 1.0
+    retry_budget_s: float = 4.0
+    retry_turning_radius_m: float = 0.3
+    walk_double_support_s: float = 0.3
+    last_steps: bool = True
+    last_steps_max: int = 6
+    last_steps_budget_s: float = 5.0
+    back_off_m: float = 0.08
+    put_height_m: float = 0.12
+    put_highest_m: float = 0.95
+    put_lowest_m: float = 0.4
+    put_depth_m: float = 0.35
+    put_inside_m: float = 0.15
+    approach_m: float = 0.12
+    lift_m: float = 0.1
+    carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
+    raise_ahead_m: float = 0.2
+    upright_hand: bool = False
+    recentre_fraction: float = 0.4
+    mapped_margin_m: float = 0.1
+    wait_service_s: float = 30.0
+    plan_timeout_s: float = 120.0
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            if isinstance(value, float) and not value >= 0.0:
+                raise InvalidRequestError(f"supervisor config: {name} must be >= 0, got {value}")
+        if self.near_m >= self.far_m:
+            raise InvalidRequestError(
+                f"supervisor config: near_m ({self.near_m} m) must be below far_m ({self.far_m} m)"
+            )
+        if len(self.carry_m) != 3:
+            raise InvalidRequestError("supervisor config: carry_m must be [forward, lateral, height] m")
+
+
+def load_supervisor_config(path: str | Path | None) -> SupervisorConfig:
+    """Defaults, overridden by the ``supervisor:`` section of the YAML file ``path`` (if given)."""
+    return load_section(path, "supervisor", SupervisorConfig)

@@ -1,0 +1,84 @@
+"""Perception actions: ``detect``, ``localize``, ``look_at`` (the Eyes of ``perceive.py`` behind them).
+
+"Detection and localization of a learned object" (Fig. 11 of ``001_771c0ce3779b0683.txt``): object
+positions come only from ``perception/locate`` and are kept in :class:`~supervisor.memory.Memory`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from services.errors import NotFoundError
+from supervisor.body import Body, Progress
+from supervisor.calls import ServiceCaller
+from supervisor.config import SupervisorConfig
+from supervisor.memory import Memory, Sighting
+from supervisor.perceive import Eyes
+from supervisor.planners import Planners
+from supervisor.report import ActionReport
+from supervisor.script import Step
+
+
+class LookingActions:
+    """The perception actions (a part of :class:`supervisor.actions.Actions`)."""
+
+    bus: ServiceCaller
+    body: Body
+    memory: Memory
+    eyes: Eyes
+    planners: Planners
+    config: SupervisorConfig
+    progress: Progress
+
+    def do_detect(self, step: Step) -> ActionReport:
+        """Is the object in view now (no motion)? not_found otherwise."""
+        name = step.args[0]
+        sighting = self.eyes.locate(name)
+        return self._ok(step, f"sees {sighting.describe()}", sighting)
+
+    def do_localize(self, step: Step) -> ActionReport:
+        """Find the object, looking around (head scan, then turning on the spot) when not in view."""
+        name = step.args[0]
+        sighting, views = self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
+        return self._ok(step, f"{sighting.describe()} ({views} view(s))", sighting, views=views)
+
+    def do_look_at(self, step: Step) -> ActionReport:
+        """Turn the head (and the body if the head cannot) toward a localized object, then see it again."""
+        name = step.args[0]
+        if name not in self.memory.sightings:
+            self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
+        target = self.memory.get(name).position_m
+        q = self.body.q()
+        x, y, yaw = self.body.base_xy_yaw(q)
+        bearing = math.remainder(math.atan2(target[1] - y, target[0] - x) - yaw, 2 * math.pi)
+        (pan_lo, pan_hi), _ = self.body.head_limits()
+        if not pan_lo <= bearing <= pan_hi:
+            turn = bearing - math.copysign(min(abs(pan_lo), abs(pan_hi)) * 0.5, bearing)
+            self._turn_rad(turn, f"turn toward {name}")
+        self.eyes.look_at(target, f"look at {name}")
+        try:
+            sighting = self.eyes.locate(name)
+        except NotFoundError as exc:
+            # Not where it was seen (or half out of one image): look around for it.
+            self.progress(
+                f"{name} not where it was seen ({exc.details.get('reason', 'not found')}): looking around"
+            )
+            sighting, _views = self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
+        return self._ok(step, f"looking at {sighting.describe()}", sighting)
+
+    def _survey(self, exclude: set[str]) -> None:
+        """Put the big objects in view on the map (not ``exclude``, not what the hands hold)."""
+        self.eyes.survey(self.progress, exclude={*exclude, *self.memory.holding.values()})
+
+    def _ok(self, step: Step, message: str, sighting: Sighting, **details: object) -> ActionReport:
+        return ActionReport(
+            step.action,
+            step.args,
+            message=message,
+            details={
+                "object": sighting.name,
+                "position": sighting.position_m.tolist(),
+                "confidence": sighting.confidence,
+                **details,
+            },
+        )

@@ -1,0 +1,131 @@
+"""Remedies the retry policy applies before retrying a failed action: ``relocalize``, ``replan``,
+``wait_service`` (supervisor/retry.py maps failure reasons to them)."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from services.bus.schemas import sim as sim_msg
+from services.errors import FellError, UnavailableError
+from supervisor.body import Body, Progress
+from supervisor.calls import ServiceCaller
+from supervisor.config import SupervisorConfig
+from supervisor.health import HealthMonitor
+from supervisor.memory import Memory
+from supervisor.perceive import Eyes
+from supervisor.planners import Planners
+from supervisor.report import ActionReport
+from supervisor.scene_map import boxes, distance_to_box
+from supervisor.script import Step, parse_point
+
+
+def _arm_link(link: str) -> bool:
+    """Whether a robot link (or ``held:<object>``) of a collision report is an arm, a hand or held."""
+    upper = link.upper()
+    return link.startswith("held:") or any(part in upper for part in ("ARM", "HAND", "GRIPPER", "WRIST"))
+
+
+class Remedies:
+    """The remedies (a part of :class:`supervisor.actions.Actions`)."""
+
+    bus: ServiceCaller
+    body: Body
+    memory: Memory
+    eyes: Eyes
+    planners: Planners
+    config: SupervisorConfig
+    progress: Progress
+    health: HealthMonitor
+    stop: threading.Event
+    last_reach: tuple[str, str] | None
+    do_reach: Callable[[Step], ActionReport]
+    _turn_rad: Callable[[float, str], int]
+    _survey: Callable[[set[str]], None]
+    _move_hand: Callable[..., int]
+
+    def relocalize(self, step: Step, report: ActionReport) -> None:
+        """Localize the step's object again (for a missed grasp: the reached object, then reach again)."""
+        if step.action == "grasp":
+            if self.last_reach is None:
+                return
+            hand, target = self.last_reach
+            if parse_point(target, 3, "target") is None:
+                self.eyes.localize(target, turn=self._turn_rad, progress=self.progress)
+            self.progress(f"reaching {target} again")
+            self.do_reach(Step(step.line, "reach", (hand, target)))
+            return
+        target = {"reach": 1, "goto": 0, "look_at": 0, "detect": 0, "localize": 0}.get(step.action)
+        if target is None or target >= len(step.args):
+            return
+        name = step.args[target]
+        if parse_point(name, 3, "target") is None and name not in self.memory.holding.values():
+            self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
+
+    def replan(self, step: Step, report: ActionReport) -> None:
+        """After a collision: free the robot (a leg or the body touched, or the robot stopped with a foot
+        up: play the end of the stopped motion backward, :meth:`Body.back_out`; a hand: move it back and
+        up, the touched objects allowed), map what was hit if the map lacks it, refresh the goal's
+        position; the retry then plans again from the state the robot is in now (planners are stateless
+        and the actions plan from ``sim/state``)."""
+        if self.body.state().fallen:
+            raise FellError("the robot fell: it cannot replan from the ground")
+        collisions: list[sim_msg.Contact] = report.details.get("collisions") or []
+        touched = sorted({c.other for c in collisions})
+        links = " ".join(c.robot_link.upper() for c in collisions)
+        if self.body.interrupted is not None and (
+            any(not _arm_link(c.robot_link) for c in collisions) or not self.body.standing()
+        ):
+            self.body.back_out(self.progress)  # a leg or the body hit it, or a foot is up: undo the end
+        for hand, tag in (("right", "RARM"), ("left", "LARM")):
+            if tag in links or ("held:" in links.lower() and hand in self.body.held()):
+                self._back_off(hand, touched)
+        self._map_what_was_hit([c.position for c in collisions])
+        self.relocalize(step, report)
+
+    def _map_what_was_hit(self, contacts: list[list[float]]) -> None:
+        """A contact off every mapped box (by more than ``self.config.mapped_margin_m``) hit something the map
+        lacks: look at the first such contact point and put what is in view on the map."""
+        mapped = boxes(self.memory)
+        for point in contacts:
+            if all(distance_to_box(box, point[0], point[1]) > self.config.mapped_margin_m for box in mapped):
+                self.eyes.look_at(np.asarray(point, dtype=float), "look at what was hit")
+                self._survey(exclude=set())
+                return
+
+    def _back_off(self, hand: str, touched: list[str]) -> None:
+        """Move ``hand`` back and up out of contact with ``touched`` (no stepping)."""
+        q = self.body.q()
+        robot = self.body.robot
+        here = robot.grasp_position(q, hand)
+        _x, _y, yaw = self.body.base_xy_yaw(q)
+        back = -self.config.back_off_m * np.array([math.cos(yaw), math.sin(yaw), -1.0])
+        self.progress(f"backing the {hand} hand off {', '.join(touched)}")
+        held = list(self.body.held().values())
+        self._move_hand(
+            hand,
+            here + back,
+            f"back the {hand} hand off",
+            allowed=touched + held,
+            stepping=False,
+            yaw_rad=yaw,
+        )
+
+    def wait_service(self, step: Step, report: ActionReport) -> None:
+        """Wait for the failed service's liveliness token (the launcher restarts dead services)."""
+        service = str(report.details.get("service", ""))
+        if not service:
+            return
+        self.progress(f"waiting for service {service} to come back")
+        started = time.monotonic()
+        if not self.health.wait_alive(service, self.config.wait_service_s, self.stop):
+            raise UnavailableError(
+                f"service {service!r} did not come back within {self.config.wait_service_s:.0f} s; "
+                "is `humanoid up` running?",
+                {"service": service},
+            )
+        self.progress(f"service {service} is back after {time.monotonic() - started:.1f} s")
