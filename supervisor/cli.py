@@ -25,6 +25,13 @@ script language (one action per line, '#' comments, 'as NAME' names the result):
 EXAMPLES_CONSOLE = """examples:
   humanoid console                                # type commands; 'help' lists them
   printf 'take the orange ball\\n' | humanoid console --scene ball_fetch
+  humanoid console --explain "could you bring the orange ball to the yellow table?"
+  humanoid console --explain "take the ball" --explain "the orange one"   # a question, its answer
+what it understands: take/grab/get/pick up/fetch X, go/walk/head to X, put/place/set X on Y,
+bring X to Y, release/let go, look at X, find X/where is X/can you see X, turn left/right N degrees,
+step back, move forward one metre, take two steps to the left; "it", "that"; several commands
+joined by "and", "then" or commas; a question when a phrase fits several objects.
+exit codes: 0 ok, 1 a command failed (or --explain: a line was not understood), 3 no services
 """
 
 EXAMPLES_FETCH = """examples:
@@ -60,6 +67,16 @@ def add_cli(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--hand", choices=("left", "right"), default="right", help="hand for 'take' (right)")
+    p.add_argument(
+        "--explain",
+        action="append",
+        metavar="TEXT",
+        help="print the steps TEXT would run, without running anything (repeat it for a conversation)",
+    )
+    p.add_argument(
+        "--objects",
+        help="with --explain: comma-separated known objects (default: perception's, or the learned models)",
+    )
     _scene_options(p)
     _bus_options(p)
     p.set_defaults(func=cmd_console)
@@ -166,7 +183,38 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0 if report.ok else 1
 
 
+def _explain_objects(args: argparse.Namespace) -> list[str]:
+    """Known objects for --explain: --objects, else perception's (if running), else the learned models."""
+    from pathlib import Path
+
+    from services.bus.discovery import repo_root
+    from services.errors import HumanoidError
+    from supervisor.core import Supervisor
+
+    if args.objects:
+        return [o.strip() for o in args.objects.split(",") if o.strip()]
+    try:
+        with Supervisor.connect(_bus(args), out=None) as sup:
+            if not sup.wait_for_services(1.0, ("perception",)):
+                return sup.known_objects()
+    except HumanoidError:
+        pass
+    models = sorted(p.stem for p in (Path(repo_root()) / "vision" / "models").glob("*.json"))
+    print(f"(perception is not running: objects of the learned models: {', '.join(models)})", file=sys.stderr)
+    return models
+
+
 def cmd_console(args: argparse.Namespace) -> int:
+    if args.explain:
+        from supervisor.console import Listener
+
+        listener = Listener(_explain_objects(args), args.hand)
+        refused = False
+        for text in args.explain:
+            understanding = listener.hear(text)
+            refused = understanding.refused
+            print(understanding.explain())
+        return 1 if refused else 0
     from supervisor.core import Supervisor
     from supervisor.fetch import save_snapshot
     from supervisor.repl import ConsoleLoop, stdin_lines

@@ -15,8 +15,8 @@ from collections import deque
 from collections.abc import Iterable
 from typing import IO
 
-from services.errors import HumanoidError, InvalidRequestError
-from supervisor.console import Command, help_text, interpret
+from services.errors import HumanoidError
+from supervisor.console import Command, Listener, help_text
 from supervisor.core import Supervisor
 
 
@@ -41,6 +41,7 @@ class ConsoleLoop:
         self._pending: deque[Command] = deque()
         self._worker: threading.Thread | None = None
         self._count = 0
+        self.listener = Listener(known_objects, hand)  # the conversation: "it", questions and answers
 
     def say(self, text: str) -> None:
         self.out.write(text + "\n")
@@ -85,10 +86,10 @@ class ConsoleLoop:
         """Process one line; False to quit."""
         if not line.strip() or line.lstrip().startswith("#"):
             return True
-        try:
-            command = interpret(line, self.known, self.hand)
-        except InvalidRequestError as exc:
-            self.say(exc.message)
+        command = self.listener.hear(line)
+        if command.say:
+            self.say(command.say)
+        if command.refused or command.control == "ask":
             self._show_prompt()
             return True
         if command.control == "help":
@@ -105,7 +106,7 @@ class ConsoleLoop:
             if self._worker is not None:
                 self.sup.request_stop()
             return False
-        else:
+        elif command.steps:
             self._pending.append(command)
         return True
 
@@ -117,6 +118,8 @@ class ConsoleLoop:
             try:
                 report = self.sup.run(command.steps, run_id=run_id)
                 self.last_ok = report.ok
+                if not report.ok:
+                    self.listener.forget_held()
                 failure = report.failure
                 if failure is not None and failure.reason == "not_found":
                     self.say(f"I could not find it: {failure.message}")

@@ -77,7 +77,7 @@ def test_call_reports_error_replies_and_missing_services(diag):
     assert result.returncode == 1
     assert "error: infeasible: too far" in result.stderr
     result = _humanoid("call", "diag/echo", "--robot", "nobody", "--hub", diag.hub, "--timeout", "2")
-    assert result.returncode == 1
+    assert result.returncode == 3  # service unavailable
     assert "not alive" in result.stderr or "not running" in result.stderr
 
 

@@ -9,14 +9,19 @@ import argparse
 import contextlib
 import difflib
 import json
+import os
 import sys
 import threading
 import time
 from typing import Any
 
-EXAMPLES_CALL = """examples:
-  humanoid call diag/echo '{"text": "hello"}'
-  humanoid call diag/echo '{"blob": [[1, 2], [3, 4]]}'     # arrays as nested lists
+from services.cli_common import EXIT_CODES_TEXT, EXIT_UNAVAILABLE, EXIT_USAGE, examples, exit_code_for
+
+EXAMPLES_CALL = f"""examples:
+  humanoid call diag/echo '{{"text": "hello"}}'
+  humanoid call diag/echo '{{"blob": [[1, 2], [3, 4]]}}'     # arrays as nested lists
+  humanoid call sim/state | jq .held
+{EXIT_CODES_TEXT}
 """
 
 
@@ -58,7 +63,13 @@ def _add_up(subparsers: Any) -> None:
         help="start the services, restart those that die, stop all on Ctrl-C",
         description="Start every service of the stack (or those named), each in its own process; wait "
         "until all are alive; print a status table; restart a service that dies; Ctrl-C or SIGTERM stops "
-        "everything within 2 s.",
+        "everything within 2 s. Each service's output goes to out/logs/<service>.log (`humanoid logs`).",
+        epilog=examples(
+            "humanoid up                                 # every service; Ctrl-C stops them",
+            "humanoid up --services sim,perception --record out/run.mcap",
+            "humanoid up --log-dir ''                    # service output in this terminal",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--services", help="comma-separated service names (default: every service found)")
     p.add_argument("--record", metavar="FILE", help="also record every message to this MCAP file")
@@ -70,7 +81,11 @@ def _add_up(subparsers: Any) -> None:
         metavar="PORT",
         help="also serve the live view to Foxglove on ws://127.0.0.1:PORT (8765): the viz service",
     )
-    p.add_argument("--log-dir", help="write each service's output to LOG_DIR/<service>.log")
+    p.add_argument(
+        "--log-dir",
+        help="each service's output to LOG_DIR/<service>.log, rotated (default out/logs, or the config's "
+        "launcher.log_dir; '' for this terminal); read them with `humanoid logs SERVICE`",
+    )
     p.add_argument("--ready-timeout", type=float, help="seconds every service has to become alive (30)")
     p.add_argument("--duration", type=float, help="stop by itself this many seconds after all are ready")
     p.add_argument("--list", action="store_true", help="list the services found and exit")
@@ -84,6 +99,7 @@ def cmd_up(args: argparse.Namespace) -> int:
     from services.bus.config import load_section
     from services.bus.discovery import RECORDER, VIZ, discover
     from services.bus.launcher import Launcher, LauncherConfig, format_table, run_up
+    from services.bus.logfiles import DEFAULT_LOG_DIR
     from services.bus.service import configure_logging
 
     configure_logging("INFO")
@@ -112,8 +128,11 @@ def cmd_up(args: argparse.Namespace) -> int:
     config = load_section(args.config, "launcher", LauncherConfig)
     if args.ready_timeout is not None:
         config = dataclasses.replace(config, ready_timeout_s=args.ready_timeout)
-    if args.log_dir:
-        config = dataclasses.replace(config, log_dir=args.log_dir)
+    if args.log_dir is not None or not config.log_dir:
+        log_dir = DEFAULT_LOG_DIR if args.log_dir is None else args.log_dir
+        config = dataclasses.replace(config, log_dir=log_dir)
+    if config.log_dir:
+        print(f"service logs: {config.log_dir}/<service>.log (humanoid logs SERVICE -f)", flush=True)
     launcher = Launcher(
         bus, entries, config, config_path=args.config, record=args.record, duration_s=args.duration,
         foxglove_port=args.foxglove,
@@ -130,6 +149,8 @@ def _add_status(subparsers: Any) -> None:
         help="the live services, their heartbeat age and requests served",
         description="List the services whose liveliness token is present, with the age of their last "
         "heartbeat (a service stuck holding the GIL keeps its token but stops beating).",
+        epilog=examples("humanoid status", "humanoid status --json | jq '.services[].service'"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--wait", type=float, default=0.8, help="seconds to listen for heartbeats (0.8)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -315,7 +336,7 @@ def cmd_call(args: argparse.Namespace) -> int:
             print(f"error: {exc.code}: {exc.message}", file=sys.stderr)
             if exc.details:
                 print(json.dumps({"details": exc.details}, indent=2, default=str), file=sys.stderr)
-            return 1
+            return exit_code_for(exc.code)
     print(json.dumps(_printable(reply, args.max_elements), indent=2))
     return 0
 
@@ -345,13 +366,41 @@ def _add_echo(subparsers: Any) -> None:
         "echo",
         help="print the messages on a key expression (binary arrays summarised)",
         description="Print every message published on KEY, a zenoh key expression (hrp/hrp2/diag/**) or "
-        "SERVICE/NAME for hrp/<robot>/SERVICE/NAME. Arrays of binary frames are shown as "
-        "<ndarray dtype shape>, undecodable payloads as hex.",
+        "SERVICE/NAME for hrp/<robot>/SERVICE/NAME. Large arrays of binary frames are shown as "
+        "<ndarray dtype shape>, undecodable payloads as hex. --json prints one object per line.",
+        epilog=examples(
+            "humanoid echo 'supervisor/**'",
+            "humanoid echo sim/clock --once --json | jq .message.sim_time_s",
+            "humanoid echo sim/base_pose --field position --count 5",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("key", help="key expression, or SERVICE/NAME (wildcards * and ** allowed)")
     p.add_argument("--count", type=int, help="exit after this many messages")
+    p.add_argument("--once", action="store_const", const=1, dest="count", help="exit after one message")
     p.add_argument("--duration", type=float, help="exit after this many seconds")
     p.add_argument("--compact", action="store_true", help="one line per message")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="one JSON object per line: {key, time_s, size_b, request_id, message} (for jq)",
+    )
+    p.add_argument(
+        "--field",
+        metavar="PATH",
+        help="print only this field of each message (dotted: position.0, images.0.name)",
+    )
+    p.add_argument(
+        "--max-elements",
+        type=int,
+        default=64,
+        help="arrays up to this many elements in full, larger ones as <ndarray dtype shape> (64)",
+    )
+    p.add_argument(
+        "--wait",
+        type=float,
+        help="with --count/--once: fail (exit 3) when nothing arrives within this many seconds",
+    )
     _bus_options(p)
     p.set_defaults(func=cmd_echo)
 
@@ -369,7 +418,6 @@ def cmd_echo(args: argparse.Namespace) -> int:
 
     import zenoh
 
-    from services.bus.frames import summarize
     from services.bus.session import bus_session, request_id_from
 
     bus = _bus(args)
@@ -387,7 +435,8 @@ def cmd_echo(args: argparse.Namespace) -> int:
             )
 
     count = 0
-    deadline = time.monotonic() + args.duration if args.duration else None
+    started = time.monotonic()
+    deadline = started + args.duration if args.duration else None
     with bus_session(bus) as session:
         sub = session.declare_subscriber(key, on_sample)
         try:
@@ -398,11 +447,30 @@ def cmd_echo(args: argparse.Namespace) -> int:
                 try:
                     sample_key, data, rid = inbox.get(timeout=0.1)
                 except queue.Empty:
+                    if args.wait and count == 0 and time.monotonic() - started > args.wait:
+                        print(f"error: no message on {key} within {args.wait:.1f} s", file=sys.stderr)
+                        return EXIT_UNAVAILABLE
                     continue
                 count += 1
+                content = message_content(data, args.max_elements)
+                if args.field:
+                    try:
+                        content = field_at(content, args.field)
+                    except KeyError as exc:
+                        print(f"error: {exc.args[0]}", file=sys.stderr)
+                        return EXIT_USAGE
+                if args.json:
+                    doc = content if args.field else {
+                        "key": sample_key, "time_s": round(time.time(), 6), "size_b": len(data),
+                        "request_id": rid, "message": content,
+                    }
+                    print(json.dumps(doc, default=str), flush=True)
+                    continue
+                if args.field:
+                    print(json.dumps(content, default=str), flush=True)
+                    continue
                 stamp = time.strftime("%H:%M:%S") + f".{int(time.time() * 1000) % 1000:03d}"
                 extra = f"  request {rid}" if rid is not None else ""
-                content = summarize(data)
                 text = (
                     json.dumps(content, default=str)
                     if args.compact
@@ -411,9 +479,56 @@ def cmd_echo(args: argparse.Namespace) -> int:
                 print(f"--- {sample_key}  [{len(data)} B]  {stamp}{extra}\n{text}", flush=True)
         except KeyboardInterrupt:
             pass
+        except BrokenPipeError:  # `| head`: the reader is gone
+            with contextlib.suppress(OSError):
+                sys.stdout = open(os.devnull, "w")  # noqa: SIM115
         finally:
             sub.undeclare()
     return 0
+
+
+def message_content(data: bytes, max_elements: int) -> Any:
+    """A frame as JSON-ready data: arrays of up to ``max_elements`` as nested lists, larger ones as
+    ``<ndarray dtype shape>``, undecodable bytes as a hex summary (see services.bus.frames)."""
+    import msgspec
+    import numpy as np
+
+    from services.bus.frames import frame_kind, parse_frame, replace_arrays, summarize
+
+    if frame_kind(data) == "octets":
+        return summarize(data)
+    try:
+        doc, refs = parse_frame(data)
+    except (msgspec.DecodeError, ValueError):
+        return summarize(data)
+    by_path = {r.path: r for r in refs}
+
+    def show(path: str, ref: dict[str, Any]) -> Any:
+        shape = tuple(ref["shape"])
+        if path in by_path and int(np.prod(shape)) <= max_elements:
+            return by_path[path].array().tolist()
+        return f"<ndarray {np.dtype(ref['dtype'])} {shape}>"
+
+    return replace_arrays(doc, show)
+
+
+def field_at(doc: Any, path: str) -> Any:
+    """``doc`` at a dotted (or slashed) path: ``position.0``; KeyError naming the valid keys."""
+    node = doc
+    for part in [p for p in path.replace("/", ".").split(".") if p]:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node):
+            node = node[int(part)]
+        else:
+            if isinstance(node, dict):
+                valid = ", ".join(map(str, node))
+            elif isinstance(node, list):
+                valid = f"0..{len(node) - 1}"
+            else:
+                valid = "none (not a mapping or a list)"
+            raise KeyError(f"no field {part!r} in {path!r}; valid here: {valid}")
+    return node
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -425,6 +540,11 @@ def _add_record(subparsers: Any) -> None:
         help="record every message on hrp/** to an MCAP file (until Ctrl-C)",
         description="Run the recorder in the foreground: every message on the bus goes to FILE (MCAP: open "
         "it in Foxglove, play it back with `humanoid replay`). Ctrl-C or SIGTERM finishes the file.",
+        epilog=examples(
+            "humanoid record out/run.mcap                # until Ctrl-C",
+            "humanoid record out/clock.mcap --duration 5 --key-expr 'hrp/hrp2/sim/clock'",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="MCAP file to write")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
@@ -465,11 +585,23 @@ def _add_replay(subparsers: Any) -> None:
         "replay",
         help="republish a log with its timing, or re-send its requests and diff the replies",
         description="Republish every message of an MCAP log on its key with the original relative timing "
-        "(heartbeats left out). With --requests, re-send every recorded request to the running services "
-        "instead and report the replies that differ from the recorded ones.",
+        "(heartbeats left out), showing a progress bar. With --requests, re-send every recorded request "
+        "to the running services instead and report the replies that differ from the recorded ones.",
+        epilog=examples(
+            "humanoid replay out/demo/fetch.mcap                 # progress bar",
+            "humanoid replay run.mcap --start 30 --rate 2 --loop",
+            "humanoid replay run.mcap --topics 'hrp/*/sim/*' --verbose",
+            "humanoid replay run.mcap --requests                 # re-send requests, diff replies",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="MCAP file written by `humanoid record`")
-    p.add_argument("--speed", type=float, default=1.0, help="playback speed factor (2 = twice as fast)")
+    p.add_argument(
+        "--rate", "--speed", dest="speed", type=float, default=1.0,
+        help="playback speed factor (2 = twice as fast; --speed is the same)",
+    )
+    p.add_argument("--start", type=float, default=0.0, help="start this many seconds into the log (0)")
+    p.add_argument("--loop", action="store_true", help="play the log again and again until Ctrl-C")
     p.add_argument(
         "--topics",
         action="append",
@@ -490,7 +622,8 @@ def _add_replay(subparsers: Any) -> None:
         metavar="PORT",
         help="serve the log to Foxglove on ws://127.0.0.1:PORT (8765) instead of publishing on the bus",
     )
-    p.add_argument("--quiet", action="store_true", help="no line per message")
+    p.add_argument("--verbose", action="store_true", help="a line per message instead of the progress bar")
+    p.add_argument("--quiet", action="store_true", help="neither progress nor a line per message")
     _bus_options(p)
     p.set_defaults(func=cmd_replay)
 
@@ -530,6 +663,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     except HumanoidError as exc:
         return _fail(exc.message)
     bus = _bus(args)
+    progress: Progress | None = None
     with bus_session(bus) as session:
         _wait_for_peers(session)
         try:
@@ -564,24 +698,85 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 print(f"{len(outcomes)} requests re-sent, {differs} with a different or missing reply")
                 return 1 if differs else 0
 
-            def show_msg(msg: Any) -> None:
-                if not args.quiet:
-                    print(f"{msg.key}  [{len(msg.data)} B]", flush=True)
+            info = reader.info()
+            progress = None if args.quiet or args.verbose else Progress(info, args.start, args.speed)
 
-            stats = replay(
-                session,
-                reader,
-                speed=args.speed,
-                accept=key_filter(patterns, heartbeats=args.heartbeats),
-                on_message=show_msg,
-            )
+            def show_msg(msg: Any) -> None:
+                if args.verbose:
+                    print(f"{msg.key}  [{len(msg.data)} B]", flush=True)
+                elif progress is not None:
+                    progress.update(msg)
+
+            rounds = 0
+            while True:
+                rounds += 1
+                stats = replay(
+                    session,
+                    reader,
+                    speed=args.speed,
+                    accept=key_filter(patterns, heartbeats=args.heartbeats),
+                    on_message=show_msg,
+                    start_s=args.start,
+                )
+                if progress is not None:
+                    progress.finish()
+                if not args.loop or stats.published == 0:
+                    break
         except KeyboardInterrupt:
+            if progress is not None:
+                progress.finish(complete=False)
             return 130
         except HumanoidError as exc:
             return _fail(exc.message)
     tail = " (the log's last chunk was cut off)" if reader.unreadable_tail else ""
-    print(f"replayed {stats.published} messages in {stats.duration_s:.2f} s, skipped {stats.skipped}{tail}")
+    again = f" ({rounds} rounds, the last:)" if rounds > 1 else ""
+    print(
+        f"replayed{again} {stats.published} messages in {stats.duration_s:.2f} s, "
+        f"skipped {stats.skipped}{tail}"
+    )
     return 0
+
+
+class Progress:
+    """A one-line progress bar on stderr for ``replay`` (a line per 10 % when stderr is no terminal)."""
+
+    def __init__(self, info: Any, start_s: float, speed: float, width: int = 30) -> None:
+        self.start_ns = info.start_ns + int(start_s * 1e9)
+        self.total_s = max(1e-9, (info.end_ns - self.start_ns) / 1e9)
+        self.speed = speed
+        self.width = width
+        self.tty = sys.stderr.isatty()
+        self.count = 0
+        self._last_draw = 0.0
+        self._last_tenth = -1
+        self._done = 0.0
+
+    def update(self, msg: Any) -> None:
+        self.count += 1
+        now = time.monotonic()
+        done = min(1.0, max(0.0, (msg.log_time_ns - self.start_ns) / 1e9 / self.total_s))
+        if self.tty and now - self._last_draw >= 0.1:
+            self._last_draw = now
+            self._draw(done, end="\r")
+        elif not self.tty and int(done * 10) > self._last_tenth:
+            self._last_tenth = int(done * 10)
+            self._draw(done, end="\n")
+
+    def _draw(self, done: float, end: str) -> None:
+        self._done = done
+        bar = "#" * round(done * self.width)
+        text = (
+            f"[{bar:<{self.width}}] {done * 100:5.1f} %  {done * self.total_s:7.1f} / {self.total_s:.1f} s  "
+            f"{self.count} msgs  x{self.speed:g}"
+        )
+        print(text, end=end, file=sys.stderr, flush=True)
+
+    def finish(self, complete: bool = True) -> None:
+        """End the bar's line: at 100 % when the log was played to its end, else where it stopped."""
+        if self.count and (self.tty or self._done < 1.0):
+            self._draw(1.0 if complete else self._done, end="\n")
+        self.count = 0
+        self._last_tenth = -1
 
 
 def _wait_for_peers(session: Any, timeout_s: float = 3.0) -> None:
@@ -599,6 +794,8 @@ def _add_log_info(subparsers: Any) -> None:
         description="Summarise an MCAP log: duration, channels with their encodings, schema names, "
         "message counts, bytes (before chunk compression) and rates. A log whose recorder was killed is "
         "reported as truncated and read up to its last complete chunk.",
+        epilog=examples("humanoid log-info out/demo/fetch.mcap", "humanoid log-info run.mcap --json"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="MCAP file")
     p.add_argument("--json", action="store_true", help="print JSON")

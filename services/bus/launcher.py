@@ -33,6 +33,7 @@ import zenoh
 from services.bus import keys
 from services.bus.config import BusConfig
 from services.bus.discovery import RECORDER, VIZ, ServiceEntry
+from services.bus.logfiles import BACKUPS, MAX_BYTES, RotatingLog
 from services.bus.schemas.common import LAUNCHER_EVENTS, LauncherEvent
 from services.bus.session import TypedPublisher, close_session, open_session
 from services.errors import InvalidRequestError, UnavailableError
@@ -52,7 +53,9 @@ class LauncherConfig:
         backoff_max_s: longest delay before a restart [s].
         stop_grace_s: time between SIGTERM and SIGKILL when stopping [s].
         log_dir: if set, each service's output goes to ``<log_dir>/<service>.log`` instead of the
-            launcher's terminal.
+            launcher's terminal, rotated past ``log_max_bytes`` (``services.bus.logfiles``).
+        log_max_bytes: size of a log file before it is rotated [B].
+        log_backups: rotated files kept per service (``<service>.log.1`` ... ``.N``).
     """
 
     ready_timeout_s: float = 30.0
@@ -62,6 +65,8 @@ class LauncherConfig:
     backoff_max_s: float = 8.0
     stop_grace_s: float = 1.0
     log_dir: str = ""
+    log_max_bytes: int = MAX_BYTES
+    log_backups: int = BACKUPS
 
     def __post_init__(self) -> None:
         if self.stop_grace_s > 1.2:
@@ -79,7 +84,7 @@ class _Child:
     restarts: deque[float] = field(default_factory=deque)
     restart_at: float = 0.0
     started_at: float = 0.0
-    log_file: IO[bytes] | None = None
+    log_file: RotatingLog | None = None
 
     @property
     def pid(self) -> int:
@@ -191,20 +196,22 @@ class Launcher:
     def _spawn(self, child: _Child) -> None:
         output: Any = None
         if self.config.log_dir:
-            Path(self.config.log_dir).mkdir(parents=True, exist_ok=True)
             if child.log_file is None:
-                child.log_file = open(Path(self.config.log_dir) / f"{child.entry.name}.log", "ab")  # noqa: SIM115
-            output = child.log_file
+                path = Path(self.config.log_dir) / f"{child.entry.name}.log"
+                child.log_file = RotatingLog(path, self.config.log_max_bytes, self.config.log_backups)
+            output = subprocess.PIPE
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         # exec of a fresh interpreter (spawn semantics), own process group: signals come from us only.
         child.proc = subprocess.Popen(
             self._command(child),
             stdin=subprocess.DEVNULL,
             stdout=output,
-            stderr=output,
+            stderr=subprocess.STDOUT if output is not None else None,
             env=env,
             start_new_session=True,
         )
+        if child.log_file is not None and child.proc.stdout is not None:
+            child.log_file.follow(child.proc.stdout)
         child.attempt += 1
         child.state = "starting"
         child.started_at = time.monotonic()
@@ -223,7 +230,7 @@ class Launcher:
                     self._event(child, "died", exit_code=code, message="exited before becoming ready")
                     raise UnavailableError(
                         f"service {name!r} ({child.entry.module}) exited with {_describe_exit(code)} "
-                        "before becoming ready; its log above says why"
+                        f"before becoming ready; {self._log_tail(child)}"
                     )
                 if self.is_alive(name):
                     child.state = "ready"
@@ -269,6 +276,8 @@ class Launcher:
         cfg = self.config
         self._kill_group(child, signal.SIGKILL)  # whatever it started goes with it
         self._event(child, "died", exit_code=code, message=_describe_exit(code))
+        if child.log_file is not None:
+            print(f"{child.entry.name}: {self._log_tail(child)}", file=sys.stderr, flush=True)
         while child.restarts and now - child.restarts[0] > cfg.restart_window_s:
             child.restarts.popleft()
         if len(child.restarts) >= cfg.max_restarts:
@@ -285,6 +294,14 @@ class Launcher:
         child.state = "backoff"
         child.restart_at = now + delay
         self._event(child, "restarting", exit_code=code, message=f"in {delay:.1f} s")
+
+    def _log_tail(self, child: _Child) -> str:
+        """Where to read why a service stopped: its last log lines, or the terminal above."""
+        if child.log_file is None:
+            return "its log above says why"
+        lines = child.log_file.tail()
+        shown = "\n".join(f"  | {line}" for line in lines) if lines else "  (nothing)"
+        return f"the end of its log {child.log_file.path}:\n{shown}"
 
     # Stopping ---------------------------------------------------------------------------------------------
     def _stop_all(self) -> None:

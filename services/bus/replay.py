@@ -59,10 +59,15 @@ def replay(
     speed: float = 1.0,
     accept: Callable[[str], bool] | None = None,
     on_message: Callable[[LogMessage], None] | None = None,
+    start_s: float = 0.0,
 ) -> ReplayStats:
-    """Republish the log's original messages with their relative timing (``speed`` 2 = twice as fast)."""
+    """Republish the log's original messages with their relative timing (``speed`` 2 = twice as fast),
+    from ``start_s`` seconds after the log's first message (the earlier ones are skipped)."""
     if not speed > 0:
         raise InvalidRequestError(f"speed={speed} must be > 0 (2 plays twice as fast)")
+    if start_s < 0:
+        raise InvalidRequestError(f"start={start_s} s must be >= 0 (seconds into the log)")
+    log_first_ns: int | None = None
     accept = accept or key_filter(None)
     stats = ReplayStats()
     publishers: dict[str, Any] = {}
@@ -70,7 +75,9 @@ def replay(
     started = time.monotonic()
     try:
         for msg in reader.messages():
-            if not accept(msg.key):
+            if log_first_ns is None:
+                log_first_ns = msg.log_time_ns
+            if not accept(msg.key) or msg.log_time_ns - log_first_ns < start_s * 1e9:
                 stats.skipped += 1
                 continue
             if first_ns is None:

@@ -1,0 +1,205 @@
+"""Object phrases: "the orange ball", "the ball", "the orange one", "that", "the desk" -> a known object.
+
+Known objects are perception's names, ``<colour>_<kind>`` or ``<kind>`` (``orange_ball``,
+``yellow_table``, ``chair``). A phrase names a colour, a kind (with synonyms: desk is a table, cube a
+box), both, or refers back ("it", "that"). :func:`resolve` gives one name, or the candidates when
+several fit (the console then asks which), or none with the reason.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+
+COLOURS = (
+    "orange",
+    "green",
+    "yellow",
+    "blue",
+    "red",
+    "white",
+    "black",
+    "purple",
+    "pink",
+    "brown",
+    "grey",
+    "gray",
+    "cyan",
+    "magenta",
+)
+#: Words people use for a kind of object -> the kind in the object names.
+KIND_SYNONYMS = {
+    "ball": "ball",
+    "balls": "ball",
+    "sphere": "ball",
+    "orb": "ball",
+    "box": "box",
+    "boxes": "box",
+    "cube": "box",
+    "crate": "box",
+    "block": "box",
+    "carton": "box",
+    "table": "table",
+    "tables": "table",
+    "desk": "table",
+    "counter": "table",
+    "chair": "chair",
+    "chairs": "chair",
+    "seat": "chair",
+    "stool": "chair",
+}
+PRONOUNS = (
+    "it",
+    "that",
+    "this",
+    "them",
+    "that one",
+    "this one",
+    "the object",
+    "the thing",
+    "same one",
+    "the same one",
+    "the same",
+)
+DETERMINERS = {
+    "the",
+    "a",
+    "an",
+    "this",
+    "that",
+    "those",
+    "these",
+    "my",
+    "your",
+    "our",
+    "some",
+    "its",
+    "one",
+    "thing",
+    "object",
+    "please",
+}
+#: Adjectives that do not tell objects apart here.
+IGNORED_ADJECTIVES = {
+    "big",
+    "small",
+    "little",
+    "large",
+    "tiny",
+    "round",
+    "square",
+    "nice",
+    "same",
+    "other",
+    "colored",
+    "coloured",
+    "whole",
+}
+
+
+@dataclass(frozen=True)
+class ObjectRef:
+    """What an object phrase resolved to: ``name``, or ``candidates`` (ambiguous), or ``problem``."""
+
+    phrase: str
+    name: str = ""
+    candidates: tuple[str, ...] = ()
+    problem: str = ""
+    pronoun: bool = False
+
+
+def spoken(name: str) -> str:
+    """``orange_ball`` -> ``orange ball``."""
+    return name.replace("_", " ")
+
+
+def _parts(name: str) -> tuple[str, str]:
+    """``(colour, kind)`` of a known name (colour "" when it has none)."""
+    words = name.split("_")
+    if len(words) >= 2 and words[0] in COLOURS:
+        return words[0], "_".join(words[1:])
+    return "", name
+
+
+def resolve(phrase: str, known: list[str] | tuple[str, ...], referent: str | None = None) -> ObjectRef:
+    """Resolve an object phrase against the known names; ``referent`` is what "it"/"that" means now."""
+    text = " ".join(phrase.split())
+    if text in PRONOUNS or text.removeprefix("the ") in ("same", "same one"):
+        if referent:
+            return ObjectRef(phrase, name=referent, pronoun=True)
+        return ObjectRef(phrase, problem=f"I don't know what '{text}' is: name the object", pronoun=True)
+    if text.replace(" ", "_") in known:
+        return ObjectRef(phrase, name=text.replace(" ", "_"))
+    words = [w for w in text.replace("_", " ").split() if w not in DETERMINERS]
+    colour = ""
+    kind = ""
+    unknown: list[str] = []
+    for w in words:
+        if w in COLOURS:
+            colour = "grey" if w == "gray" else w
+        elif w in KIND_SYNONYMS:
+            kind = KIND_SYNONYMS[w]
+        elif w.endswith("ish") and w[:-3] in COLOURS:
+            colour = w[:-3]
+        elif w not in IGNORED_ADJECTIVES:
+            unknown.append(w)
+    if not colour and not kind:
+        if unknown:
+            hint = difflib.get_close_matches(" ".join(unknown), [spoken(k) for k in known], n=1, cutoff=0.6)
+            extra = f" (did you mean the {hint[0]}?)" if hint else ""
+            return ObjectRef(phrase, problem=f"I don't know '{' '.join(unknown)}'{extra}")
+        return ObjectRef(phrase, problem="which object?")
+    if unknown and not kind:  # "the orange cup": a colour and a noun we do not know
+        return ObjectRef(phrase, problem=f"I don't know a {' '.join([colour, *unknown]).strip()}")
+    candidates = tuple(
+        k for k in known if (not colour or _parts(k)[0] == colour) and (not kind or _parts(k)[1] == kind)
+    )
+    if len(candidates) == 1:
+        return ObjectRef(phrase, name=candidates[0])
+    if candidates:
+        return ObjectRef(phrase, candidates=candidates)
+    said = " ".join(w for w in (colour, kind) if w) or text
+    return ObjectRef(phrase, problem=f"I don't know a {said}")
+
+
+def question(ref: ObjectRef) -> str:
+    """ "which ball: the orange one or the blue one?" for an ambiguous reference."""
+    parts = [_parts(c) for c in ref.candidates]
+    kinds = {k for _, k in parts}
+    colours = {c for c, _ in parts}
+    if len(kinds) == 1 and all(colours):
+        kind = kinds.pop()
+        options = [f"the {c} one" for c, _ in parts]
+        head = f"which {kind}"
+    elif len(colours) == 1 and "" not in colours:
+        colour = colours.pop()
+        options = [f"the {k}" for _, k in parts]
+        head = f"which {colour} one"
+    else:
+        options = [f"the {spoken(c)}" for c in ref.candidates]
+        head = "which one"
+    listed = ", ".join(options[:-1]) + f" or {options[-1]}" if len(options) > 1 else options[0]
+    return f"{head}: {listed}?"
+
+
+_ORDINALS = {
+    "first": 0,
+    "1st": 0,
+    "second": 1,
+    "2nd": 1,
+    "third": 2,
+    "3rd": 2,
+    "last": -1,
+    "former": 0,
+    "latter": -1,
+}
+
+
+def answer(text: str, candidates: tuple[str, ...]) -> str | None:
+    """The candidate a reply to :func:`question` picks ("the orange one", "blue", "the first"), or None."""
+    words = text.split()
+    for w in words:
+        if w in _ORDINALS:
+            return candidates[_ORDINALS[w]] if abs(_ORDINALS[w]) <= len(candidates) else None
+    ref = resolve(text, candidates)
+    return ref.name or None

@@ -1,0 +1,129 @@
+"""``humanoid --help`` groups, every subcommand's example, and bash completion (no stack needed)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from services.cli import build_parser, main
+
+REPO = Path(__file__).resolve().parent.parent
+#: The subcommands of the bus and the supervisor: each --help shows an example.
+WITH_EXAMPLES = (
+    "up",
+    "status",
+    "list",
+    "interface",
+    "call",
+    "echo",
+    "hz",
+    "bw",
+    "logs",
+    "graph",
+    "record",
+    "replay",
+    "log-info",
+    "run",
+    "console",
+    "fetch",
+    "completion",
+)
+
+
+def humanoid(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", *args], capture_output=True, text=True, timeout=60, cwd=REPO
+    )
+
+
+def test_help_lists_the_subcommands_in_groups() -> None:
+    result = humanoid("--help")
+    assert result.returncode == 0
+    text = result.stdout
+    groups = {}
+    current = None
+    for line in text.splitlines():
+        if line.endswith(":") and not line.startswith(" "):
+            current = line[:-1]
+            groups[current] = []
+        elif current and line.startswith("  ") and line.strip():
+            groups[current].append(line.split()[0])
+    assert {"up", "run", "console", "fetch"} <= set(groups["run"])
+    assert {"status", "list", "interface", "call", "echo", "hz", "bw", "logs", "graph"} <= set(
+        groups["inspect"]
+    )
+    assert {"record", "replay", "log-info"} <= set(groups["record"])
+    assert "exit codes: 0 ok, 1 error reply or failed run, 2 bad usage, 3 service unavailable" in text
+    commands = build_parser(grouped=False)._subparsers._group_actions[0].choices  # type: ignore[union-attr]
+    listed = {name for names in groups.values() for name in names}
+    assert set(commands) <= listed
+
+
+@pytest.mark.parametrize("command", WITH_EXAMPLES)
+def test_every_subcommand_help_has_an_example(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main([command, "--help"])
+    assert info.value.code == 0
+    text = capsys.readouterr().out
+    assert "examples:" in text
+    assert f"humanoid {command}" in text.split("examples:", 1)[1]
+
+
+def test_bash_completion_completes_subcommands_and_endpoint_names(tmp_path: Path) -> None:
+    script = humanoid("completion", "bash")
+    assert script.returncode == 0, script.stderr
+    path = tmp_path / "humanoid.bash"
+    path.write_text(script.stdout)
+    probe = f"""
+source {path}
+complete_line() {{
+  COMP_WORDS=("$@"); COMP_CWORD=$(( ${{#COMP_WORDS[@]}} - 1 ))
+  COMP_LINE="$*"; COMP_POINT=${{#COMP_LINE}}; COMPREPLY=()
+  _shtab_humanoid
+  echo "${{COMPREPLY[*]}}"
+}}
+complete_line humanoid ca
+complete_line humanoid call sim/st
+complete_line humanoid hz sim/c
+complete_line humanoid interface navigation/
+complete_line humanoid logs percep
+"""
+    result = subprocess.run(["bash", "-c", probe], capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines() == ["call", "sim/state", "sim/clock", "navigation/goto", "perception"]
+
+
+def _zsh_complete(script_dir: Path, typed: str) -> str:
+    """The command line after typing ``typed`` and Tab in an interactive zsh (through zsh/zpty)."""
+    driver = f"""
+zmodload zsh/zpty
+zpty -b z 'zsh -f -i'
+zpty -w z 'PS1=""; fpath=({script_dir} $fpath); autoload -U compinit; compinit -u; humanoid() {{ :; }}'
+zpty -n -w z $'{typed}\\t'
+sleep 2
+zpty -n -w z $'\\C-a echo LINE=\\n'
+sleep 1
+zpty -r z out '*LINE=*'
+zpty -rt z rest
+print -r -- "$out$rest"
+zpty -d z
+"""
+    result = subprocess.run(["zsh", "-f", "-c", driver], capture_output=True, text=True, timeout=60)
+    lines = [ln for ln in result.stdout.replace("\r", "\n").splitlines() if ln.startswith("LINE=")]
+    assert lines, result.stdout + result.stderr
+    return lines[-1].removeprefix("LINE=").strip()
+
+
+def test_zsh_completion_completes_subcommands_and_endpoint_names(tmp_path: Path) -> None:
+    result = humanoid("completion", "zsh")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("#compdef humanoid")
+    if shutil.which("zsh") is None:
+        pytest.skip("zsh is not installed: the script is checked, not run")
+    (tmp_path / "_humanoid").write_text(result.stdout)
+    assert _zsh_complete(tmp_path, "humanoid call sim/st") == "humanoid call sim/state"
+    assert _zsh_complete(tmp_path, "humanoid interf") == "humanoid interface"
