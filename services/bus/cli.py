@@ -97,7 +97,7 @@ def cmd_up(args: argparse.Namespace) -> int:
     import dataclasses
 
     from services.bus.config import load_section
-    from services.bus.discovery import RECORDER, VIZ, discover
+    from services.bus.discovery import RECORDER, VIZ, default_services, discover
     from services.bus.launcher import Launcher, LauncherConfig, format_table, run_up
     from services.bus.logfiles import DEFAULT_LOG_DIR
     from services.bus.service import configure_logging
@@ -120,7 +120,7 @@ def cmd_up(args: argparse.Namespace) -> int:
             known = ", ".join(sorted(startable))
             return _fail(f"unknown service(s) {', '.join(unknown)}{hint}; services found: {known}")
     else:
-        names = sorted(startable)
+        names = default_services(found)  # diag only when asked (--services)
     entries = [startable[n] for n in names] + [found[RECORDER]]
     if args.foxglove is not None and VIZ in found:
         entries.append(found[VIZ])
