@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import signal
+import threading
+
 #: Exit codes of every subcommand (README, "The `humanoid` command").
 EXIT_OK = 0
 EXIT_ERROR = 1  # an error reply (infeasible, not_found, timeout, internal), or a failed run
@@ -31,3 +34,16 @@ def exit_code_for(code: str) -> int:
 def examples(*lines: str) -> str:
     """An ``examples:`` epilog (use with ``RawDescriptionHelpFormatter``)."""
     return "examples:\n" + "\n".join(f"  {line}" for line in lines) + "\n" + EXIT_CODES_TEXT + "\n"
+
+
+def stop_event(duration_s: float | None = None) -> threading.Event:
+    """An event set by SIGINT or SIGTERM, or after ``duration_s`` [s] of wall time when given: the stop
+    of a subcommand that serves until asked (record, view)."""
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    if duration_s:
+        timer = threading.Timer(duration_s, stop.set)
+        timer.daemon = True
+        timer.start()
+    return stop

@@ -15,7 +15,14 @@ import threading
 import time
 from typing import Any
 
-from services.cli_common import EXIT_CODES_TEXT, EXIT_UNAVAILABLE, EXIT_USAGE, examples, exit_code_for
+from services.cli_common import (
+    EXIT_CODES_TEXT,
+    EXIT_UNAVAILABLE,
+    EXIT_USAGE,
+    examples,
+    exit_code_for,
+    stop_event,
+)
 
 EXAMPLES_CALL = f"""examples:
   humanoid call diag/echo '{{"text": "hello"}}'
@@ -555,7 +562,6 @@ def _add_record(subparsers: Any) -> None:
 
 def cmd_record(args: argparse.Namespace) -> int:
     import dataclasses
-    import signal
     from pathlib import Path
 
     from services.bus.config import load_section
@@ -568,13 +574,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.key_expr:
         config = dataclasses.replace(config, key_expr=args.key_expr)
     bus = _bus(args)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    if args.duration:
-        timer = threading.Timer(args.duration, stop.set)
-        timer.daemon = True
-        timer.start()
+    stop = stop_event(args.duration)
     serve(RecorderService, config, bus, stop)
     print(f"log written to {config.output}")
     return 0

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 from typing import Any
 
 
@@ -35,6 +33,7 @@ def cmd_view(args: argparse.Namespace) -> int:
 
     from services.bus.config import load_bus_config, load_section
     from services.bus.service import configure_logging, serve
+    from services.cli_common import stop_event
     from services.viz.service import VizConfig, VizService
 
     configure_logging("INFO")
@@ -44,13 +43,7 @@ def cmd_view(args: argparse.Namespace) -> int:
     }
     config = dataclasses.replace(config, **changes)
     bus = load_bus_config(args.config, hub=args.hub, robot=args.robot)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    if args.duration:
-        timer = threading.Timer(args.duration, stop.set)
-        timer.daemon = True
-        timer.start()
+    stop = stop_event(args.duration)
 
     def ready(service: Any) -> None:
         print(
