@@ -35,6 +35,8 @@ from services.walking.footsteps import FootstepLimits, SolePose
 
 REPLAN_EXTRA_MARGIN_M = 0.02
 """Margin [m] added, beyond the clearance missing, when stage 2 sends stage 1 back for a new path."""
+SLOW_WALK_FACTOR = 1.5
+"""Single supports this much longer, once, when stage 2's walk moves a joint faster than its limit."""
 MAX_START_SOLE_HEIGHT_M = 0.005
 """The starting configuration must have both soles on the floor (flat ground z = 0) within this [m]."""
 
@@ -132,6 +134,7 @@ def plan_goto(
     grip = grip_from_configuration(robot, q_start, bar) if bar is not None else None
     timings = {"path_s": 0.0, "footsteps_s": 0.0, "stage2_s": 0.0}
     replans = 0
+    slowed = False
     start = start_pose(robot, q_start)
     straight_options = options.straight if bar is None else None
     while True:
@@ -180,6 +183,14 @@ def plan_goto(
             motion = plan_motion(robot, scene, steps.sequence, q_start, bar, options.stage2)
         except InfeasibleError as error:
             timings["stage2_s"] += time.perf_counter() - t3
+            if "joint" in error.details and not slowed:
+                # a joint faster than its limit (a knee on a turning step): the same footsteps walked with
+                # slower single supports (the second stage's pattern and whole-body IK again, once)
+                timing = options.stage2.timing
+                slow = replace(timing, single_support_s=timing.single_support_s * SLOW_WALK_FACTOR)
+                options = replace(options, stage2=replace(options.stage2, timing=slow))
+                slowed = True
+                continue
             # "the planner goes back to the first stage": the body's boxes were too small for the
             # dynamic motion (sway, swing); plan the path again with the margin grown by what was missing
             if error.details.get("reason") != nav_msg.REASON_BODY_COLLISION or replans >= options.max_replans:
