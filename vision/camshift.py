@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from services.bus.schemas.perception import REASON_AMBIGUOUS, REASON_NOT_IN_VIEW
 from services.errors import InvalidRequestError, NotFoundError
 
 Window = tuple[int, int, int, int]  # x, y, width, height [px]
@@ -235,7 +236,7 @@ def check_unambiguous(candidates: list[Detection], config: DetectionConfig, wher
     """The best candidate; NotFoundError when there is none or a second one scores nearly as well."""
     if not candidates:
         raise NotFoundError(
-            f"not in view: no region of the colour of {where or 'the object'}", {"reason": "not_in_view"}
+            f"not in view: no region of the colour of {where or 'the object'}", {"reason": REASON_NOT_IN_VIEW}
         )
     best = candidates[0]
     if len(candidates) > 1 and candidates[1].score >= config.ambiguity_ratio * best.score:
@@ -245,7 +246,7 @@ def check_unambiguous(candidates: list[Detection], config: DetectionConfig, wher
             f"({best.centre_px[0]:.0f}, {best.centre_px[1]:.0f}) score {best.score:.0f} and "
             f"({second.centre_px[0]:.0f}, {second.centre_px[1]:.0f}) score {second.score:.0f} "
             f"(ratio {second.score / best.score:.2f} >= {config.ambiguity_ratio})",
-            {"reason": "ambiguous", "pixels": [list(best.centre_px), list(second.centre_px)]},
+            {"reason": REASON_AMBIGUOUS, "pixels": [list(best.centre_px), list(second.centre_px)]},
         )
     return best
 

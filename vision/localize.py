@@ -19,6 +19,11 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from services.bus.schemas.perception import (
+    REASON_NO_DISPARITY,
+    REASON_NOT_IN_RIGHT_VIEW,
+    REASON_STEREO_MISMATCH,
+)
 from services.errors import InvalidRequestError, NotFoundError
 from vision.backproject import back_project
 from vision.camera import StereoRig
@@ -152,7 +157,7 @@ def _match_right(
             f"({left.centre_px[0]:.0f}, {left.centre_px[1]:.0f}) "
             f"but nowhere on the same rows of the right image within disparities [{d_lo:.0f}, {d_hi:.0f}] px "
             "(occluded or out of the right camera's view)",
-            {"reason": "not_in_right_view"},
+            {"reason": REASON_NOT_IN_RIGHT_VIEW},
         )
     return best
 
@@ -222,7 +227,7 @@ def _edges_point(
     if not disparity > 0:
         raise NotFoundError(
             f"stereo mismatch: the silhouette edges give a disparity of {disparity:.1f} px",
-            {"reason": "stereo_mismatch"},
+            {"reason": REASON_STEREO_MISMATCH},
         )
     return point_from_pixel_disparity(rig, left.centre_px[0], left.centre_px[1], disparity), disparity
 
@@ -266,7 +271,7 @@ def locate_in_frame(
                 raise NotFoundError(
                     f"'{model.name}' is cut by the image border and neither correlation nor its edges give "
                     f"a disparity: {dense_failed.message}; {edges_failed.message}",
-                    {"reason": "no_disparity"},
+                    {"reason": REASON_NO_DISPARITY},
                 ) from edges_failed
     z = float(p_camera[2])
     size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from services.bus.schemas.perception import REASON_NO_DISPARITY, REASON_STEREO_MISMATCH
 from services.errors import InvalidRequestError, NotFoundError
 from vision.camera import StereoRig, transform_points
 from vision.camshift import Window
@@ -110,7 +111,7 @@ def triangulate_centroids(
         raise NotFoundError(
             "stereo mismatch: the right-image blob is not left of the left-image one "
             f"(disparity {disparity:.2f} px)",
-            {"reason": "stereo_mismatch"},
+            {"reason": REASON_STEREO_MISMATCH},
         )
     return point_from_pixel_disparity(rig, uv_left[0], 0.5 * (uv_left[1] + uv_right[1]), disparity)
 
@@ -205,7 +206,7 @@ def dense_disparity_median(
         raise NotFoundError(
             f"dense stereo ({method}) found valid disparities on only {n_valid} of {n_obj} object pixels "
             "(too little texture, or the object is outside the right image)",
-            {"reason": "no_disparity"},
+            {"reason": REASON_NO_DISPARITY},
         )
     return float(np.median(disp[valid])), n_valid
 
@@ -250,7 +251,7 @@ def edge_disparity_median(
         raise NotFoundError(
             f"edge stereo found only {len(disparities)} silhouette edges off the image border in both images "
             "(the object is cut by both side borders, or seen in too few common rows)",
-            {"reason": "no_disparity"},
+            {"reason": REASON_NO_DISPARITY},
         )
     return float(np.median(disparities)), len(disparities)
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from services.bus.schemas.navigation import REASON_BAR_OUT_OF_REACH
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import (
     ComPositionTask,
@@ -251,7 +252,7 @@ def _out_of_reach(centre: np.ndarray, errors: list[float]) -> InfeasibleError:
     return InfeasibleError(
         f"no arm posture puts both hands on the bar at ({centre[0]:.2f}, {centre[1]:.2f}, {centre[2]:.2f}) m "
         f"with the feet still (best pose error {best:.3f}): bring the robot closer to the bar",
-        {"reason": "bar_out_of_reach", "best_error": best},
+        {"reason": REASON_BAR_OUT_OF_REACH, "best_error": best},
     )
 
 

@@ -24,6 +24,7 @@ from typing import NoReturn
 
 import numpy as np
 
+from services.bus.schemas.navigation import REASON_FOOTSTEP_BOUNDS
 from services.errors import InfeasibleError, InvalidRequestError
 from services.navigation.geometry import BodyModel
 from services.navigation.path import SampledPath
@@ -226,7 +227,7 @@ class _Walker:
             f"no {side} footstep within the stepping bounds reaches the path at s={s:.2f} m "
             f"({pose.x_m:.2f}, {pose.y_m:.2f}); the path turns too sharply for the feet there "
             f"(turning radius {self.path.turning_radius_m} m): plan with a larger turning radius",
-            {"reason": "footstep_bounds", "side": side, "s_m": s},
+            {"reason": REASON_FOOTSTEP_BOUNDS, "side": side, "s_m": s},
         )
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from services.bus.schemas.navigation import REASON_NO_FREE_APPROACH_POSE
 from services.errors import InfeasibleError, InvalidRequestError
 from services.navigation.geometry import BoxObstacle, FootprintChecker, Pose2D, Scene
 from services.navigation.reachability import check_reachable
@@ -132,6 +133,6 @@ def resolve_goal(checker: FootprintChecker, goal: ObjectGoal, start: Pose2D) -> 
             + f": {rejected[0]['reason'] if rejected else 'no candidate'} (and {max(len(rejected) - 1, 0)} "
             f"other candidates rejected); the footprint needs >= {min_distance:.2f} m from the face and free "
             f"floor around it",
-            {"reason": "no_free_approach_pose", "object": goal.name, "rejected": rejected},
+            {"reason": REASON_NO_FREE_APPROACH_POSE, "object": goal.name, "rejected": rejected},
         )
     return usable

@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from services.bus.schemas.navigation import REASON_LIFT_TOO_HIGH, REASON_NO_COLLISION_FREE_SAMPLE
 from services.errors import InfeasibleError
 from services.navigation.bar_sampling import BarPoseSampler, SampleStats
 from services.navigation.carry import BarGrip, BarTrajectory
@@ -112,7 +113,7 @@ def next_windows(
                     f"centre at {height:.2f} m, above the {options.max_bar_height_m:.2f} m the arms may "
                     f"hold it: go around {e.obstacle!r}, or reshape by sampling (mode 'sample')",
                     {
-                        "reason": "lift_too_high",
+                        "reason": REASON_LIFT_TOO_HIGH,
                         "obstacle": e.obstacle,
                         "height_m": height,
                         "max_bar_height_m": options.max_bar_height_m,
@@ -165,7 +166,7 @@ def next_windows(
                         f"{st.collide} too close to an obstacle, {st.unreachable} out of reach): go around "
                         f"{list(r.obstacles)}",
                         {
-                            "reason": "no_collision_free_sample",
+                            "reason": REASON_NO_COLLISION_FREE_SAMPLE,
                             "obstacles": list(r.obstacles),
                             "t_s": [r.t0_s, r.t1_s],
                             "drawn": st.drawn,

@@ -39,6 +39,11 @@ from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
+from services.bus.schemas.navigation import (
+    REASON_GOAL_IN_COLLISION,
+    REASON_NO_PATH_WITHIN_BUDGET,
+    REASON_START_IN_COLLISION,
+)
 from services.errors import InfeasibleError, InternalError, InvalidRequestError
 from services.navigation.geometry import BodyModel, FootprintChecker, Pose2D, Scene
 from services.navigation.goals import ObjectGoal, resolve_goal
@@ -380,7 +385,10 @@ def plan_path(
                     else ""
                 )
                 + f") into {hits}; choose a pose farther from them",
-                {"reason": f"{label}_in_collision", "obstacles": hits},
+                {
+                    "reason": REASON_START_IN_COLLISION if label == "start" else REASON_GOAL_IN_COLLISION,
+                    "obstacles": hits,
+                },
             )
     if isinstance(goal, ObjectGoal):
         goals = [c.pose for c in resolve_goal(checker, goal, start)][: config.max_goal_candidates]
@@ -417,7 +425,7 @@ def plan_path(
             f"the passages may be too narrow or too tight to turn in; try a smaller turning radius, a larger "
             f"budget or another goal",
             {
-                "reason": "no_path_within_budget",
+                "reason": REASON_NO_PATH_WITHIN_BUDGET,
                 "time_budget_s": config.time_budget_s,
                 "goals": [[p.x_m, p.y_m, p.theta_rad] for p in goals],
             },

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from services.bus.schemas.navigation import REASON_GOAL_ENCLOSED
 from services.errors import InfeasibleError
 from services.navigation.geometry import FootprintChecker, Pose2D
 
@@ -48,7 +49,7 @@ def check_reachable(checker: FootprintChecker, start: Pose2D, goal: Pose2D) -> N
         f"robot's footprint ({2 * checker.r_in:.2f} m incl. margin) connects it to the start "
         f"({start.x_m:.2f}, {start.y_m:.2f}); move an obstacle or choose another goal",
         {
-            "reason": "goal_enclosed",
+            "reason": REASON_GOAL_ENCLOSED,
             "enclosing_obstacles": enclosing,
             "touches_bounds": touches_bounds,
             "goal_region_area_m2": area_m2,

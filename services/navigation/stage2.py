@@ -33,6 +33,12 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from services.bus.schemas.navigation import (
+    REASON_BAR_OUT_OF_REACH,
+    REASON_BODY_COLLISION,
+    REASON_NO_COLLISION_FREE_RESHAPING,
+    REASON_ZMP_OUTSIDE_SUPPORT,
+)
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import Level
 from services.navigation.bar_sampling import ArmReach, BarPoseSampler, SampleStats
@@ -259,7 +265,7 @@ def _check_hands(
             )
             + ": lower max_bar_height_m, or go around the obstacle",
             {
-                "reason": "bar_out_of_reach",
+                "reason": REASON_BAR_OUT_OF_REACH,
                 "hand_error_m": hand_error,
                 "obstacles": sorted({o for w in windows for o in w.obstacles}),
             },
@@ -384,7 +390,7 @@ def plan_motion(
                 f"needed); reshaping the carried object cannot fix that: plan the path with a larger "
                 f"footprint margin or farther from {e.obstacle!r}",
                 {
-                    "reason": "body_collision",
+                    "reason": REASON_BODY_COLLISION,
                     "obstacle": e.obstacle,
                     "link": e.link,
                     "part": e.group,
@@ -405,7 +411,7 @@ def plan_motion(
             f"({e.group}) still comes {1e3 * e.min_distance_m:.0f} mm from {e.obstacle!r} at "
             f"t={e.t_min_s:.2f} s: go around {e.obstacle!r} or allow more iterations",
             {
-                "reason": "no_collision_free_reshaping",
+                "reason": REASON_NO_COLLISION_FREE_RESHAPING,
                 "obstacle": e.obstacle,
                 "link": e.link,
                 "distance_m": e.min_distance_m,
@@ -421,7 +427,7 @@ def plan_motion(
             f"the multibody ZMP (carried bar included) leaves the support polygon by "
             f"{1e3 * dist[k]:.1f} mm at t={times[k]:.2f} s (margin needed "
             f"{1e3 * options.min_zmp_margin_m:.0f} mm): walk more slowly",
-            {"reason": "zmp_outside_support", "t_s": float(times[k]), "outside_m": float(dist[k])},
+            {"reason": REASON_ZMP_OUTSIDE_SUPPORT, "t_s": float(times[k]), "outside_m": float(dist[k])},
         )
     return WholeBodyMotion(
         times_s=times,

@@ -23,6 +23,13 @@ REASON_NO_FREE_APPROACH_POSE = "no_free_approach_pose"  # no place to stand goal
 REASON_GOAL_ENCLOSED = "goal_enclosed"
 REASON_BODY_COLLISION = "body_collision"  # stage 2: the body (not the bar) meets an obstacle
 REASON_ZMP_OUTSIDE_SUPPORT = "zmp_outside_support"
+REASON_START_IN_COLLISION = "start_in_collision"  # the robot's footprint at the start meets an obstacle
+REASON_GOAL_IN_COLLISION = "goal_in_collision"  # the goal pose puts the footprint into an obstacle
+REASON_NO_COLLISION_FREE_RESHAPING = "no_collision_free_reshaping"  # stage 2 could not reshape clear
+REASON_BAR_OUT_OF_REACH = "bar_out_of_reach"  # the bar cannot be held from the pick-up pose
+REASON_FOOTSTEP_BOUNDS = "footstep_bounds"  # footsteps along the path leave the step bounds
+REASON_LIFT_TOO_HIGH = "lift_too_high"  # a bar key frame would lift it above the arms' reach
+REASON_NO_COLLISION_FREE_SAMPLE = "no_collision_free_sample"  # no bar key frame clear of the obstacles
 
 
 class ObstacleMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
