@@ -48,9 +48,18 @@ class SupervisorConfig:
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
         raise_ahead_m: a hand below the approach height is first raised at least this far ahead of
             the mid-feet point;
-        upright_hand: also ask reaching for the grasp frame upright along the heading (fingers down,
-            jaws sideways); off by default: on hrp2_like the planner then often fails its joint-speed
-            or end-effector criteria, while position-only reaches grasp the ball.
+        upright_hand: ask reaching for the grasp frame upright along the heading (fingers down, jaws
+            sideways) for the two last motions of a reach (above the object, then down onto it): no
+            finger then reaches past the object onto a neighbour (a hand pointing forward swept the
+            ball beyond the target, fetch seeds 6 and 12); where reaching refuses it (its joint-speed
+            or end-effector criteria), position only; the other motions are position only. Off by
+            default: in the fetch runs tried reaching refused it (an arm joint at 52-57 % of its
+            velocity limit against 50 %; in two motions, its end-effector criterion).
+        felt_radius_m, felt_clear_deg, felt_turns_deg: a hand that touched something perception does
+            not know (a ball beside the target: no model of it) within felt_radius_m of the next reach
+            point makes the robot walk around that point by the smallest of felt_turns_deg [deg] that
+            puts the touched points felt_clear_deg [deg] off its direction to the point (the fingers
+            point that way, past the object).
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
@@ -82,6 +91,9 @@ class SupervisorConfig:
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
     raise_ahead_m: float = 0.2
     upright_hand: bool = False
+    felt_radius_m: float = 0.3
+    felt_clear_deg: float = 60.0
+    felt_turns_deg: tuple[float, ...] = (30.0, 45.0, 60.0)
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0

@@ -71,15 +71,19 @@ def running_stack(
     log_dir: str = "",
     out: IO[str] | None = None,
     config: LauncherConfig | None = None,
+    config_path: str | None = None,
 ) -> Iterator[Launcher]:
     """The services (those of ``services`` that exist) under a launcher, ready; stopped on exit.
 
+    ``config_path``: a YAML file every service reads its section of (e.g. the recorder's ``record:``).
     UnavailableError if one does not start (its log says why: ``log_dir``).
     """
     found, _problems = discover()
     entries = [found[name] for name in services if name in found]
     launcher_config = dataclasses.replace(config or LauncherConfig(), log_dir=log_dir)
-    launcher = Launcher(bus, [*entries, found[RECORDER]], launcher_config, record=record, out=out)
+    launcher = Launcher(
+        bus, [*entries, found[RECORDER]], launcher_config, record=record, out=out, config_path=config_path
+    )
     result: list[int] = []
     thread = threading.Thread(target=lambda: result.append(launcher.run()), name="launcher", daemon=True)
     thread.start()
@@ -137,8 +141,7 @@ def fetch(
     """Reset the sim to ``scene``/``seed``, run the fetch script (or ``steps``), snapshot, summarise."""
     steps = steps if steps is not None else load_script(FETCH_SCRIPT)
     reset = reset_scene(sup, scene, seed)
-    sup.actions.memory.sightings.clear()
-    sup.actions.memory.holding.clear()
+    sup.actions.memory.clear()
     sim_start = reset.sim_time_s
     started = time.monotonic()
     report = sup.run(steps, run_id=run_id or f"fetch:{scene}:{seed}")

@@ -12,7 +12,9 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
 
+from services.bus.schemas import walking as walk_msg
 from services.errors import (
     HumanoidError,
     InfeasibleError,
@@ -26,10 +28,36 @@ from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
 from supervisor.perceive import Eyes
-from supervisor.planners import Planners
+from supervisor.planners import Plan, Planners
 from supervisor.report import ActionReport
 from supervisor.scene_map import box_estimate, is_obstacle, ray_entry
 from supervisor.script import Step, parse_point
+
+
+def turns_clear_of(
+    point: np.ndarray,
+    robot_xy: tuple[float, float],
+    felt: list[np.ndarray],
+    clear_deg: float,
+    turns_deg: tuple[float, ...],
+) -> list[float]:
+    """The turns [rad] about ``point`` (smallest first, each of ``turns_deg`` both ways) of a stance at
+    ``robot_xy`` after which the direction from the robot to ``point`` is at least ``clear_deg`` off
+    the direction from ``point`` to every ``felt`` point (world [m]); [] when it already is (no turn
+    needed) or none is. A hand reaching ``point`` points along that direction, its fingers past it."""
+
+    def clear(direction: float) -> bool:
+        return all(
+            abs(math.remainder(math.atan2(f[1] - point[1], f[0] - point[0]) - direction, 2 * math.pi))
+            >= math.radians(clear_deg)
+            for f in felt
+        )
+
+    bearing = math.atan2(point[1] - robot_xy[1], point[0] - robot_xy[0])
+    if clear(bearing):
+        return []
+    turns = sorted((math.radians(d) * sign for d in turns_deg for sign in (1.0, -1.0)), key=abs)
+    return [t for t in turns if clear(bearing + t)]
 
 
 class ManipulationActions:
@@ -58,15 +86,65 @@ class ManipulationActions:
         allowed: list[str],
         stepping: bool,
         yaw_rad: float | None,
+        upright: bool = False,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
-        taken."""
-        if not self.config.upright_hand:
-            yaw_rad = None
-        plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=stepping)
+        taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
+        reaching refuses that (or ``config.upright_hand`` is off); else position only."""
+        if upright and self.config.upright_hand and yaw_rad is not None:
+            try:
+                plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=stepping)
+            except InfeasibleError as exc:
+                steps = self._turn_hand_on_the_way(hand, point, what, allowed, yaw_rad, exc)
+                if steps is not None:
+                    return steps
+            else:
+                return self._play(plan, what, allowed)
+        plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping)
+        return self._play(plan, what, allowed)
+
+    def _play(self, plan: Plan, what: str, allowed: list[str]) -> int:
         self.progress(f"{what}: {plan.describe()}")
         self.body.execute(plan.q, what=what, allowed_contacts=allowed, progress=self.progress, hold_s=0.1)
         return plan.n_steps
+
+    def _turn_hand_on_the_way(
+        self,
+        hand: str,
+        point: np.ndarray,
+        what: str,
+        allowed: list[str],
+        yaw_rad: float,
+        refused: HumanoidError,
+    ) -> int | None:
+        """Fingers down at ``point`` in two motions when one was refused (the wrist turning too fast
+        for reaching's joint-speed criterion in one motion's time): to half way, turned half way (a
+        slerp of the hand's orientation now and the upright one), then to ``point``, upright; no
+        stepping. None when reaching refuses either (the caller then goes on, position only, from
+        where the hand is)."""
+        robot = self.body.robot
+        q = self.body.q()
+        here = robot.frame_pose(q, robot.grasp_frame(hand))
+        rotations = Rotation.from_matrix(
+            np.stack([here.rotation, Rotation.from_euler("z", yaw_rad).as_matrix()])
+        )
+        half = Slerp([0.0, 1.0], rotations)(0.5).as_quat().tolist()
+        middle = 0.5 * (np.asarray(here.translation) + point)
+        try:
+            first = self.planners.reach(hand, middle, orientation=half, allow_stepping=False)
+        except InfeasibleError as exc:
+            self.progress(
+                f"{what}: fingers down refused ({refused.message}; in two motions: {exc.message}); "
+                "any orientation then"
+            )
+            return None
+        self._play(first, f"{what}: turning the hand half way", allowed)
+        try:
+            second = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
+        except InfeasibleError as exc:
+            self.progress(f"{what}: fingers down refused after half way ({exc.message}); any orientation")
+            return None
+        return self._play(second, what, allowed)
 
     def _raise_hand(self, hand: str, height_m: float, what: str, *, allowed: list[str]) -> None:
         """Raise the hand in front of the body to ``height_m`` before moving it forward: the reaching
@@ -105,11 +183,15 @@ class ManipulationActions:
         jaws straddle the object on the way down and no arm link sweeps the object's support.
         """
         hand, target = step.args
+        self.last_reach = (hand, target)  # the reach under way (a remedy backs this hand off its target)
         if hand not in self.body.held():
             self.body.gripper(hand, "open")
         yaw = self._heading()
         point = self._grasp_point(hand, target, yaw)
         allowed = [target, *self._support(target)] if parse_point(target, 3, "reach target") is None else []
+        self._clear_of_felt(point, f"step around {target}")
+        yaw = self._heading()
+        point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
         if self._last_steps(hand, above, point, f"step up to {target}"):
             if parse_point(target, 3, "reach target") is None:
@@ -122,11 +204,21 @@ class ManipulationActions:
             point = self._grasp_point(hand, target, yaw)
             above = point + np.array([0.0, 0.0, self.config.approach_m])
         self._raise_hand(hand, float(above[2]), f"raise the {hand} hand", allowed=[])
-        steps = self._move_hand(hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw)
+        # Fingers down for the last two motions: the jaws then straddle the object and no finger reaches
+        # past it, onto a neighbour the map does not show (a hand pointing forward swept a ball beyond).
+        steps = self._move_hand(
+            hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
+        )
         yaw = self._heading()  # the steps may have turned the robot
         point = self._grasp_point(hand, target, yaw)
         self._move_hand(
-            hand, point, f"lower the {hand} hand onto {target}", allowed=allowed, stepping=False, yaw_rad=yaw
+            hand,
+            point,
+            f"lower the {hand} hand onto {target}",
+            allowed=allowed,
+            stepping=False,
+            yaw_rad=yaw,
+            upright=self._hand_upright(hand, yaw),
         )
         self.last_reach = (hand, target)
         return ActionReport(
@@ -135,6 +227,47 @@ class ManipulationActions:
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
+
+    def _clear_of_felt(self, point: np.ndarray, what: str) -> None:
+        """When a hand touched something unseen near ``point`` (memory's felt points, within
+        ``felt_radius_m``): the fingers, which point from the robot over the object and past it, came
+        down on it. Walk around ``point`` (``walking/goal``, checked against the map) by the smallest of
+        ``felt_turns_deg`` that puts every such point at least ``felt_clear_deg`` off the direction
+        from the robot to ``point``; the last steps are then planned from there. Nothing to do when
+        none was felt near, or none of the stances is free."""
+        c = self.config
+        near = [f for f in self.memory.felt if float(np.linalg.norm(f[:2] - point[:2])) < c.felt_radius_m]
+        if not near:
+            return
+        self.body.straighten()  # the walk is planned from the posture it starts in
+        x, y, yaw = self.body.base_xy_yaw()
+        for turn in turns_clear_of(point, (x, y), near, c.felt_clear_deg, c.felt_turns_deg):
+            # The stance rotated about the point by ``turn``: same distance, same offset to the side.
+            cos_t, sin_t = math.cos(turn), math.sin(turn)
+            dx, dy = x - point[0], y - point[1]
+            goal = [point[0] + cos_t * dx - sin_t * dy, point[1] + sin_t * dx + cos_t * dy, yaw + turn]
+            try:
+                plan = self.planners.walk_goal(
+                    walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="pose", pose=goal, frame="world")
+                )
+            except InfeasibleError as exc:
+                self.progress(f"{what}: no walk {math.degrees(turn):+.0f} deg around it ({exc.message})")
+                continue
+            self.progress(
+                f"{what}: the hand touched something unseen there; approaching {math.degrees(turn):+.0f} "
+                f"deg around it ({plan.describe()})"
+            )
+            self.body.execute(plan.q, what=what, progress=self.progress)
+            return
+
+    def _hand_upright(self, hand: str, yaw_rad: float, tolerance_rad: float = 0.3) -> bool:
+        """Whether the ``hand``'s grasp frame is upright along ``yaw_rad`` now (its z axis within
+        ``tolerance_rad`` of the world's, its x axis along the heading): then the lowering keeps it so."""
+        robot = self.body.robot
+        R = robot.frame_pose(self.body.q(), robot.grasp_frame(hand)).rotation
+        z_ok = float(R[2, 2]) > math.cos(tolerance_rad)
+        x_ok = float(R[0, 0] * math.cos(yaw_rad) + R[1, 0] * math.sin(yaw_rad)) > math.cos(tolerance_rad)
+        return z_ok and x_ok
 
     def _last_steps(
         self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray, what: str, allowed: list[str] | None = None
@@ -248,19 +381,20 @@ class ManipulationActions:
         for attempt in (1, 2):
             # Look at the place (again, on the second attempt: from nearer, with the object above it).
             self.do_look_at(Step(step.line, "look_at", (place,)))
-            point = self._put_point(place)
-            if attempt == 1:
-                self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
+            # The second time, the map's rectangle proved wrong where the object went down: aim at the
+            # middle of the place's silhouette as seen from here, which lies on it.
+            point = self._put_point(place, seen_middle=attempt == 2)
+            self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
             self._move_hand(
                 hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
             )
             low = point.copy()
-            low[2] = max(self.config.put_lowest_m, point[2] - self.config.put_depth_m)
-            plan = self.planners.reach(
-                hand, low, yaw_rad=yaw if self.config.upright_hand else None, allow_stepping=False
-            )
+            # The second time down, the top estimate is in doubt too: down to the lowest a top can be.
+            depth = self.config.put_depth_m if attempt == 1 else point[2] - self.config.put_lowest_m
+            low[2] = max(self.config.put_lowest_m, point[2] - depth)
+            plan = self.planners.reach(hand, low, yaw_rad=None, allow_stepping=False)
             what = f"lower {obj} onto {place}"
             self.progress(f"{what}: {plan.describe()}, until it touches")
             executed = self.body.execute(
@@ -278,7 +412,13 @@ class ManipulationActions:
                 f"lowered {obj} down to {low[2]:.2f} m without touching {place}: raising it and "
                 f"localizing {place} again"
             )
+            # Measured: the place's map rectangle holds a point with nothing under it. Seen from here
+            # (nearer), the place is mapped anew from its silhouette.
+            self.memory.drop_footprint(place)
             self._move_hand(hand, point, f"raise {obj} again", allowed=allowed, stepping=False, yaw_rad=yaw)
+            self._move_hand(  # carried again for the next last steps
+                hand, self._carry_point(hand), f"carry {obj}", allowed=allowed, stepping=False, yaw_rad=yaw
+            )
         robot = self.body.robot
         at = robot.grasp_position(executed.q, hand)
         reply = self.body.gripper(hand, "open")
@@ -303,10 +443,17 @@ class ManipulationActions:
             details={"point": at.tolist(), "on": place, "hand": hand},
         )
 
-    def _put_point(self, place: str) -> np.ndarray:
+    def _put_point(self, place: str, *, seen_middle: bool = False) -> np.ndarray:
         """Where the object goes before being lowered: inside the place's near face (as the map
-        estimates it), above the highest its top can be (capped: a rough silhouette overestimates)."""
-        box = box_estimate(self.memory.get(place))
+        estimates it), above the highest its top can be (capped: a rough silhouette overestimates).
+        With ``seen_middle``: above the middle of the place's silhouette in its last sighting instead
+        (a point on the place itself, whatever the map's rectangle: after a put that touched nothing)."""
+        sighting = self.memory.get(place)
+        box = box_estimate(sighting)
+        top = min(box.top_z_m, self.config.put_highest_m)
+        if seen_middle:
+            middle = sighting.position_m
+            return np.array([middle[0], middle[1], top + self.config.put_height_m])
         x, y, _ = self.body.base_xy_yaw()
         centre = np.array(box.center_m[:2])
         to_centre = centre - (x, y)
@@ -315,5 +462,4 @@ class ManipulationActions:
         face = min(dist, ray_entry(box, np.array([x, y]), u))
         ahead = min(dist, max(0.0, face) + self.config.put_inside_m)
         xy = np.array([x, y]) + u * ahead
-        top = min(box.top_z_m, self.config.put_highest_m)
         return np.array([xy[0], xy[1], top + self.config.put_height_m])

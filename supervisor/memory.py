@@ -58,6 +58,15 @@ class Memory:
 
     sightings: dict[str, Sighting] = field(default_factory=dict)
     holding: dict[str, str] = field(default_factory=dict)  # side -> object
+    #: World points [m] where a hand touched something perception does not know (no model of it: a
+    #: ball beside the one to grasp): felt, not seen; the next approach keeps the fingers off them.
+    felt: list[np.ndarray] = field(default_factory=list)
+
+    def clear(self) -> None:
+        """Forget everything (a new scene)."""
+        self.sightings.clear()
+        self.holding.clear()
+        self.felt.clear()
 
     def remember(self, sighting: Sighting) -> None:
         """Keep ``sighting`` as the latest of its object. Seen without a footprint (cut by the image
@@ -73,6 +82,13 @@ class Memory:
         ):
             sighting = replace(sighting, footprint=last.footprint)
         self.sightings[sighting.name] = sighting
+
+    def drop_footprint(self, name: str) -> None:
+        """Forget the floor rectangle of ``name`` (a measurement proved it wrong: an object lowered
+        inside it touched nothing); its next sightings without one do not inherit it either."""
+        sighting = self.sightings.get(name)
+        if sighting is not None and sighting.footprint is not None:
+            self.sightings[name] = replace(sighting, footprint=None)
 
     def forget(self, name: str) -> None:
         self.sightings.pop(name, None)

@@ -204,11 +204,12 @@ class Planners:
         yaw_rad: float | None = None,
         allow_stepping: bool = True,
         gaze: bool = True,
+        orientation: list[float] | None = None,
     ) -> Plan:
         """``reaching/reach``: the ``hand`` grasp frame to ``target_m`` [m], from above: the grasp frame
-        upright (fingers down, jaws closing sideways) turned by ``yaw_rad`` (None: position only)."""
-        orientation = None
-        if yaw_rad is not None:
+        upright (fingers down, jaws closing sideways) turned by ``yaw_rad`` (None: position only), or
+        at ``orientation`` ([qx, qy, qz, qw] in the world) when given."""
+        if orientation is None and yaw_rad is not None:
             orientation = [0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)]
         q = self.body.plan_q()
         request = reach_msg.ReachRequest(

@@ -84,8 +84,17 @@ class Remedies:
         for hand, tag in (("right", "RARM"), ("left", "LARM")):
             if tag in links or ("held:" in links.lower() and hand in self.body.held()):
                 self._back_off(hand, touched)
+        self._remember_felt(collisions)
         self._map_what_was_hit([c.position for c in collisions])
         self.relocalize(step, report)
+
+    def _remember_felt(self, collisions: list[sim_msg.Contact]) -> None:
+        """Contacts of a hand with an object perception has not localized (it has no model of it: a
+        ball beside the target) go to the memory's felt points: the next reach approaches clear of
+        them (ManipulationActions._clear_of_felt)."""
+        for contact in collisions:
+            if _arm_link(contact.robot_link) and contact.other not in self.memory.sightings:
+                self.memory.felt.append(np.asarray(contact.position, dtype=float))
 
     def _map_what_was_hit(self, contacts: list[list[float]]) -> None:
         """A contact off every mapped box (by more than ``self.config.mapped_margin_m``) hit something the map
@@ -98,19 +107,34 @@ class Remedies:
                 return
 
     def _back_off(self, hand: str, touched: list[str]) -> None:
-        """Move ``hand`` back and up out of contact with ``touched`` (no stepping)."""
+        """Move ``hand`` out of contact with ``touched`` (no stepping): back and up; when it was coming
+        down onto the object it reaches, straight up first (the fingers leave the way they came, clear
+        of the object and its neighbours), then back (out of the camera's line of sight to it)."""
         q = self.body.q()
         robot = self.body.robot
         here = robot.grasp_position(q, hand)
         _x, _y, yaw = self.body.base_xy_yaw(q)
+        allowed = touched + list(self.body.held().values())
         back = -self.config.back_off_m * np.array([math.cos(yaw), math.sin(yaw), -1.0])
         self.progress(f"backing the {hand} hand off {', '.join(touched)}")
-        held = list(self.body.held().values())
+        if self.last_reach is not None and self.last_reach[0] == hand and hand not in self.body.held():
+            if parse_point(self.last_reach[1], 3, "target") is None:
+                allowed.append(self.last_reach[1])
+            up = here + np.array([0.0, 0.0, 1.5 * self.config.back_off_m])
+            self._move_hand(
+                hand,
+                up,
+                f"lift the {hand} hand off",
+                allowed=sorted(set(allowed)),
+                stepping=False,
+                yaw_rad=yaw,
+            )
+            here, back = up, 2.0 * back * np.array([1.0, 1.0, 0.0])
         self._move_hand(
             hand,
             here + back,
             f"back the {hand} hand off",
-            allowed=touched + held,
+            allowed=sorted(set(allowed)),
             stepping=False,
             yaw_rad=yaw,
         )

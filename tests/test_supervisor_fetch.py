@@ -12,15 +12,17 @@ import io
 import os
 import signal
 import threading
+import time
 from pathlib import Path
 
 import pytest
 from conftest import free_port
 
 from services.bus.config import BusConfig
+from services.bus.schemas import footsteps as fs_msg
 from services.bus.schemas import sim as sim_msg
 from supervisor.core import Supervisor
-from supervisor.evaluate import ball_on_table
+from supervisor.evaluate import ball_on_table, record_config, requests_in_log
 from supervisor.fetch import fetch, reset_scene, running_stack
 from supervisor.repl import ConsoleLoop
 
@@ -31,7 +33,13 @@ pytestmark = pytest.mark.integration
 def stack(tmp_path_factory):
     bus = BusConfig().with_hub_port(free_port())
     logs = tmp_path_factory.mktemp("logs")
-    with running_stack(bus, log_dir=str(logs)) as launcher, Supervisor.connect(bus) as sup:
+    # The recorder writes the footstep planner's messages (one chunk each: readable while it records).
+    config = record_config(logs / "record.yaml", chunk_bytes=1)
+    record = str(logs / "footsteps.mcap")
+    with (
+        running_stack(bus, log_dir=str(logs), record=record, config_path=config) as launcher,
+        Supervisor.connect(bus) as sup,
+    ):
         assert sup.wait_for_services(30.0) == []
         yield launcher, sup
 
@@ -76,6 +84,7 @@ def test_fetch_succeeds_when_walking_is_killed_during_the_turn(stack, tmp_path) 
 
     sup.runner.on_event = watch_steps
     sup.bus.on_call = kill_during_walking_plan
+    start_ns = time.time_ns()
     try:
         summary, report = _run_in_thread(lambda: fetch(sup, snapshot=tmp_path / "final.png"), 500)
     finally:
@@ -97,6 +106,10 @@ def test_fetch_succeeds_when_walking_is_killed_during_the_turn(stack, tmp_path) 
     assert "walking" in failures[0].message
     assert any(e.kind == "retried" and e.step.startswith("turn") for e in sup.events)
     assert any(e.kind == "progress" and "service walking is back" in e.message for e in sup.events)
+    # The footstep planner planned the last steps of the grasp and of the put: counted in the log.
+    time.sleep(0.5)  # the recorder's last chunk
+    [calls] = requests_in_log(launcher.record, fs_msg.PLAN, [(start_ns, time.time_ns())])
+    assert calls >= 2, calls
 
 
 def test_console_takes_the_orange_ball(stack) -> None:

@@ -74,3 +74,38 @@ def test_a_sighting_without_footprint_keeps_the_last_one_where_it_still_fits():
     moved = replace(_sighting(None), position_m=np.array([4.0, 1.0, 0.5]))  # seen elsewhere: moved
     memory.remember(moved)
     assert memory.get("yellow_table").footprint is None
+
+
+def test_a_footprint_proved_wrong_is_not_inherited_again():
+    """A put lowered the object inside the table's rectangle onto nothing: the rectangle is dropped, and
+    the next sighting without a footprint (close up, cut by the border) maps the table from its own
+    silhouette instead of inheriting the wrong rectangle (fetch seed 13)."""
+    from dataclasses import replace
+
+    from supervisor.memory import Memory
+
+    memory = Memory()
+    wrong = _fp((2.0, 0.0), (1.4, 1.0), 0.0, 0.9, 200)
+    memory.remember(_sighting(wrong))
+    memory.drop_footprint("yellow_table")
+    memory.drop_footprint("chair")  # never seen: nothing to drop
+    close_up = replace(_sighting(None), position_m=np.array([2.3, 0.2, 0.6]))
+    memory.remember(close_up)
+    assert memory.get("yellow_table").footprint is None
+    box = box_estimate(memory.get("yellow_table"))
+    assert box.size_m[:2] != pytest.approx((1.4, 1.0))
+
+
+def test_the_approach_turns_clear_of_what_the_hand_felt():
+    """Fetch seed 6: the robot 0.6 m behind the ball, the fingers came down on a ball 0.12 m beyond it
+    and to the right; the turns about the ball that put it 60 deg off the approach are 45 and 60 deg to
+    the left (30 is not enough, and the right brings the approach toward it); none is needed when
+    nothing was felt in the way."""
+    from supervisor.manipulation import turns_clear_of
+
+    ball = np.array([3.33, 1.12, 0.75])
+    robot = (2.72, 1.18)
+    felt = [np.array([3.43, 1.07, 0.78])]
+    turns = [math.degrees(t) for t in turns_clear_of(ball, robot, felt, 60.0, (30.0, 45.0, 60.0))]
+    assert turns == pytest.approx([45.0, 60.0])
+    assert turns_clear_of(ball, robot, [np.array([3.0, 1.6, 0.75])], 60.0, (30.0,)) == []
