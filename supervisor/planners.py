@@ -30,7 +30,7 @@ from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
-from supervisor.scene_map import boxes, obstacles
+from supervisor.scene_map import obstacles
 
 
 @dataclass(frozen=True)
@@ -145,8 +145,8 @@ class Planners:
     # footsteps ----------------------------------------------------------------------------------------
     def last_steps(self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray) -> tuple[Plan | None, str]:
         """``footsteps/plan`` for the last steps before the ``hand`` reaches ``target_m`` [m] (tasks, by
-        priority: the hand at the target, the gaze on ``gaze_m``, the rest posture; the map's boxes as
-        disks no footprint may enter; paper 000 §7), then ``walking/plan`` of its footsteps. Returns
+        priority: the hand at the target, the gaze on ``gaze_m``, the rest posture; the map's boxes, which
+        no footprint may enter; paper 000 §7), then ``walking/plan`` of its footsteps. Returns
         (the walk, or None when no step is needed, and a line saying what the planner found). Raises
         the planners' typed errors (``infeasible`` when the tasks cannot be met)."""
         q = self.body.plan_q()
@@ -159,7 +159,7 @@ class Planners:
             ],
             model=self.body.robot.name,
             q_start=q,
-            disks=[fs_msg.Disk(x=x, y=y, radius=r) for box in boxes(self.memory) for x, y, r in box.disks()],
+            boxes=obstacles(self.memory),  # the footstep service covers each box by disks (paper 000 §4.1)
             max_steps=c.last_steps_max,
             time_budget_s=c.last_steps_budget_s,
         )

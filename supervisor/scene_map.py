@@ -42,23 +42,6 @@ class BoxEstimate:
     def top_z_m(self) -> float:
         return self.size_m[2]
 
-    def disks(self) -> list[tuple[float, float, float]]:
-        """(x, y, radius) [m] of disks covering the footprint rectangle: as many as it is times longer
-        than wide, each over its square-ish cell (footsteps/plan's obstacles are disks, paper 000 §4.1)."""
-        length, width = self.size_m[0], self.size_m[1]
-        along = 0 if length >= width else 1
-        long_side, short_side = max(length, width), min(length, width)
-        n = max(1, math.ceil(long_side / short_side - 1e-9))
-        cell = long_side / n
-        radius = 0.5 * math.hypot(cell, short_side)
-        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        axis = (c, s) if along == 0 else (-s, c)
-        out = []
-        for k in range(n):
-            offset = (k + 0.5) * cell - long_side / 2.0
-            out.append((self.center_m[0] + offset * axis[0], self.center_m[1] + offset * axis[1], radius))
-        return out
-
     def to_msg(self) -> nav_msg.ObstacleMsg:
         return nav_msg.ObstacleMsg(
             name=self.name, kind="box", center=list(self.center_m), size=list(self.size_m), yaw=self.yaw_rad

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from services.bus.schemas import footsteps as msg
+from services.bus.schemas.navigation import ObstacleMsg
 from services.errors import InfeasibleError, InvalidRequestError
+from services.footsteps.geometry import disks_covering
 from services.footsteps.service import plan_reply
 from services.model import load_robot
 from services.model.ground import Rectangle
@@ -96,6 +98,13 @@ def test_trace_returns_the_task_values_per_iteration(client):
             r"disks\[0\]",
         ),
         (msg.PlanRequest(tasks=[msg.Task(kind="posture")], front_foot="both"), "front_foot"),
+        (
+            msg.PlanRequest(
+                tasks=[msg.Task(kind="posture")],
+                boxes=[ObstacleMsg(name="box", center=[1.0, 0.0, 0.3], size=[0.0, 0.5, 0.6])],
+            ),
+            r"boxes\[0\]",
+        ),
         (msg.PlanRequest(tasks=[msg.Task(kind="posture")], model="nao"), "nao"),
         (msg.PlanRequest(tasks="oops"), r"\$\.tasks"),  # type: ignore[arg-type]  (wrong type on the wire)
     ],
@@ -125,3 +134,22 @@ def test_unreachable_target_is_infeasible_with_the_residuals_within_the_budget(c
     assert details["reason"] in ("stalled", "max_steps", "time_budget")
     assert details["solve_time_s"] <= budget_s + 2.0  # the budget is checked between iterations
     assert details["steps"] >= 0 and details["iterations"] > 0
+
+
+def test_boxes_are_obstacles_covered_by_disks(robot):
+    """A map's box (as navigation takes it) between the robot and the target: the footsteps keep out of
+    its rectangle, and the plan is the one of the disks that cover it (no bus: the service's adapter)."""
+    box = ObstacleMsg(name="green_box", center=[0.9, -0.1, 0.35], size=[0.5, 0.6, 0.7], yaw=0.3)
+    tasks = [msg.Task(kind="reach", target=[1.1, -0.1, 0.8], hand="right"), msg.Task(kind="posture")]
+    reply = plan_reply(msg.PlanRequest(tasks=tasks, boxes=[box]))
+    rect = Rectangle((0.9, -0.1), (0.5, 0.6), 0.3)
+    disks = disks_covering(rect)
+    assert len(disks) == 2  # 0.6 m by 0.5 m: two cells along its length
+    for corner in rect.corners():  # every corner inside a disk
+        assert any(np.hypot(corner[0] - x, corner[1] - y) <= r + 1e-9 for x, y, r in disks)
+    assert reply.footsteps and reply.residuals[0].solved
+    for step in reply.footsteps:
+        sole = Rectangle((step.x, step.y), robot.sole_size_m, step.yaw)
+        assert min(rect.signed_distance(sole.corners())) > 0.0
+    same = plan_reply(msg.PlanRequest(tasks=tasks, disks=[msg.Disk(x=x, y=y, radius=r) for x, y, r in disks]))
+    assert same.footsteps == reply.footsteps

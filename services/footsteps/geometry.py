@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from services.model.ground import SolePose, wrap_angle
+from services.model.ground import Rectangle, SolePose, wrap_angle
 
 
 def se3_of(pose: SolePose) -> pin.SE3:
@@ -91,3 +91,18 @@ def same_pose(a: SolePose, b: SolePose, tol_m: float = 1e-3, tol_rad: float = 1e
         math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) <= tol_m
         and abs(wrap_angle(a.yaw_rad - b.yaw_rad)) <= tol_rad
     )
+
+
+def disks_covering(rect: Rectangle) -> list[tuple[float, float, float]]:
+    """(x, y, radius) [m] of disks covering the floor rectangle ``rect`` (the planner's obstacles are
+    disks, section 4.1 of the paper): as many as the rectangle is times longer than wide, each the
+    circumscribed disk of its square-ish cell along the length."""
+    length, width = float(rect.size_m[0]), float(rect.size_m[1])
+    long_side, short_side = max(length, width), min(length, width)
+    n = max(1, math.ceil(long_side / short_side - 1e-9))
+    cell = long_side / n
+    radius = 0.5 * math.hypot(cell, short_side)
+    offsets = [(k + 0.5) * cell - long_side / 2.0 for k in range(n)]
+    local = [(o, 0.0) if length >= width else (0.0, o) for o in offsets]
+    centres = rect.to_world(np.array(local))
+    return [(float(x), float(y), radius) for x, y in centres]

@@ -4,7 +4,8 @@ Run: ``python -m services.footsteps.service`` (common service options: ``--confi
 ``--hub``, ``--log-level``; YAML section ``footsteps:``, :class:`FootstepsConfig`).
 
 Endpoint ``footsteps/plan`` (:mod:`services.bus.schemas.footsteps`): tasks in priority order (hand
-reach point, gaze point, rest posture), disk obstacles, the front-foot (start-foot) choice, an initial
+reach point, gaze point, rest posture), disk obstacles and box obstacles (a map's boxes, as navigation
+takes them: each covered by disks of its footprint), the front-foot (start-foot) choice, an initial
 guess of the number of steps and the starting configuration in; the footsteps (sole poses, walking
 order), the final whole-body configuration, per-task residuals, iterations, the iterations at which
 steps were added and the solve time out. Stateless: apart from ``solve_time_s`` the reply is a
@@ -13,11 +14,12 @@ reach) is the supervisor's job: ``walking/plan`` with the footsteps, then ``sim/
 :func:`plan_reply` is the whole adapter without the bus.
 
 Failure codes: ``invalid_request`` (unknown model, task kind or hand, a reach/gaze task without a
-3-D target, a task twice, a disk with radius <= 0, ``q_start`` or ``q_rest`` of the wrong size or
-``q_start`` not standing flat on the ground, ``initial_steps`` outside 0..``max_steps``, options out
-of range: the message names the field); ``infeasible`` (the tasks cannot be met: the message names
-the worst task, its value and why Algorithm 1 stopped - local minimum, step cap, iteration cap, time
-budget -, ``details`` has ``residuals``, ``tolerances``, ``reason``, ``steps``, ``iterations``).
+3-D target, a task twice, a disk with radius <= 0, a box without a positive size, ``q_start`` or
+``q_rest`` of the wrong size or ``q_start`` not standing flat on the ground, ``initial_steps`` outside
+0..``max_steps``, options out of range: the message names the field); ``infeasible`` (the tasks cannot
+be met: the message names the worst task, its value and why Algorithm 1 stopped - local minimum, step
+cap, iteration cap, time budget -, ``details`` has ``residuals``, ``tolerances``, ``reason``,
+``steps``, ``iterations``).
 """
 
 from __future__ import annotations
@@ -32,8 +34,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small dense problems: thre
 import numpy as np
 
 from services.bus.schemas import footsteps as msg
+from services.bus.schemas.navigation import ObstacleMsg
 from services.bus.service import Service, handles, run_service
 from services.errors import InvalidRequestError
+from services.footsteps.geometry import disks_covering
 from services.footsteps.planner import plan_footsteps
 from services.footsteps.request import (
     DiskObstacle,
@@ -43,6 +47,7 @@ from services.footsteps.request import (
     PlannerOptions,
 )
 from services.model import RobotModel, load_robot
+from services.model.ground import Rectangle
 
 
 @dataclass(frozen=True)
@@ -97,6 +102,28 @@ def _options(options: msg.Options | None) -> PlannerOptions:
     return dataclasses.replace(PlannerOptions(), **given)
 
 
+def _box_disks(boxes: list[ObstacleMsg]) -> list[tuple[float, float, float]]:
+    """The disks (x, y, radius) [m] covering the footprints of ``boxes`` (kind "box": centre, full
+    extents, yaw; a "cylinder": its disk); InvalidRequestError naming a malformed one."""
+    out: list[tuple[float, float, float]] = []
+    for i, box in enumerate(boxes):
+        if len(box.center) < 2:
+            raise InvalidRequestError(f"boxes[{i}].center: needs [x, y, z], got {box.center}")
+        if box.kind == "cylinder":
+            if not box.radius > 0.0:
+                raise InvalidRequestError(f"boxes[{i}].radius: must be > 0 for a cylinder, got {box.radius}")
+            out.append((float(box.center[0]), float(box.center[1]), float(box.radius)))
+            continue
+        if box.kind != "box" or len(box.size) < 2 or not min(box.size[:2]) > 0.0:
+            raise InvalidRequestError(
+                f"boxes[{i}]: expected kind 'box' with size [sx, sy, sz] > 0 (or 'cylinder'), got "
+                f"kind {box.kind!r}, size {box.size}"
+            )
+        rect = Rectangle((float(box.center[0]), float(box.center[1])), (box.size[0], box.size[1]), box.yaw)
+        out.extend(disks_covering(rect))
+    return out
+
+
 def to_planner_request(
     request: msg.PlanRequest, robot: RobotModel, max_budget_s: float
 ) -> FootstepPlanRequest:
@@ -116,7 +143,10 @@ def to_planner_request(
         tasks=tasks,
         robot=robot.name,
         q_start=_vector(request.q_start, robot, "q_start"),
-        disks=tuple(DiskObstacle(float(d.x), float(d.y), float(d.radius)) for d in request.disks),
+        disks=(
+            *(DiskObstacle(float(d.x), float(d.y), float(d.radius)) for d in request.disks),
+            *(DiskObstacle(*disk) for disk in _box_disks(request.boxes)),
+        ),
         front_foot=request.front_foot,
         initial_steps=request.initial_steps,
         max_steps=request.max_steps,

@@ -39,6 +39,7 @@ from services.bus.limits import (
     Tolerance,
 )
 from services.bus.schemas.common import Footstep
+from services.bus.schemas.navigation import ObstacleMsg
 from services.bus.spec import EndpointSpec
 
 
@@ -92,6 +93,9 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     model: Name = "hrp2_like"  # services.model.load_robot name: hrp2_like or talos
     q_start: np.ndarray | None = None  # (nq,) float64, both soles flat on the ground; None: half-sitting
     disks: Annotated[list[Disk], Meta(max_length=MAX_OBSTACLES)] = []
+    # boxes on the floor (e.g. the supervisor's map, as for navigation/goto): each covered by disks of
+    # its footprint rectangle (services.footsteps.geometry.disks_covering), obstacles like ``disks``
+    boxes: Annotated[list[ObstacleMsg], Meta(max_length=MAX_OBSTACLES)] = []
     front_foot: Name = "auto"  # foot of the last step, "left"/"right"; "auto": both solved, the one with
     #                           fewer steps kept (section 5.2: this is the choice of the start foot)
     initial_steps: StepCount = 0  # initial guess of the number of steps (section 5.1)
