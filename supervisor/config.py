@@ -37,12 +37,16 @@ class SupervisorConfig:
         last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
             the end of the approach) for the last steps, within last_steps_max steps and
             last_steps_budget_s of planning, and walk them (reaching still steps if the object moved);
+            last_steps_posture: reaching then brings the hand above the object turned as in the final
+            posture footsteps/plan planned with those steps (position only where reaching refuses it);
+            off by default until it is benchmarked;
         back_off_m: after a collision, the touching hand moves this far back and up;
         put_height_m: the object is brought this high above the estimated top of the place, then
             lowered until it touches; put_highest_m, put_lowest_m: bounds of a place's top height (the
             estimate is capped at the first, the object is lowered down to the second at most);
             put_depth_m: and at most this far; put_inside_m: the release point is this far inside the
-            place's near face;
+            place's near face; put_retry_shift_m: after a put that touched nothing, the next release
+            point is this far at most from the first, toward the middle of the place's silhouette;
         approach_m: the hand first goes this far above a reach or put point, then down;
         lift_m: a grasped object (or an emptied hand) is raised by this first;
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
@@ -80,12 +84,14 @@ class SupervisorConfig:
     last_steps: bool = True
     last_steps_max: int = 6
     last_steps_budget_s: float = 5.0
+    last_steps_posture: bool = False
     back_off_m: float = 0.08
     put_height_m: float = 0.12
     put_highest_m: float = 0.95
     put_lowest_m: float = 0.4
     put_depth_m: float = 0.35
     put_inside_m: float = 0.15
+    put_retry_shift_m: float = 0.35
     approach_m: float = 0.12
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)

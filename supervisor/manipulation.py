@@ -28,7 +28,7 @@ from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
 from supervisor.perceive import Eyes
-from supervisor.planners import Plan, Planners
+from supervisor.planners import LastSteps, Plan, Planners
 from supervisor.report import ActionReport
 from supervisor.scene_map import box_estimate, is_obstacle, ray_entry
 from supervisor.script import Step, parse_point
@@ -87,10 +87,20 @@ class ManipulationActions:
         stepping: bool,
         yaw_rad: float | None,
         upright: bool = False,
+        orientation: list[float] | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
-        reaching refuses that (or ``config.upright_hand`` is off); else position only."""
+        reaching refuses that (or ``config.upright_hand`` is off); ``orientation``: the grasp frame at
+        that world quaternion [qx, qy, qz, qw] (the hand of footsteps/plan's final posture), position
+        only when reaching refuses it; else position only."""
+        if orientation is not None and not (upright and self.config.upright_hand):
+            try:
+                plan = self.planners.reach(hand, point, orientation=orientation, allow_stepping=stepping)
+            except InfeasibleError as exc:
+                self.progress(f"{what}: the hand as in the planned final posture refused ({exc.message})")
+            else:
+                return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
         if upright and self.config.upright_hand and yaw_rad is not None:
             try:
                 plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=stepping)
@@ -177,10 +187,11 @@ class ManipulationActions:
     def do_reach(self, step: Step) -> ActionReport:
         """Reach a hand to an object or 'x,y,z' from above (stepping when out of reach), gripper open.
 
-        Two motions of ``reaching/reach``: to ``approach_m`` above the target (the support polygon may
-        be reshaped: steps), then straight down onto it with the object as an allowed contact. The grasp
-        frame is upright (fingers down, jaws closing sideways) along the robot's heading, so that the
-        jaws straddle the object on the way down and no arm link sweeps the object's support.
+        First the last steps, which footsteps/plan decides with the final posture (paper 000 §7), then
+        two motions of ``reaching/reach``: to ``approach_m`` above the target (the support polygon may
+        be reshaped: steps), the hand turned as in footsteps/plan's final posture
+        (``last_steps_posture``; position only where reaching refuses it), then straight down onto it
+        with the object as an allowed contact, the hand keeping its orientation.
         """
         hand, target = step.args
         self.last_reach = (hand, target)  # the reach under way (a remedy backs this hand off its target)
@@ -193,7 +204,8 @@ class ManipulationActions:
         yaw = self._heading()
         point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
-        if self._last_steps(hand, above, point, f"step up to {target}"):
+        decided = self._last_steps(hand, above, point, f"step up to {target}")
+        if decided is not None and decided.walk is not None:
             if parse_point(target, 3, "reach target") is None:
                 # Nearer now: localize it again before the hand comes down (a grasp closed on nothing
                 # when the ball had been localized a few centimetres off from farther away).
@@ -204,21 +216,33 @@ class ManipulationActions:
             point = self._grasp_point(hand, target, yaw)
             above = point + np.array([0.0, 0.0, self.config.approach_m])
         self._raise_hand(hand, float(above[2]), f"raise the {hand} hand", allowed=[])
-        # Fingers down for the last two motions: the jaws then straddle the object and no finger reaches
-        # past it, onto a neighbour the map does not show (a hand pointing forward swept a ball beyond).
+        # The hand above the object as footsteps/plan's final posture has it (paper 000 §7: the footstep
+        # planner decided the stance and the posture together; reaching executes that hand pose), or,
+        # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
+        # past it onto a neighbour the map does not show.
+        final = decided.hand_quat if decided is not None and self.config.last_steps_posture else None
         steps = self._move_hand(
-            hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
+            hand,
+            above,
+            f"reach above {target}",
+            allowed=[],
+            stepping=True,
+            yaw_rad=yaw,
+            upright=True,
+            orientation=final,
         )
         yaw = self._heading()  # the steps may have turned the robot
         point = self._grasp_point(hand, target, yaw)
-        self._move_hand(
+        upright = Rotation.from_euler("z", yaw).as_quat().tolist() if self.config.upright_hand else None
+        keep = next((quat for quat in (final, upright) if quat and self._hand_at(hand, quat)), None)
+        self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
             f"lower the {hand} hand onto {target}",
             allowed=allowed,
             stepping=False,
             yaw_rad=yaw,
-            upright=self._hand_upright(hand, yaw),
+            orientation=keep,
         )
         self.last_reach = (hand, target)
         return ActionReport(
@@ -260,38 +284,37 @@ class ManipulationActions:
             self.body.execute(plan.q, what=what, progress=self.progress)
             return
 
-    def _hand_upright(self, hand: str, yaw_rad: float, tolerance_rad: float = 0.3) -> bool:
-        """Whether the ``hand``'s grasp frame is upright along ``yaw_rad`` now (its z axis within
-        ``tolerance_rad`` of the world's, its x axis along the heading): then the lowering keeps it so."""
+    def _hand_at(self, hand: str, quat: list[float], tolerance_rad: float = 0.1) -> bool:
+        """Whether the ``hand``'s grasp frame is within ``tolerance_rad`` of the world orientation
+        ``quat`` [qx, qy, qz, qw] now (then the lowering keeps it)."""
         robot = self.body.robot
         R = robot.frame_pose(self.body.q(), robot.grasp_frame(hand)).rotation
-        z_ok = float(R[2, 2]) > math.cos(tolerance_rad)
-        x_ok = float(R[0, 0] * math.cos(yaw_rad) + R[1, 0] * math.sin(yaw_rad)) > math.cos(tolerance_rad)
-        return z_ok and x_ok
+        return float((Rotation.from_quat(quat).inv() * Rotation.from_matrix(R)).magnitude()) < tolerance_rad
 
     def _last_steps(
         self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray, what: str, allowed: list[str] | None = None
-    ) -> int:
+    ) -> LastSteps | None:
         """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` and the
-        gaze on ``gaze_m`` (paper 000 §7: the fine-tuner of the end of the locomotion) and walked; the
-        steps taken (0: none needed, or the planner found none: reaching steps then if it must)."""
+        gaze on ``gaze_m`` (paper 000 §7: the fine-tuner of the end of the locomotion) and walked; what
+        it decided (its final posture included), None when it found no steps (reaching steps then if
+        it must)."""
         if not self.config.last_steps:
-            return 0
+            return None
         # Upright first: the walk is planned from the posture the robot will be in when it starts
         # (after a failed reach the chest leans toward the target; a walk planned from there and
         # played after straightening starts 0.25 rad away from the chest's position).
         self.body.straighten()
         try:
-            plan, found = self.planners.last_steps(hand, target_m, gaze_m)
+            decided = self.planners.last_steps(hand, target_m, gaze_m)
         except InfeasibleError as exc:
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")
-            return 0
-        if plan is None:
-            self.progress(f"{what}: {found}: no step needed")
-            return 0
-        self.progress(f"{what}: {found}; {plan.describe()}")
-        self.body.execute(plan.q, what=what, allowed_contacts=allowed or [], progress=self.progress)
-        return plan.n_steps
+            return None
+        if decided.walk is None:
+            self.progress(f"{what}: {decided.found}: no step needed")
+            return decided
+        self.progress(f"{what}: {decided.found}; {decided.walk.describe()}")
+        self.body.execute(decided.walk.q, what=what, allowed_contacts=allowed or [], progress=self.progress)
+        return decided
 
     def _support(self, name: str) -> list[str]:
         """The object ``name`` rests on, among those seen (the big one under it), if any: the hand may
@@ -378,12 +401,11 @@ class ManipulationActions:
             holding = ", ".join(f"{n} in the {s} hand" for s, n in held.items()) or "nothing"
             raise NotGraspedError(f"cannot put {obj}: the robot holds {holding}", {"object": obj})
         allowed = [obj]
+        missed: np.ndarray | None = None  # where the object went down onto nothing
         for attempt in (1, 2):
             # Look at the place (again, on the second attempt: from nearer, with the object above it).
             self.do_look_at(Step(step.line, "look_at", (place,)))
-            # The second time, the map's rectangle proved wrong where the object went down: aim at the
-            # middle of the place's silhouette as seen from here, which lies on it.
-            point = self._put_point(place, seen_middle=attempt == 2)
+            point = self._put_point(place, missed=missed)
             self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
@@ -415,6 +437,7 @@ class ManipulationActions:
             # Measured: the place's map rectangle holds a point with nothing under it. Seen from here
             # (nearer), the place is mapped anew from its silhouette.
             self.memory.drop_footprint(place)
+            missed = point
             self._move_hand(hand, point, f"raise {obj} again", allowed=allowed, stepping=False, yaw_rad=yaw)
             self._move_hand(  # carried again for the next last steps
                 hand, self._carry_point(hand), f"carry {obj}", allowed=allowed, stepping=False, yaw_rad=yaw
@@ -443,17 +466,22 @@ class ManipulationActions:
             details={"point": at.tolist(), "on": place, "hand": hand},
         )
 
-    def _put_point(self, place: str, *, seen_middle: bool = False) -> np.ndarray:
+    def _put_point(self, place: str, *, missed: np.ndarray | None = None) -> np.ndarray:
         """Where the object goes before being lowered: inside the place's near face (as the map
         estimates it), above the highest its top can be (capped: a rough silhouette overestimates).
-        With ``seen_middle``: above the middle of the place's silhouette in its last sighting instead
-        (a point on the place itself, whatever the map's rectangle: after a put that touched nothing)."""
+        After a put that went down at ``missed`` onto nothing: from there toward the middle of the
+        place's silhouette in its last sighting (a point on the place itself, whatever the map's
+        rectangle), by ``put_retry_shift_m`` at most (the feet stay near where they are: a map box from
+        a close-up silhouette can be smaller than the place, the legs of a table outside it)."""
         sighting = self.memory.get(place)
         box = box_estimate(sighting)
         top = min(box.top_z_m, self.config.put_highest_m)
-        if seen_middle:
-            middle = sighting.position_m
-            return np.array([middle[0], middle[1], top + self.config.put_height_m])
+        if missed is not None:
+            to_middle = sighting.position_m[:2] - missed[:2]
+            dist = float(np.linalg.norm(to_middle))
+            shift = min(dist, self.config.put_retry_shift_m) / max(dist, 1e-6)
+            xy = missed[:2] + shift * to_middle
+            return np.array([xy[0], xy[1], top + self.config.put_height_m])
         x, y, _ = self.body.base_xy_yaw()
         centre = np.array(box.center_m[:2])
         to_centre = centre - (x, y)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import msgspec
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from services.bus.schemas import footsteps as fs_msg
 from services.bus.schemas import navigation as nav_msg
@@ -31,6 +32,19 @@ from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
 from supervisor.scene_map import obstacles
+
+
+@dataclass(frozen=True)
+class LastSteps:
+    """What ``footsteps/plan`` decided for the end of an approach: the walk of its footsteps (None: no
+    step needed), a line saying what it found, and its final whole-body posture ``q_final`` (the robot
+    on the last footprints with the hand at the target, paper 000 §7) with that posture's grasp-frame
+    orientation ``hand_quat`` ([qx, qy, qz, qw], world)."""
+
+    walk: Plan | None
+    found: str
+    q_final: np.ndarray = field(repr=False)
+    hand_quat: list[float] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -143,12 +157,13 @@ class Planners:
         )
 
     # footsteps ----------------------------------------------------------------------------------------
-    def last_steps(self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray) -> tuple[Plan | None, str]:
+    def last_steps(self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray) -> LastSteps:
         """``footsteps/plan`` for the last steps before the ``hand`` reaches ``target_m`` [m] (tasks, by
         priority: the hand at the target, the gaze on ``gaze_m``, the rest posture; the map's boxes, which
-        no footprint may enter; paper 000 §7), then ``walking/plan`` of its footsteps. Returns
-        (the walk, or None when no step is needed, and a line saying what the planner found). Raises
-        the planners' typed errors (``infeasible`` when the tasks cannot be met)."""
+        no footprint may enter; paper 000 §7), then ``walking/plan`` of its footsteps. Returns the
+        walk (None when no step is needed), what the planner found and its final posture with the
+        hand's orientation in it (:class:`LastSteps`). Raises the planners' typed errors
+        (``infeasible`` when the tasks cannot be met)."""
         q = self.body.plan_q()
         c = self.config
         request = fs_msg.PlanRequest(
@@ -168,8 +183,12 @@ class Planners:
             f"footsteps/plan: {len(reply.footsteps)} step(s) ({reply.front_foot} foot in front), "
             f"{reply.iterations} iterations in {reply.solve_time_s:.1f} s"
         )
+        q_final = np.asarray(reply.q_final, dtype=float)
+        robot = self.body.robot
+        hand_rotation = robot.frame_pose(q_final, robot.grasp_frame(hand)).rotation
+        hand_quat = [float(v) for v in Rotation.from_matrix(hand_rotation).as_quat()]
         if not reply.footsteps:
-            return None, found
+            return LastSteps(None, found, q_final, hand_quat)
         walk = walk_msg.PlanRequest(
             steps=[walk_msg.Step(pose=[f.x, f.y, f.yaw], side=f.side) for f in reply.footsteps],
             model=self.body.robot.name,
@@ -193,7 +212,7 @@ class Planners:
             goal=[float(v) for v in target_m],
             plan_s=float(reply.solve_time_s),
         )
-        return plan, found
+        return LastSteps(plan, found, q_final, hand_quat)
 
     # reaching -------------------------------------------------------------------------------------------
     def reach(

@@ -1,5 +1,5 @@
-"""The supervisor on a real bus with the sim, perception and walking services: events, health,
-perception actions, walks relative to the robot.
+"""The supervisor on a real bus with the sim, perception, walking and footsteps services: events,
+health, perception actions, walks relative to the robot, the last steps of an approach.
 
 The planner-dependent actions and the whole fetch are in test_supervisor_fetch.py.
 """
@@ -28,6 +28,7 @@ def stack(module_bus_harness, tmp_path_factory):
     h.spawn_service("sim.service", "--scene", "ball_fetch", "--scene-dir", str(h.scene_dir), name="sim")
     h.spawn_service("services.perception.service", name="perception")
     h.spawn_service("services.walking.service", name="walking")
+    h.spawn_service("services.footsteps.service", name="footsteps")
     return h
 
 
@@ -231,3 +232,23 @@ def test_the_robot_facts_come_from_the_services_and_match_the_model(sup) -> None
         robot.kinematics(np.zeros(5))
     with pytest.raises(InvalidRequestError, match="no frame"):
         robot.frame_pose(q, "nowhere")
+
+
+def test_the_last_steps_come_with_the_final_posture_footsteps_planned(stack, sup) -> None:
+    """footsteps/plan decides the last steps and the final posture together (paper 000 §7): the walk of
+    its footsteps (walking/plan) and, in its final posture, the hand on the target, with that hand's
+    orientation handed on for reaching."""
+    from scipy.spatial.transform import Rotation
+
+    body, planners = sup.actions.body, sup.actions.planners
+    x, y, yaw = body.base_xy_yaw()
+    ahead, right = np.array([np.cos(yaw), np.sin(yaw)]), np.array([np.sin(yaw), -np.cos(yaw)])
+    target = np.array([*(np.array([x, y]) + 0.9 * ahead + 0.2 * right), 0.8])  # out of reach: steps
+    decided = planners.last_steps("right", target, target)
+    assert decided.walk is not None and decided.walk.n_steps >= 1, decided.found
+    assert decided.walk.planner == "footsteps/plan + walking/plan"
+    robot = body.robot
+    hand = robot.frame_pose(decided.q_final, robot.grasp_frame("right"))
+    assert np.linalg.norm(hand.translation - target) < 5e-3
+    turned = Rotation.from_quat(decided.hand_quat).inv() * Rotation.from_matrix(hand.rotation)
+    assert turned.magnitude() < 1e-6
