@@ -109,3 +109,27 @@ def test_the_approach_turns_clear_of_what_the_hand_felt():
     turns = [math.degrees(t) for t in turns_clear_of(ball, robot, felt, 60.0, (30.0, 45.0, 60.0))]
     assert turns == pytest.approx([45.0, 60.0])
     assert turns_clear_of(ball, robot, [np.array([3.0, 1.6, 0.75])], 60.0, (30.0,)) == []
+
+
+def test_requests_in_a_recorded_log_are_counted_per_window(tmp_path):
+    """scripts/bench fetch counts footsteps/plan calls in the recorder's MCAP log, per fetch window:
+    requests only (not replies, not other endpoints), by log time, also in a log still being written."""
+    from services.bus.codec import encode
+    from services.bus.mcaplog import LogWriter
+    from services.bus.schemas import footsteps as fs_msg
+    from supervisor.evaluate import requests_in_log
+
+    path = tmp_path / "log.mcap"
+    writer = LogWriter(path, chunk_size_bytes=1)
+    request = encode(fs_msg.PlanRequest(tasks=[fs_msg.Task(kind="posture")]))
+    for t_ns, key in [
+        (100, "hrp/hrp2/footsteps/plan/request"),
+        (150, "hrp/hrp2/footsteps/plan/reply"),
+        (200, "hrp/hrp2/footsteps/plan/request"),
+        (250, "hrp/hrp2/footsteps/heartbeat"),
+        (900, "hrp/hrp2/footsteps/plan/request"),
+    ]:
+        writer.write(key, request, t_ns)
+    assert requests_in_log(path, fs_msg.PLAN, [(0, 300), (300, 800), (800, 1000)]) == [2, 0, 1]  # open
+    writer.close()
+    assert requests_in_log(path, fs_msg.PLAN, [(0, 1000)]) == [3]
