@@ -406,29 +406,17 @@ class ManipulationActions:
             # Look at the place (again, on the second attempt: from nearer, with the object above it).
             self.do_look_at(Step(step.line, "look_at", (place,)))
             point = self._put_point(place, missed=missed)
-            decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
-            final = decided.hand_quat if decided is not None and self.config.last_steps_posture else None
+            self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
             self._move_hand(
-                hand,
-                point,
-                f"bring {obj} above {place}",
-                allowed=allowed,
-                stepping=True,
-                yaw_rad=yaw,
-                orientation=final,
+                hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
             )
             low = point.copy()
             # The second time down, the top estimate is in doubt too: down to the lowest a top can be.
             depth = self.config.put_depth_m if attempt == 1 else point[2] - self.config.put_lowest_m
             low[2] = max(self.config.put_lowest_m, point[2] - depth)
-            plan = None
-            if final and self._hand_at(hand, final):  # straight down, the hand as turned
-                with contextlib.suppress(InfeasibleError):
-                    plan = self.planners.reach(hand, low, orientation=final, allow_stepping=False)
-            if plan is None:
-                plan = self.planners.reach(hand, low, yaw_rad=None, allow_stepping=False)
+            plan = self.planners.reach(hand, low, yaw_rad=None, allow_stepping=False)
             what = f"lower {obj} onto {place}"
             self.progress(f"{what}: {plan.describe()}, until it touches")
             executed = self.body.execute(
