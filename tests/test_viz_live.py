@@ -150,11 +150,15 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
     recorder = next(p for p in h.procs if "services.bus.recorder" in " ".join(map(str, p.args)))
     assert h.stop(recorder) == 0
     topics: dict[str, int] = {}
+    robot = h.bus.robot
     with open(log_path, "rb") as stream:
         reader = make_reader(stream, validate_crcs=True)
         summary = reader.get_summary()
         for schema, channel, message in reader.iter_messages():
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
+            if channel.topic == f"hrp/{robot}/sim/joint_state":  # rounded, as numbers Foxglove plots
+                assert channel.metadata["hrp.decimals"] == "6"
+                assert len(json.loads(message.data)["q"]["values"]) >= 37
             if channel.message_encoding == "protobuf":
                 protobuf_class(schema.name, schema.data).FromString(message.data)
             else:
@@ -164,7 +168,6 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
                     assert schema.encoding == "jsonschema"
                     assert schema_problems(json.loads(schema.data), channel.topic) == []
     assert summary is not None and summary.statistics.message_count == sum(topics.values())
-    robot = h.bus.robot
     for topic in (c.TF, c.ROBOT, c.PLAN_FOOTSTEPS, c.PLAN_COM_ZMP, f"hrp/{robot}/sim/joint_state"):
         assert topics.get(topic, 0) > 0, topic
     # One copy of the 200 Hz joint state, at its own rate; the transforms at about 30 Hz.
