@@ -177,6 +177,21 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
     assert topics[c.TF] < topics[f"hrp/{robot}/sim/joint_state"] / 2
 
 
+def test_foxglove_own_reader_decodes_every_message_of_the_recorded_log(stack, log_path):
+    """The same log through Foxglove's published code (scripts/foxglove_check, Node): every channel's
+    every message decodes. Runs after the log was closed by the test above."""
+    from services.viz import nodecheck
+
+    reason = nodecheck.unavailable()
+    if reason:
+        pytest.skip(reason)
+    report = nodecheck.check_log(log_path)
+    bad = [ch for ch in report["channels"] if not ch["ok"]]
+    assert bad == [] and report["exit_code"] == 0, bad
+    assert report["channels_ok"] == report["channels_total"] > 10
+    assert report["summary_message_count"] == report["messages"] > 0
+
+
 def test_up_foxglove_starts_the_live_view_and_only_then(tmp_path):
     import subprocess
     import sys
