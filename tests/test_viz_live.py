@@ -47,6 +47,7 @@ def stack(module_bus_harness, log_path):
     h.spawn_service("services.bus.recorder", "--output", str(log_path), name="record")
     h.spawn_service("sim.service", "--scene", "empty", name="sim", timeout_s=60)
     h.spawn_service("services.walking.service", name="walking", timeout_s=60)
+    h.spawn_service("services.bus.diag", name="diag")
     port = free_port()
     viz = h.spawn_service("services.viz.service", "--port", str(port), name="viz", timeout_s=60)
     return h, port, viz
@@ -138,6 +139,27 @@ def test_misbehaving_viewers_do_not_hurt_the_stack(stack):
         odd.close()
 
 
+def test_a_service_warning_reaches_the_log_panel(stack):
+    """A service's Python warning (diag drops an undecodable ping) -> its ``log`` key -> foxglove.Log."""
+    h, port, _viz = stack
+    Log = protobuf_class("foxglove.Log", _schema_data("foxglove.Log"))
+    with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+        assert client.wait_for_topics([c.LOG])
+        client.subscribe([c.LOG])
+        time.sleep(0.3)
+        h.session.put(f"hrp/{h.bus.robot}/diag/ping", b"\xff not a ping")  # kept as octets in the log
+        deadline = time.monotonic() + 10.0
+        lines = []
+        while time.monotonic() < deadline and not lines:
+            got = client.receive(0.5)
+            if got is not None and got.topic == c.LOG:
+                log = Log.FromString(got.data)
+                if log.name.startswith("diag") and "dropped a diag/ping message" in log.message:
+                    lines.append(log)
+    assert lines, "no log line of diag on /log"
+    assert lines[0].level == 3 and lines[0].file.endswith("service.py") and lines[0].line > 0  # WARNING
+
+
 def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log_path):
     """Runs after the other tests of the module (pytest keeps file order): the recorder saw them."""
     import json
@@ -168,7 +190,15 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
                     assert schema.encoding == "jsonschema"
                     assert schema_problems(json.loads(schema.data), channel.topic) == []
     assert summary is not None and summary.statistics.message_count == sum(topics.values())
-    for topic in (c.TF, c.ROBOT, c.PLAN_FOOTSTEPS, c.PLAN_COM_ZMP, f"hrp/{robot}/sim/joint_state"):
+    for topic in (
+        c.TF,
+        c.ROBOT,
+        c.PLAN_FOOTSTEPS,
+        c.PLAN_COM_ZMP,
+        c.LOG,
+        f"hrp/{robot}/sim/joint_state",
+        f"hrp/{robot}/diag/log",
+    ):
         assert topics.get(topic, 0) > 0, topic
     # One copy of the 200 Hz joint state, at its own rate; the transforms at about 30 Hz.
     assert [t for t in topics if t.startswith(f"hrp/{robot}/sim/joint_state")] == [

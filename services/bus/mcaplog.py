@@ -71,7 +71,7 @@ Views = Callable[[str, bytes, int], Iterable[View]]
 def message_type_for_key(key: str) -> type | None:
     """The msgspec type published on ``key`` according to the spec registry, or None."""
     from services.bus import schemas
-    from services.bus.schemas.common import ErrorInfo, Heartbeat
+    from services.bus.schemas.common import ErrorInfo, Heartbeat, LogLine
 
     try:
         _robot, service, rest = keys.parse(key)
@@ -80,6 +80,8 @@ def message_type_for_key(key: str) -> type | None:
     parts = rest.split("/")
     if parts == ["heartbeat"]:
         return Heartbeat
+    if parts == ["log"]:
+        return LogLine
     if len(parts) == 1:
         topic = schemas.topics().get(f"{service}/{parts[0]}")
         return topic.message if topic is not None else None
