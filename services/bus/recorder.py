@@ -52,9 +52,8 @@ class RecorderConfig:
         model: robot model of those views ("": recognised from the joint state's size).
         transform_hz: rate of the robot's transforms in the views [Hz].
         state_every: record one in this many messages of the sim's 200 Hz state topics
-            (``sim/joint_state``, ``sim/base_pose``, ``sim/clock``); 1 (default): every message. Their
-            float64 values hardly compress: 4 (50 Hz of sim time) makes a fetch's log about a third
-            smaller, and the transforms in the views stay above 30 Hz of sim time up to 6.
+            (``sim/joint_state``, ``sim/base_pose``, ``sim/clock``); 1 (default): every message. The
+            transforms in the views stay above 30 Hz of sim time up to 6.
         state_decimals: the sim's joint state and base pose are written with their floats rounded to
             this many decimals (6: 1 um, 1 urad, 1 um/s; far below what a joint encoder or an IMU
             resolves) as JSON numbers Foxglove plots; None: the exact float64 bytes (lossless, the
