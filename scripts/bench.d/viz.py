@@ -5,15 +5,18 @@
    (``scripts/foxglove_check``: @mcap/core with CRCs, every message of every channel decoded; needs
    node and npm), ``channels_schema_rules_ok`` by the rules of Foxglove's JSON-schema reader
    (:func:`services.bus.foxglove.schema_problems`), and the largest channels.
-2. On a second stack (not recording) with an idle ``hrp/**`` subscriber in this process throughout
-   (the sim's wall time depends on whether anything subscribes: README, "the sim without
-   subscribers"), after a warm-up fetch: ``--pairs`` alternations of the nominal fetch without the
-   live view, then with the viz service running and a Foxglove WebSocket client subscribed to every
-   channel. Per fetch: wall time, CPU seconds of every process of the stack (this process and all its
-   descendants: services, viz) and the load average. ``fetch_wall_ratio`` and ``fetch_cpu_ratio``
-   (medians, with / without; goal <= 1.05), ``viz_cpu_share`` (the viz process's CPU over the fetch's
-   wall time, in cores), ``live_latency_ms_p50/p95`` (a ``sim/joint_state`` received by this process ->
-   the transform made of it received by the client, matched by the base position).
+2. On a second stack (not recording) with an idle subscriber to the sim's state topics
+   (``hrp/<robot>/sim/*``) in this process throughout (the sim's wall time depends on whether
+   anything subscribes: README, "the sim without subscribers"), after a warm-up fetch: ``--pairs``
+   alternations of the nominal fetch without the live view, then with the viz service running and a
+   Foxglove WebSocket client subscribed to every channel. Per fetch: wall time, CPU seconds of the
+   stack's processes (every descendant of this process: services, viz; ``stack_cpu_s``), of this
+   process (the supervisor, and the client and latency probe when the view is on;
+   ``bench_process_cpu_s``) and the load average. ``fetch_wall_ratio`` and ``fetch_cpu_ratio``
+   (medians of ``stack_cpu_s``, with / without; goal <= 1.05), ``viz_cpu_share`` (the viz process's
+   CPU over the fetch's wall time, in cores), ``live_latency_ms_p50/p95`` (a ``sim/joint_state``
+   received by this process -> the transform made of it received by the client, matched by the base
+   position).
 
 Writes ``bench/out/viz.json``. Usage: scripts/bench viz [--log-dir DIR] [--pairs N]
 """
@@ -94,7 +97,7 @@ def channels_report(path: Path) -> dict:
 
 
 def _tree_cpu_s(root: int) -> float:
-    """CPU seconds (user + system) of ``root`` and every live descendant process."""
+    """CPU seconds (user + system) of every live descendant process of ``root`` (not ``root``)."""
     children: dict[int, list[int]] = {}
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
@@ -102,7 +105,7 @@ def _tree_cpu_s(root: int) -> float:
         except OSError:
             continue
         children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
-    total, todo = 0.0, [root]
+    total, todo = 0.0, list(children.get(root, []))
     while todo:
         pid = todo.pop()
         try:
@@ -222,15 +225,16 @@ def _measured_fetch(sup, bus, port: int | None) -> dict:
             probe = LatencyProbe(sup.session, bus.robot, f"ws://127.0.0.1:{port}")
             time.sleep(1.0)  # the body, the calibrations: what a viewer gets on connecting
         me = os.getpid()
-        cpu0, viz0 = _tree_cpu_s(me), _cpu_s(viz.pid) if viz is not None else 0.0
+        cpu0, me0, viz0 = _tree_cpu_s(me), _cpu_s(me), _cpu_s(viz.pid) if viz is not None else 0.0
         summary, _ = fetch(sup)
-        cpu1, viz1 = _tree_cpu_s(me), _cpu_s(viz.pid) if viz is not None else 0.0
+        cpu1, me1, viz1 = _tree_cpu_s(me), _cpu_s(me), _cpu_s(viz.pid) if viz is not None else 0.0
         run = {
             "view": viz is not None,
             "ok": summary.ok,
             "retries": summary.retries,
             "wall_s": round(summary.wall_s, 2),
             "stack_cpu_s": round(cpu1 - cpu0, 2),
+            "bench_process_cpu_s": round(me1 - me0, 2),
             "viz_cpu_s": round(viz1 - viz0, 2),
             "load_avg_1min": os.getloadavg()[0],
         }
@@ -288,7 +292,8 @@ def main(argv: list[str]) -> int:
     received = 0
     with running_stack(bus, log_dir=str(log_dir / "b")), Supervisor.connect(bus) as sup:
         sup.wait_for_services(30.0)
-        idle = sup.session.declare_subscriber(keys.everything(bus.robot), lambda _sample: None)
+        # The sim's state topics (joint_state, base_pose, clock) watched in both conditions.
+        idle = sup.session.declare_subscriber(f"{keys.PREFIX}/{bus.robot}/sim/*", lambda _sample: None)
         warm_up, _ = fetch(sup)  # a stack's first fetch is slower (first plans, caches): not compared
         print(f"warm-up fetch: ok={warm_up.ok} wall {warm_up.wall_s:.1f} s")
         for pair in range(args.pairs):

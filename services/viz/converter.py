@@ -67,6 +67,15 @@ def route(key: str) -> str:
     return ""
 
 
+def key_exprs(robot: str) -> list[str]:
+    """The keys the converters read, as zenoh key expressions (what :func:`route` accepts). The live
+    view subscribes to these only: ``hrp/**`` would also bring every 200 Hz state topic into Python
+    and turn on every endpoint's request/reply mirrors (the sim's execute requests: 9 MB a fetch)
+    that nothing here shows."""
+    base = f"{keys.PREFIX}/{robot}"
+    return [*(f"{base}/{tail}" for tail in _TYPES), f"{base}/*/*/error", f"{base}/*/log"]
+
+
 class Converter:
     """Bus messages -> Foxglove messages (see the module docstring)."""
 
