@@ -87,6 +87,12 @@ def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
             start = h.client.call(sim_msg.STATE, sim_msg.StateRequest(), 30.0).q
             result = _walk(h)
             time.sleep(1.0)
+            # On a loaded machine the 1 Hz world poll may not have been answered yet: up to 10 s more.
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline and not {c.WORLD_OBJECTS, c.PLAN_FOOTSTEPS} <= {
+                m.topic for m in list(got)
+            }:
+                time.sleep(0.1)
         finally:
             stop.set()
             reader.join()
