@@ -25,7 +25,7 @@ from services.bus.schemas import navigation as nav_msg
 from services.bus.schemas import perception as per_msg
 from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
-from services.bus.schemas.common import ErrorInfo, Heartbeat
+from services.bus.schemas.common import ErrorInfo, Heartbeat, LogLine
 from services.bus.schemas.supervisor import SupervisorEvent
 from services.bus.spec import json_schema
 from services.model import load_robot
@@ -35,7 +35,7 @@ from tests.test_viz_live import protobuf_class
 
 
 def _registered_types() -> set[type]:
-    types: set[type] = {Heartbeat, ErrorInfo}
+    types: set[type] = {Heartbeat, ErrorInfo, LogLine}
     for endpoint in schemas.endpoints().values():
         types |= {endpoint.request, endpoint.reply}
     types |= {topic.message for topic in schemas.topics().values()}
