@@ -86,8 +86,23 @@ def _yaw_se3(yaw: float, xyz: Sequence[float]) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.array(xyz, dtype=float))
 
 
+def _under(name: str, T_obj: pin.SE3, top_xyz: np.ndarray, top_half: np.ndarray) -> Box:
+    """The space under a table's top, down to the floor, as an obstacle box (owned by the table): the
+    planner keeps the robot's limbs out from under the top (a conservative convex hull of the table, as
+    the paper's environment is a set of convex shapes, §2.2). A free arm hanging under the top cannot
+    reach the top without passing through it: witnesses with an arm there make the interpolation (§3.3)
+    drive that arm through the table."""
+    top_under_z = float(T_obj.act(top_xyz)[2]) - float(top_half[2])
+    floor_z = -float(T_obj.translation[2])  # the floor (z = 0) in the object's frame
+    height = top_under_z - float(T_obj.translation[2]) - floor_z
+    centre = np.array([top_xyz[0], top_xyz[1], floor_z + 0.5 * height])
+    half = np.array([top_half[0], top_half[1], 0.5 * height])
+    return Box(f"{name}[under]", T_obj * pin.SE3(np.eye(3), centre), half, name)
+
+
 def environment_of(layout: Layout, floor_friction: float | None = None) -> Environment:
-    """Surfaces and boxes of a laid-out scene. Surfaces: ``floor``, ``<chair>.seat``, ``<table>.top``,
+    """Surfaces and boxes of a laid-out scene (a table's boxes include the space under its top:
+    :func:`_under`). Surfaces: ``floor``, ``<chair>.seat``, ``<table>.top``,
     ``<box>.top`` (static objects only: the planner does not handle moving objects, §3.1)."""
     friction = layout.scene.floor_friction if floor_friction is None else floor_friction
     rx, ry = layout.robot_xy
@@ -115,6 +130,8 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
             T_part = T_obj * pin.SE3(np.eye(3), np.array(part.xyz))
             boxes.append(Box(f"{spec.name}[{i}]", T_part, np.array(part.half_extents), spec.name))
         top = parts_of(spec)[0]  # box: the box; table: the top; chair: the seat
+        if spec.kind == "table":
+            boxes.append(_under(spec.name, T_obj, np.array(top.xyz), np.array(top.half_extents)))
         label = {"box": "top", "table": "top", "chair": "seat"}[spec.kind]
         T_top = T_obj * pin.SE3(np.eye(3), np.array(top.xyz) + np.array([0.0, 0.0, top.half_extents[2]]))
         surfaces.append(

@@ -16,8 +16,13 @@ interpolation between q1 and q2, as criterion. The discrete path is then timed w
 profile (null speed at every contact change, §4) through a clamped cubic spline of the postures, and
 sampled every ``dt_s`` (5 ms).
 
-Collisions: every posture of the path is generated collision free (capsules against the scene's boxes
-and each other); a segment whose posture generation fails is reported (no hand correction).
+Collisions (§4: "the interpolation must be checked for collisions"): every posture of the path is
+generated collision free (capsules against the scene's boxes and each other), and the timed segment
+between them is checked sample by sample (capsules against boxes, the pairs in contact excluded); a
+segment that goes more than ``collision_tol_m`` into a box is re-planned locally with twice as many
+posture generations (so with collision constraints between the former samples), up to
+``max_refinements`` times; a segment still colliding is listed in ``Motion.collisions`` (never hidden).
+A segment whose posture generation fails is reported (no hand correction).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +40,7 @@ from services.contacts.posture import PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
 from services.errors import InfeasibleError, RequestTimeoutError
 from services.ik import FramePoseTask, PostureTask
+from services.ik.tasks.capsule_box import CapsuleBoxTask
 
 
 @dataclass(frozen=True)
@@ -42,6 +48,8 @@ class InterpolationConfig:
     """``n`` postures per transition (the paper's n = 20), lift/approach height along the normal [m],
     quasi-static speed limits: base ``base_speed_m_s`` [m/s], moving spot ``spot_speed_m_s`` [m/s],
     joints ``joint_speed_ratio`` of their velocity limits, ``min_segment_s`` [s], sample ``dt_s`` [s],
+    collision check of the timed segments every ``check_every`` samples, a segment deeper than
+    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times,
     ``deadline`` (``time.monotonic()`` [s]) past which RequestTimeoutError is raised."""
 
     n: int = 20
@@ -51,6 +59,9 @@ class InterpolationConfig:
     joint_speed_ratio: float = 0.1
     min_segment_s: float = 0.8
     dt_s: float = 0.005
+    collision_tol_m: float = 0.005
+    max_refinements: int = 2
+    check_every: int = 4
     deadline: float = math.inf  # time.monotonic() after which the interpolation gives up (timeout)
 
 
@@ -58,13 +69,29 @@ class InterpolationConfig:
 class Motion:
     """The interpolated motion: ``q`` (N x nq) every ``dt_s``, the index in ``q`` where each contact
     set's witness posture is reached (``set_samples``), the discrete path (``waypoints``), the
-    interpolation time [s]."""
+    interpolation time [s], the segments still colliding after local re-planning (``collisions``) and
+    the number of local re-plannings done (``refinements``)."""
 
     q: np.ndarray
     dt_s: float
     set_samples: list[int]
     waypoints: np.ndarray
     interpolation_s: float
+    collisions: tuple[SegmentCollision, ...] = ()
+    refinements: int = 0
+
+
+@dataclass(frozen=True)
+class SegmentCollision:
+    """The deepest capsule-box penetration of a timed segment (transition ``transition``: from set
+    ``transition - 1`` to ``transition``): ``depth_m`` > 0 into ``box``, capsule ``capsule``, at sample
+    ``sample`` of the whole motion."""
+
+    transition: int
+    depth_m: float
+    capsule: str
+    box: str
+    sample: int
 
 
 def _moving_spot(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2: np.ndarray) -> str | None:
@@ -230,6 +257,37 @@ def time_segment(gen: PostureGenerator, waypoints: np.ndarray, duration_s: float
     return q
 
 
+def interpolate_transition(
+    gen: PostureGenerator,
+    s1: ContactSet,
+    q1: np.ndarray,
+    s2: ContactSet,
+    q2: np.ndarray,
+    removed: ContactSet,
+    config: InterpolationConfig,
+    v_max: np.ndarray,
+) -> tuple[np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None, int]:
+    """One transition, timed and checked (§3.3, §4): (samples every dt from q1 to q2, the discrete path,
+    the deepest collision of the samples or None, local re-plannings done). A segment deeper than
+    ``config.collision_tol_m`` into a box is generated again with twice the postures, at most
+    ``config.max_refinements`` times; the last try is returned with its collision."""
+    touching = [c.pair for c in (*s1, *s2, *removed)]
+    n = config.n
+    refinements = 0
+    for attempt in range(config.max_refinements + 1):
+        # the last posture generated aims at q2; the witness itself (stable and collision free by
+        # construction) ends the segment, so that the next one starts exactly there
+        path = [q1, *transition(gen, s1, q1, s2, q2, removed, replace(config, n=n))[:-1], q2]
+        segment = np.array(path)
+        timed = time_segment(gen, segment, segment_duration(gen, segment, config, v_max), config.dt_s)
+        hit = deepest_collision(gen, timed, touching, config.check_every)
+        if hit is None or hit[0] <= config.collision_tol_m or attempt == config.max_refinements:
+            break
+        refinements += 1  # §4: re-plan the colliding segment locally, with more postures
+        n *= 2
+    return timed, path, hit, refinements
+
+
 def interpolate_plan(
     gen: PostureGenerator,
     sets: Sequence[ContactSet],
@@ -245,6 +303,8 @@ def interpolate_plan(
     waypoints = [np.asarray(witnesses[0], float)]
     count = 1
     removed: ContactSet = ()
+    collisions: list[SegmentCollision] = []
+    refinements = 0
     for k in range(1, len(sets)):
         if time.monotonic() > config.deadline:
             raise RequestTimeoutError(
@@ -253,17 +313,44 @@ def interpolate_plan(
             )
         s1, s2 = sets[k - 1], sets[k]
         q1, q2 = np.asarray(witnesses[k - 1], float), np.asarray(witnesses[k], float)
-        # the last posture generated aims at q2; the witness itself (stable and collision free by
-        # construction) ends the segment, so that the next one starts exactly there
-        path = [q1, *transition(gen, s1, q1, s2, q2, removed, config)[:-1], q2]
+        timed, path, hit, refined = interpolate_transition(gen, s1, q1, s2, q2, removed, config, v_max)
+        refinements += refined
+        if hit is not None and hit[0] > config.collision_tol_m:
+            collisions.append(SegmentCollision(k, hit[0], hit[1], hit[2], count + hit[3] - 1))
         removed = tuple(c for c in s1 if c not in s2)
-        segment = np.array(path)
-        duration = segment_duration(gen, segment, config, v_max)
-        timed = time_segment(gen, segment, duration, config.dt_s)
         samples.append(timed[1:])
         count += len(timed) - 1
         set_samples.append(count - 1)
         waypoints.extend(path[1:])
     return Motion(
-        np.concatenate(samples), config.dt_s, set_samples, np.array(waypoints), time.perf_counter() - t0
+        np.concatenate(samples),
+        config.dt_s,
+        set_samples,
+        np.array(waypoints),
+        time.perf_counter() - t0,
+        tuple(collisions),
+        refinements,
     )
+
+
+def deepest_collision(
+    gen: PostureGenerator, q: np.ndarray, touching: Sequence[tuple[str, str]], every: int = 1
+) -> tuple[float, str, str, int] | None:
+    """The deepest penetration (depth [m] > 0, capsule, box, sample index) of the robot's capsules into
+    the scene's boxes over the samples ``q[::every]`` (and the last one), the objects of the ``touching``
+    (spot, surface) pairs excluded for their spots; None if no sample penetrates."""
+    pairs = gen.box_pairs(touching)
+    if not pairs:
+        return None
+    task = CapsuleBoxTask(gen.model, gen.capsules, gen.boxes, pairs)
+    data = gen.model.createData()
+    worst: tuple[float, str, str, int] | None = None
+    indices = sorted({*range(0, len(q), max(1, every)), len(q) - 1})
+    for i in indices:
+        pin.framesForwardKinematics(gen.model, data, q[i])
+        d = task.distances(data)
+        j = int(np.argmin(d))
+        if d[j] < 0.0 and (worst is None or -d[j] > worst[0]):
+            c, b = pairs[j]
+            worst = (float(-d[j]), gen.capsules[c].name, gen.boxes[b].name, i)
+    return worst

@@ -31,6 +31,7 @@ import pinocchio as pin
 
 from services.contacts.contact_tasks import InVolumeTask, OnPlaneTask
 from services.contacts.environment import Environment
+from services.contacts.robot_geometry import belongs_to, planner_capsules
 from services.contacts.sets import Contact, ContactSet, contact_at, patch_of
 from services.contacts.spots import ContactSpot, model_with_spots
 from services.contacts.stability import equilibrium_region, is_statically_stable
@@ -50,11 +51,14 @@ from services.model import RobotModel
 
 @dataclass(frozen=True)
 class PostureConfig:
-    """Settings of the posture generator: ``com_margin_m`` inside the equilibrium region [m],
+    """Settings of the posture generator: ``com_margin_m`` inside the equilibrium region [m] (
+    ``single_contact_margin_m`` when one contact holds the robot),
     ``collision_margin_m`` between capsules and boxes [m], ``self_margin_m`` between capsules [m],
     ``tol`` on levels 1-2 (m / rad), ``max_iters`` IK iterations per posture."""
 
     com_margin_m: float = 0.02
+    # one support contact (a sole): the open-loop replay's sole slip is 3-6 cm (services/contacts/README.md)
+    single_contact_margin_m: float = 0.04
     collision_margin_m: float = 0.015  # the capsules are not the sim's shapes: room for the difference
     self_margin_m: float = 0.005
     tol: float = 2e-3
@@ -101,8 +105,7 @@ class PostureGenerator:
         self.model = model_with_spots(robot.model, spots)
         self.solver = HierarchicalSolver(self.model, robot.q_lower, robot.q_upper)
         self.data = self.model.createData()
-        self.capsules = tuple(robot.capsules)
-        self._capsule_index = {c.name: i for i, c in enumerate(self.capsules)}
+        self.capsules = planner_capsules(robot)  # the model's capsules + the URDF's foot boxes
         self.boxes = tuple(ObstacleBox(b.name, b.T_world_box, b.half_extents_m) for b in env.boxes)
         self._box_owner = [b.owner for b in env.boxes]
         self.self_collision = SelfCollisionTask(
@@ -125,13 +128,15 @@ class PostureGenerator:
         patches = [patch_of(c, self.spots[c.spot], self.env) for c in stable]
         return is_statically_stable(patches, com)[0]
 
-    def _box_pairs(self, touching: Sequence[tuple[str, str]]) -> list[tuple[int, int]]:
+    def box_pairs(self, touching: Sequence[tuple[str, str]]) -> list[tuple[int, int]]:
         """Every (capsule, box) pair but those of a spot's capsule with the object it touches."""
         excluded = set()
         for spot_name, surface_name in touching:
             owner = self.env.surface(surface_name).owner
             for capsule in self.spots[spot_name].capsules:
-                excluded.add((self._capsule_index[capsule], owner))
+                for i, c in enumerate(self.capsules):
+                    if belongs_to(c.name, capsule):
+                        excluded.add((i, owner))
         return [
             (i, j)
             for i in range(len(self.capsules))
@@ -199,14 +204,17 @@ class PostureGenerator:
                 self.model,
                 self.capsules,
                 self.boxes,
-                self._box_pairs(touching),
+                self.box_pairs(touching),
                 margin_m=cfg.collision_margin_m,
             ),
             self.self_collision,
         ]
         if region.shape[0] >= 3:
+            margin = cfg.com_margin_m
+            if len(stable) == 1:
+                margin = max(margin, cfg.single_contact_margin_m)
             safety.append(
-                ComSupportPolygonTask(self.model, cfg.com_margin_m, polygon_world_xy=region, all_edges=True)
+                ComSupportPolygonTask(self.model, margin, polygon_world_xy=region, all_edges=True)
             )
         contacts: list[Task] = self.contact_tasks(geometric) + list(extra)
         if floating is not None:
