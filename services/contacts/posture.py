@@ -48,6 +48,8 @@ from services.ik import (
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox
 from services.model import RobotModel
 
+GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in the best iterate's choice
+
 
 @dataclass(frozen=True)
 class PostureConfig:
@@ -277,7 +279,7 @@ class PostureGenerator:
         solver = self.solver
         bound = solver.bound_q_idx
         lower, upper = solver.q_lower[bound], solver.q_upper[bound]
-        value = self._criterion_value(criterion)
+        value = self._criterion_value(criterion, levels)
         best: tuple[float, np.ndarray, int, tuple[float, float]] | None = None
         last = (q, 0, (math.inf, math.inf))
         f_history: list[float] = []
@@ -312,13 +314,18 @@ class PostureGenerator:
             return best[1], best[2], best[3]
         return last
 
-    def _criterion_value(self, criterion: Task | None) -> Callable[[np.ndarray, list], float]:
-        """f_T for the potential task (eq. 1), else the task values of the guide and criterion levels."""
+    def _criterion_value(
+        self, criterion: Task | None, levels: Sequence[Level]
+    ) -> Callable[[np.ndarray, list], float]:
+        """f_T for the potential task (eq. 1), else the task values of the guide and criterion levels,
+        the guide's weighted by ``GUIDE_WEIGHT``: its priority holds in the choice of the best iterate
+        too (with a plain sum, an iterate that follows the guide at the cost of the criterion lost to
+        the start, and an interpolated body stayed where it was: the hand under the table's edge)."""
         trajectory = getattr(criterion, "trajectory", None)
         if trajectory is not None:
             return lambda q, systems: trajectory.value(q)
-        # the guide's and the criterion's task values (levels below the contacts)
-        return lambda q, systems: sum(system.value for system in systems[2:])
+        weights = [GUIDE_WEIGHT if level.name == "guide" else 1.0 for level in levels[2:]]
+        return lambda q, systems: sum(w * s.value for w, s in zip(weights, systems[2:], strict=True))
 
 
 def pairs_allowed(spots: Sequence[ContactSpot], surfaces: Sequence[str]) -> list[tuple[str, str]]:
