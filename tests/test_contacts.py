@@ -19,11 +19,11 @@ from services.contacts.interpolate import deepest_collision
 from services.contacts.posture import Floating, PostureGenerator
 from services.contacts.potential import PotentialTask, RoughTrajectory, base_point
 from services.contacts.search import ContactPlanner, Goal, SearchConfig
-from services.contacts.sets import Contact, contact_at
+from services.contacts.sets import Contact, contact_at, patch_of
 from services.contacts.spots import robot_spots
 from services.contacts.stability import ContactPatch, equilibrium_region, is_statically_stable
 from services.contacts.volumes import SearchVolume, around, full_volume, subtract
-from services.errors import InvalidRequestError
+from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import compute_kinematics
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox, segment_box_distances
 from services.model import load_robot
@@ -371,3 +371,16 @@ def test_a_witness_regenerated_from_the_measured_state_keeps_the_supports_where_
         T = gen.spot_pose(q2, c.spot)
         assert np.linalg.norm(T.translation - gen.contact_pose(c).translation) < 3e-3
     assert planned.contact in s2_measured
+
+
+def test_a_patch_bears_only_on_its_surface(chair):
+    _robot, env, gen, _q0, _start = chair
+    seat = env.surface("chair.seat")
+    hx = seat.half_size_m[0]
+    on_edge = Contact("left_thigh", "chair.seat", hx - 0.02, 0.06, 0.0)  # 2 cm from the front edge
+    corners = patch_of(on_edge, gen.spots["left_thigh"], env).corners_world
+    local = np.array([seat.T_world_surface.actInv(c) for c in corners])
+    assert local[:, 0].max() == pytest.approx(hx) and local[:, 0].min() == pytest.approx(hx - 0.02 - 0.10)
+    off = Contact("left_thigh", "chair.seat", hx + 0.2, 0.06, 0.0)
+    with pytest.raises(InfeasibleError, match="off the surface"):
+        patch_of(off, gen.spots["left_thigh"], env)

@@ -25,6 +25,7 @@ import numpy as np
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
 from services.contacts.posture import PostureGenerator
 from services.contacts.sets import ContactSet, contact_at
+from services.errors import InfeasibleError
 from services.ik import PostureTask
 
 # plays (N, nq) samples every dt [s]; returns (outcome, message): outcome "completed" goes on
@@ -100,6 +101,52 @@ def regenerate_witness(
     return s1, s2, result.q, ""
 
 
+@dataclass(frozen=True)
+class ReplannedTransition:
+    """A transition re-planned from the measured state: the samples (``q``, every ``dt_s``, the first
+    at the measured configuration), the new ``witness``, the largest distance [m] between a held
+    contact's measured and planned place, and a segment still colliding after local re-planning
+    (``collision``, "" if none)."""
+
+    q: np.ndarray
+    dt_s: float
+    witness: np.ndarray
+    support_error_m: float
+    collision: str
+
+
+def replan_transition(
+    gen: PostureGenerator,
+    s1_planned: ContactSet,
+    s2_planned: ContactSet,
+    q2_planned: np.ndarray,
+    q_measured: np.ndarray,
+    released_planned: ContactSet = (),
+    config: InterpolationConfig | None = None,
+) -> ReplannedTransition:
+    """The transition from set ``s1_planned`` (holding at ``q_measured``) to ``s2_planned`` (planned
+    witness ``q2_planned``) from the measured state (module docstring); ``released_planned``: the
+    contacts removed at the previous transition (their bodies leave them now). Raises InfeasibleError
+    when the measured supports admit no witness of the next set, or an interpolation step fails."""
+    config = config or InterpolationConfig()
+    q1 = np.asarray(q_measured, float)
+    s1, s2, q2, reason = regenerate_witness(gen, s1_planned, s2_planned, np.asarray(q2_planned, float), q1)
+    error = _support_error(gen, s1_planned, s1)
+    if q2 is None:
+        raise InfeasibleError(
+            f"no witness of the next set from the measured supports (off the plan by up to "
+            f"{error * 100:.1f} cm): {reason}",
+            {"support_error_m": error},
+        )
+    released = measured_contacts(gen, released_planned, q1)
+    v_max = np.asarray(gen.robot.v_max, float)
+    timed, _path, hit, _refined = interpolate_transition(gen, s1, q1, s2, q2, released, config, v_max)
+    collision = ""
+    if hit is not None and hit[0] > config.collision_tol_m:
+        collision = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
+    return ReplannedTransition(timed, config.dt_s, q2, error, collision)
+
+
 def execute_set_by_set(
     gen: PostureGenerator,
     sets: Sequence[ContactSet],
@@ -110,38 +157,37 @@ def execute_set_by_set(
     on_transition: StepHook | None = None,
 ) -> ClosedLoopResult:
     """Play the plan (``sets`` and their ``witnesses``) transition by transition, each re-planned from
-    the measured state (module docstring). Stops at the first transition the executor does not
-    complete. Raises InfeasibleError when a transition from the measured state cannot be interpolated."""
+    the measured state (module docstring). Stops at the first transition that cannot be re-planned
+    (outcome "infeasible", nothing played) or that the executor does not complete."""
     config = config or InterpolationConfig()
-    v_max = np.asarray(gen.robot.v_max, float)
     out = ClosedLoopResult("completed", f"played {len(sets) - 1} transitions")
-    removed: ContactSet = ()
+    released: ContactSet = ()
     for k in range(1, len(sets)):
         t0 = time.perf_counter()
-        q1 = np.asarray(measure(), float)
-        s1, s2, q2, reason = regenerate_witness(gen, sets[k - 1], sets[k], np.asarray(witnesses[k]), q1)
-        error = _support_error(gen, sets[k - 1], s1)
-        if q2 is None:
-            # the measured supports admit no witness of the next set: stop here (the robot holds)
-            message = f"transition {k} of {len(sets) - 1}: no witness from the measured state: {reason}"
-            out.transitions.append(
-                TransitionReport(k, "infeasible", message, False, reason, error, 0, time.perf_counter() - t0)
+        try:
+            step = replan_transition(gen, sets[k - 1], sets[k], witnesses[k], measure(), released, config)
+        except InfeasibleError as exc:
+            message = f"transition {k} of {len(sets) - 1}: {exc}"
+            error = float(exc.details.get("support_error_m", 0.0)) if exc.details else 0.0
+            report = TransitionReport(
+                k, "infeasible", message, False, str(exc), error, 0, time.perf_counter() - t0
             )
+            out.transitions.append(report)
+            if on_transition is not None:
+                on_transition(report)
             out.outcome, out.message = "infeasible", message
             return out
-        removed_now = measured_contacts(gen, removed, q1)
-        timed, _path, hit, _refined = interpolate_transition(gen, s1, q1, s2, q2, removed_now, config, v_max)
-        if hit is not None and hit[0] > config.collision_tol_m:
-            reason = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
         replan_s = time.perf_counter() - t0
-        outcome, message = play(timed, config.dt_s)
-        report = TransitionReport(k, outcome, message, True, reason, error, len(timed), replan_s)
+        outcome, message = play(step.q, step.dt_s)
+        report = TransitionReport(
+            k, outcome, message, True, step.collision, step.support_error_m, len(step.q), replan_s
+        )
         out.transitions.append(report)
-        out.samples += len(timed)
+        out.samples += len(step.q)
         out.replan_s += replan_s
         if on_transition is not None:
             on_transition(report)
-        removed = tuple(c for c in sets[k - 1] if c not in sets[k])
+        released = tuple(c for c in sets[k - 1] if c not in sets[k])
         if outcome != "completed":
             out.outcome, out.message = outcome, f"transition {k} of {len(sets) - 1}: {message}"
             return out

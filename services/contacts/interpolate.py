@@ -179,6 +179,9 @@ def transition(
     # during the last (within the straight lines along the normal); elsewhere it must clear them
     leaving = [c.pair for c in pairs1.values() if c.spot == moving]
     entering = [c.pair for c in s2 if c.spot == moving]
+    # a contact released now that is not the moving body's: its body leaves the surface with the
+    # interpolated posture (it touches it at q1: a collision margin there would fight the held contacts)
+    released = [c.pair for c in geometric_extra if c not in held and c.spot != moving]
     out: list[np.ndarray] = []
     q = q1.copy()
     for i in range(1, config.n + 1):
@@ -200,7 +203,7 @@ def transition(
             q,
             PostureTask(gen.model, q_ref),
             guide=extra,
-            extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []),
+            extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []) + released,
         )
         if not result.ok:
             raise InfeasibleError(
@@ -270,14 +273,22 @@ def interpolate_transition(
     """One transition, timed and checked (§3.3, §4): (samples every dt from q1 to q2, the discrete path,
     the deepest collision of the samples or None, local re-plannings done). A segment deeper than
     ``config.collision_tol_m`` into a box is generated again with twice the postures, at most
-    ``config.max_refinements`` times; the last try is returned with its collision."""
+    ``config.max_refinements`` times (and so is a transition whose posture generation fails: smaller
+    steps); the last try is returned with its collision, or raises InfeasibleError."""
     touching = [c.pair for c in (*s1, *s2, *removed)]
     n = config.n
     refinements = 0
     for attempt in range(config.max_refinements + 1):
         # the last posture generated aims at q2; the witness itself (stable and collision free by
         # construction) ends the segment, so that the next one starts exactly there
-        path = [q1, *transition(gen, s1, q1, s2, q2, removed, replace(config, n=n))[:-1], q2]
+        try:
+            path = [q1, *transition(gen, s1, q1, s2, q2, removed, replace(config, n=n))[:-1], q2]
+        except InfeasibleError:
+            if attempt == config.max_refinements:
+                raise
+            refinements += 1  # a posture generation failed: smaller steps
+            n *= 2
+            continue
         segment = np.array(path)
         timed = time_segment(gen, segment, segment_duration(gen, segment, config, v_max), config.dt_s)
         hit = deepest_collision(gen, timed, touching, config.check_every)
