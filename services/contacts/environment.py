@@ -28,13 +28,15 @@ FLOOR_BOX_DEPTH_M = 0.5
 class Surface:
     """A flat, convex (rectangular) contact surface: its frame in the world (origin at the centre of
     the rectangle, z = outer normal, §2.1), its half sizes along its x and y [m], the object it
-    belongs to (``floor`` for the floor) and its friction coefficient."""
+    belongs to (``floor`` for the floor), its friction coefficient and the obstacle box it is a face
+    of."""
 
     name: str
     T_world_surface: pin.SE3
     half_size_m: tuple[float, float]
     owner: str
     friction: float
+    box: str = ""  # the obstacle box whose face the surface is ("" if none)
 
     def placement(self, x: float, y: float, theta: float) -> pin.SE3:
         """The world frame of a contact at (x [m], y [m], theta [rad]) on the surface (§2.5)."""
@@ -108,7 +110,12 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
     rx, ry = layout.robot_xy
     surfaces = [
         Surface(
-            "floor", _yaw_se3(0.0, (rx, ry, 0.0)), (FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M), "floor", friction
+            "floor",
+            _yaw_se3(0.0, (rx, ry, 0.0)),
+            (FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M),
+            "floor",
+            friction,
+            "floor",
         )
     ]
     boxes = [
@@ -141,6 +148,7 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
                 (top.half_extents[0], top.half_extents[1]),
                 spec.name,
                 spec.friction,
+                f"{spec.name}[0]",  # parts_of's first part: the box's, table's or seat's top
             )
         )
     return Environment(tuple(surfaces), tuple(boxes))

@@ -19,9 +19,10 @@ sampled every ``dt_s`` (5 ms).
 Collisions (§4: "the interpolation must be checked for collisions"): every posture of the path is
 generated collision free (capsules against the scene's boxes and each other), and the timed segment
 between them is checked sample by sample (capsules against boxes, the pairs in contact excluded); a
-segment that goes more than ``collision_tol_m`` into a box is re-planned locally with twice as many
-posture generations (so with collision constraints between the former samples), up to
-``max_refinements`` times; a segment still colliding is listed in ``Motion.collisions`` (never hidden).
+segment that goes more than ``collision_tol_m`` into a box is re-planned locally: twice as many
+posture generations (so with collision constraints between the former samples), then the moving
+body's path bent sideways or up around the obstacle (``DETOURS_M``), up to ``max_refinements`` tries;
+a segment still colliding is listed in ``Motion.collisions`` (never hidden).
 A segment whose posture generation fails is reported (no hand correction).
 """
 
@@ -60,7 +61,7 @@ class InterpolationConfig:
     min_segment_s: float = 0.8
     dt_s: float = 0.005
     collision_tol_m: float = 0.005
-    max_refinements: int = 2
+    max_refinements: int = 4
     check_every: int = 4
     deadline: float = math.inf  # time.monotonic() after which the interpolation gives up (timeout)
 
@@ -113,12 +114,57 @@ def _on_surface(gen: PostureGenerator, T: pin.SE3) -> np.ndarray | None:
     return None
 
 
-def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: float) -> list[pin.SE3]:
+RISE_M = 0.05  # a body coming onto a surface this much higher goes over its edge (_over_the_edge)
+EDGE_CLEARANCE_M = 0.12  # height above the surface the body passes at [m] (a hand capsule's radius + margin)
+
+
+def _over_the_edge(
+    T1: pin.SE3, T2: pin.SE3, a: np.ndarray, n2: np.ndarray, n: int, detour_m: tuple[float, float]
+) -> list[pin.SE3]:
+    """n frames onto a surface higher than the body (a hand from hanging to a table's top): straight up
+    to ``EDGE_CLEARANCE_M`` above the surface's level, across, then straight down along its normal; a
+    Hermite chord from below would cut the surface's edge, and the posture generator's collision
+    constraints then hold the body under the edge until the witness makes it jump through (§4)."""
+    p2 = T2.translation
+    above = p2 + EDGE_CLEARANCE_M * n2
+    rise = np.array([a[0], a[1], above[2]])
+    points = [T1.translation, a, rise, above, p2]
+    chord = (above - rise)[:2]
+    across = np.array([-chord[1], chord[0], 0.0]) / max(float(np.linalg.norm(chord)), 1e-9)
+    bend = detour_m[0] * across + np.array([0.0, 0.0, detour_m[1]])
+    points[2:4] = [rise + 0.5 * bend, above + 0.5 * bend] if np.any(bend) else points[2:4]
+    lengths = np.array([np.linalg.norm(points[k + 1] - points[k]) for k in range(len(points) - 1)])
+    total = max(float(lengths.sum()), 1e-9)
+    cumulative = np.concatenate([[0.0], np.cumsum(lengths)])
+    r1, r2 = pin.Quaternion(T1.rotation), pin.Quaternion(T2.rotation)
+    out = []
+    for i in range(n):
+        s = (i + 1) / n * total
+        k = min(int(np.searchsorted(cumulative, s, side="right")) - 1, len(lengths) - 1)
+        u = (s - cumulative[k]) / max(float(lengths[k]), 1e-12)
+        p = points[k] + min(u, 1.0) * (points[k + 1] - points[k])
+        out.append(pin.SE3(r1.slerp(s / total, r2).toRotationMatrix(), np.asarray(p, float)))
+    return out
+
+
+def spot_path(
+    gen: PostureGenerator,
+    T1: pin.SE3,
+    T2: pin.SE3,
+    n: int,
+    lift_m: float,
+    detour_m: tuple[float, float] = (0.0, 0.0),
+) -> list[pin.SE3]:
     """n frames from T1 to T2 (§3.3): straight out along the normal when T1 is on a surface, straight in
-    along the normal when T2 is, a C1 cubic (Hermite) between, orientation by slerp."""
+    along the normal when T2 is, a C1 cubic (Hermite) between, orientation by slerp (a surface higher
+    than the body is reached over its edge: :func:`_over_the_edge`). ``detour_m``
+    (sideways, up) [m] bends the cubic by that much at its middle (sin(pi u) profile): sideways is
+    horizontal, across the chord (a path around an obstacle, §4)."""
     n1, n2 = _on_surface(gen, T1), _on_surface(gen, T2)
     p1, p2 = T1.translation, T2.translation
     a = p1 + (lift_m * n1 if n1 is not None else 0.0)
+    if n2 is not None and p2[2] > a[2] + RISE_M:
+        return _over_the_edge(T1, T2, a, n2, n, detour_m)
     b = p2 + (lift_m * n2 if n2 is not None else 0.0)
     span = max(float(np.linalg.norm(b - a)), 1e-6)
     # Hermite tangents: along the normals at the ends of the straight lines (C1 junctions)
@@ -127,6 +173,9 @@ def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: f
     up = np.array([0.0, 0.0, 1.0])
     ta = (n1 if n1 is not None else (up if b[2] > a[2] else (b - a) / span)) * span
     tb = (-n2 if n2 is not None else (b - a) / span) * span
+    chord = (b - a)[:2]
+    across = np.array([-chord[1], chord[0], 0.0]) / max(float(np.linalg.norm(chord)), 1e-9)
+    bend = detour_m[0] * across + detour_m[1] * up
     lengths = [lift_m if n1 is not None else 0.0, span, lift_m if n2 is not None else 0.0]
     total = sum(lengths)
     out = []
@@ -140,13 +189,20 @@ def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: f
             u = (s - lengths[0]) / lengths[1]
             h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
             h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
-            p = h00 * a + h10 * ta + h01 * b + h11 * tb
+            p = h00 * a + h10 * ta + h01 * b + h11 * tb + math.sin(math.pi * u) * bend
             r = q1.slerp(u, q2)
         else:
             p = b - (s - lengths[0] - lengths[1]) * n2
             r = q2
         out.append(pin.SE3(r.toRotationMatrix(), np.asarray(p, float)))
     return out
+
+
+def path_mask(spot: str) -> tuple[bool, ...]:
+    """The components of a moving spot's path C_i the interpolation follows: a hand's position only (a
+    fist kept pointing down while it is raised over a table's edge is beyond the arm's joint limits: the
+    6-D path held the hand under the edge), the whole pose of other spots (a sole stays level)."""
+    return (True, True, True, False, False, False) if spot.endswith("_hand") else (True,) * 6
 
 
 def transition(
@@ -157,6 +213,7 @@ def transition(
     q2: np.ndarray,
     geometric_extra: ContactSet,
     config: InterpolationConfig,
+    detour_m: tuple[float, float] = (0.0, 0.0),
 ) -> list[np.ndarray]:
     """The n postures from q1 to q2 (q2 last). ``geometric_extra``: a contact removed at the previous
     transition, still in place at q1 (its body leaves it now). Raises InfeasibleError naming the step."""
@@ -174,7 +231,8 @@ def transition(
     stable = tuple(c for c in s1 if c in held) or held
     frames = []
     if moving is not None:
-        frames = spot_path(gen, gen.spot_pose(q1, moving), gen.spot_pose(q2, moving), config.n, config.lift_m)
+        T1, T2 = gen.spot_pose(q1, moving), gen.spot_pose(q2, moving)
+        frames = spot_path(gen, T1, T2, config.n, config.lift_m, detour_m)
     # the moving body may touch the surface it leaves during the first step and the one it enters
     # during the last (within the straight lines along the normal); elsewhere it must clear them
     leaving = [c.pair for c in pairs1.values() if c.spot == moving]
@@ -195,6 +253,7 @@ def transition(
                     frames[i - 1],
                     max_step=0.1,
                     name=f"C_{i}:{moving}",
+                    mask=path_mask(moving),
                 )
             ]
         result = gen.generate(
@@ -260,6 +319,11 @@ def time_segment(gen: PostureGenerator, waypoints: np.ndarray, duration_s: float
     return q
 
 
+# local re-planning of a colliding transition (§4): twice the postures, then detours of the moving
+# body's path: (sideways [m], up [m]) at mid-path, sideways = horizontal, across the path's chord
+DETOURS_M = ((0.0, 0.0), (0.12, 0.0), (-0.12, 0.0), (0.0, 0.12), (0.25, 0.0), (-0.25, 0.0))
+
+
 def interpolate_transition(
     gen: PostureGenerator,
     s1: ContactSet,
@@ -272,31 +336,40 @@ def interpolate_transition(
 ) -> tuple[np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None, int]:
     """One transition, timed and checked (§3.3, §4): (samples every dt from q1 to q2, the discrete path,
     the deepest collision of the samples or None, local re-plannings done). A segment deeper than
-    ``config.collision_tol_m`` into a box is generated again with twice the postures, at most
-    ``config.max_refinements`` times (and so is a transition whose posture generation fails: smaller
-    steps); the last try is returned with its collision, or raises InfeasibleError."""
-    touching = [c.pair for c in (*s1, *s2, *removed)]
-    n = config.n
+    ``config.collision_tol_m`` into a box (or whose posture generation fails) is re-planned locally:
+    with twice the postures, then with the moving body's path bent around (``DETOURS_M``), at most
+    ``config.max_refinements`` times; the least colliding try is returned with its collision, or
+    InfeasibleError when every try failed."""
+    # held contacts: their objects are excluded; a body that leaves or comes: only its surface's box
+    touching = [c.pair for c in s1 if c in s2]
+    moving = [c.pair for c in (*s1, *s2, *removed) if c.pair not in touching]
+    tries = [(config.n, (0.0, 0.0))] + [(2 * config.n, d) for d in DETOURS_M]
+    best: tuple[float, np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None] | None = None
+    failure: InfeasibleError | None = None
     refinements = 0
-    for attempt in range(config.max_refinements + 1):
+    for n, detour in tries[: config.max_refinements + 1]:
         # the last posture generated aims at q2; the witness itself (stable and collision free by
         # construction) ends the segment, so that the next one starts exactly there
         try:
-            path = [q1, *transition(gen, s1, q1, s2, q2, removed, replace(config, n=n))[:-1], q2]
-        except InfeasibleError:
-            if attempt == config.max_refinements:
-                raise
-            refinements += 1  # a posture generation failed: smaller steps
-            n *= 2
+            generated = transition(gen, s1, q1, s2, q2, removed, replace(config, n=n), detour)
+        except InfeasibleError as exc:
+            failure = failure or exc
+            refinements += 1
             continue
+        path = [q1, *generated[:-1], q2]
         segment = np.array(path)
         timed = time_segment(gen, segment, segment_duration(gen, segment, config, v_max), config.dt_s)
-        hit = deepest_collision(gen, timed, touching, config.check_every)
-        if hit is None or hit[0] <= config.collision_tol_m or attempt == config.max_refinements:
+        hit = deepest_collision(gen, timed, touching, config.check_every, moving)
+        depth = 0.0 if hit is None else hit[0]
+        if best is None or depth < best[0]:
+            best = (depth, timed, path, hit)
+        if depth <= config.collision_tol_m:
             break
-        refinements += 1  # §4: re-plan the colliding segment locally, with more postures
-        n *= 2
-    return timed, path, hit, refinements
+        refinements += 1
+    if best is None:
+        assert failure is not None
+        raise failure
+    return best[1], best[2], best[3], refinements
 
 
 def interpolate_plan(
@@ -345,12 +418,17 @@ def interpolate_plan(
 
 
 def deepest_collision(
-    gen: PostureGenerator, q: np.ndarray, touching: Sequence[tuple[str, str]], every: int = 1
+    gen: PostureGenerator,
+    q: np.ndarray,
+    touching: Sequence[tuple[str, str]],
+    every: int = 1,
+    moving: Sequence[tuple[str, str]] = (),
 ) -> tuple[float, str, str, int] | None:
     """The deepest penetration (depth [m] > 0, capsule, box, sample index) of the robot's capsules into
     the scene's boxes over the samples ``q[::every]`` (and the last one), the objects of the ``touching``
-    (spot, surface) pairs excluded for their spots; None if no sample penetrates."""
-    pairs = gen.box_pairs(touching)
+    (spot, surface) pairs excluded for their spots, and for the ``moving`` pairs only the surface's own
+    box (:meth:`PostureGenerator.box_pairs`); None if no sample penetrates."""
+    pairs = gen.box_pairs(touching, moving)
     if not pairs:
         return None
     task = CapsuleBoxTask(gen.model, gen.capsules, gen.boxes, pairs)

@@ -130,21 +130,25 @@ class PostureGenerator:
         patches = [patch_of(c, self.spots[c.spot], self.env) for c in stable]
         return is_statically_stable(patches, com)[0]
 
-    def box_pairs(self, touching: Sequence[tuple[str, str]]) -> list[tuple[int, int]]:
-        """Every (capsule, box) pair but those of a spot's capsule with the object it touches."""
+    def box_pairs(
+        self, touching: Sequence[tuple[str, str]], moving: Sequence[tuple[str, str]] = ()
+    ) -> list[tuple[int, int]]:
+        """Every (capsule, box) pair but those of a spot's capsules with the object it touches
+        (``touching``), or only with the box whose face the surface is (``moving``: a body coming to or
+        leaving a surface must not pass through the rest of the object, e.g. under a table's top)."""
         excluded = set()
-        for spot_name, surface_name in touching:
-            owner = self.env.surface(surface_name).owner
-            for capsule in self.spots[spot_name].capsules:
-                for i, c in enumerate(self.capsules):
-                    if belongs_to(c.name, capsule):
-                        excluded.add((i, owner))
-        return [
-            (i, j)
-            for i in range(len(self.capsules))
-            for j, owner in enumerate(self._box_owner)
-            if (i, owner) not in excluded
-        ]
+        for pairs, whole in ((touching, True), (moving, False)):
+            for spot_name, surface_name in pairs:
+                surface = self.env.surface(surface_name)
+                for capsule in self.spots[spot_name].capsules:
+                    for i, c in enumerate(self.capsules):
+                        if not belongs_to(c.name, capsule):
+                            continue
+                        for j, box in enumerate(self.boxes):
+                            if (self._box_owner[j] == surface.owner) if whole else (box.name == surface.box):
+                                excluded.add((i, j))
+        every = ((i, j) for i in range(len(self.capsules)) for j in range(len(self.boxes)))
+        return [pair for pair in every if pair not in excluded]
 
     def contact_pose(self, contact: Contact) -> pin.SE3:
         return self.env.surface(contact.surface).placement(contact.x, contact.y, contact.theta)
