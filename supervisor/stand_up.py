@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from services.bus.schemas import contacts as contacts_msg
-from services.errors import FellError
+from services.errors import FellError, InvalidRequestError
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.report import ActionReport
@@ -32,7 +32,6 @@ SEATED_CONTACTS = [
 ]
 GOAL_AXIS, GOAL_VALUE_M = "y", 0.6
 PLAN_BUDGET_S = 300.0
-PLAN_TIMEOUT_S = PLAN_BUDGET_S + 60.0
 SUPPORTS = ("chair", "table")
 N_INTERPOLATION = 10  # posture generations per transition (§3.3's n)
 TRANSITION_TIMEOUT_S = 120.0
@@ -41,22 +40,26 @@ TRANSITION_TIMEOUT_S = 120.0
 def stand_up(
     bus: ServiceCaller, body: Body, progress: Callable[[str], None], args: tuple[str, ...] = ()
 ) -> ActionReport:
-    """Plan and execute getting up; ``args``: optional goal value [m] of the waist's y."""
+    """Plan and execute getting up; ``args``: optional goal value [m] of the waist's y, optional plan
+    budget [s] (``PLAN_BUDGET_S``)."""
     state = body.state()
     if state.fallen:
         raise FellError("the robot is on the ground: reset the sim")
     goal = float(args[0]) if args else GOAL_VALUE_M
-    progress(f"stand up: planning contacts in scene {state.scene} (budget {PLAN_BUDGET_S:.0f} s)")
+    budget = float(args[1]) if len(args) > 1 else PLAN_BUDGET_S
+    if not 0.0 < budget <= 600.0:
+        raise InvalidRequestError(f"stand_up: the plan budget must be in ]0, 600] s, got {budget}")
+    progress(f"stand up: planning contacts in scene {state.scene} (budget {budget:.0f} s)")
     request = contacts_msg.PlanRequest(
         scene=state.scene,
         q_start=state.q,
         start_contacts=SEATED_CONTACTS,
         goal_axis=GOAL_AXIS,
         goal_value_m=goal,
-        time_budget_s=PLAN_BUDGET_S,
+        time_budget_s=budget,
         interpolate=False,  # each transition is interpolated from the measured state
     )
-    plan = bus.call(contacts_msg.PLAN, request, PLAN_TIMEOUT_S)
+    plan = bus.call(contacts_msg.PLAN, request, budget + 60.0)
     for k, (change, contacts) in enumerate(zip(plan.changes, plan.sets, strict=True)):
         progress(f"  set {k}: {change} -> {len(contacts)} contacts")
     progress(f"stand up: {len(plan.sets)} sets, {plan.nodes_generated} nodes in {plan.plan_s:.0f} s")
