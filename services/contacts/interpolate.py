@@ -214,6 +214,7 @@ def transition(
     geometric_extra: ContactSet,
     config: InterpolationConfig,
     detour_m: tuple[float, float] = (0.0, 0.0),
+    lead: float = 1.0,
 ) -> list[np.ndarray]:
     """The n postures from q1 to q2 (q2 last). ``geometric_extra``: a contact removed at the previous
     transition, still in place at q1 (its body leaves it now). Raises InfeasibleError naming the step."""
@@ -243,7 +244,7 @@ def transition(
     out: list[np.ndarray] = []
     q = q1.copy()
     for i in range(1, config.n + 1):
-        q_ref = pin.interpolate(gen.model, q1, q2, i / config.n)
+        q_ref = pin.interpolate(gen.model, q1, q2, min(1.0, lead * i / config.n))
         extra = []
         if moving is not None:
             extra = [
@@ -321,7 +322,16 @@ def time_segment(gen: PostureGenerator, waypoints: np.ndarray, duration_s: float
 
 # local re-planning of a colliding transition (§4): twice the postures, then detours of the moving
 # body's path: (sideways [m], up [m]) at mid-path, sideways = horizontal, across the path's chord
+# ``lead``: the reference posture runs ahead of the moving body (the torso leans before the hand
+# comes over a table's edge)
 DETOURS_M = ((0.0, 0.0), (0.12, 0.0), (-0.12, 0.0), (0.0, 0.12), (0.25, 0.0), (-0.25, 0.0))
+# (postures x config.n, detour, lead) in order
+TRIES = (
+    (1, (0.0, 0.0), 1.0),
+    (2, (0.0, 0.0), 1.0),
+    (2, (0.0, 0.0), 2.0),
+    *((2, d, 1.0) for d in DETOURS_M[1:]),
+)
 
 
 def interpolate_transition(
@@ -337,21 +347,22 @@ def interpolate_transition(
     """One transition, timed and checked (§3.3, §4): (samples every dt from q1 to q2, the discrete path,
     the deepest collision of the samples or None, local re-plannings done). A segment deeper than
     ``config.collision_tol_m`` into a box (or whose posture generation fails) is re-planned locally:
-    with twice the postures, then with the moving body's path bent around (``DETOURS_M``), at most
+    with twice the postures, with the reference posture leading, then with the moving body's path bent
+    around (``TRIES``), at most
     ``config.max_refinements`` times; the least colliding try is returned with its collision, or
     InfeasibleError when every try failed."""
     # held contacts: their objects are excluded; a body that leaves or comes: only its surface's box
     touching = [c.pair for c in s1 if c in s2]
     moving = [c.pair for c in (*s1, *s2, *removed) if c.pair not in touching]
-    tries = [(config.n, (0.0, 0.0))] + [(2 * config.n, d) for d in DETOURS_M]
+    tries = [(k * config.n, detour, lead) for k, detour, lead in TRIES]
     best: tuple[float, np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None] | None = None
     failure: InfeasibleError | None = None
     refinements = 0
-    for n, detour in tries[: config.max_refinements + 1]:
+    for n, detour, lead in tries[: config.max_refinements + 1]:
         # the last posture generated aims at q2; the witness itself (stable and collision free by
         # construction) ends the segment, so that the next one starts exactly there
         try:
-            generated = transition(gen, s1, q1, s2, q2, removed, replace(config, n=n), detour)
+            generated = transition(gen, s1, q1, s2, q2, removed, replace(config, n=n), detour, lead)
         except InfeasibleError as exc:
             failure = failure or exc
             refinements += 1
