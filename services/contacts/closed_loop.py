@@ -88,16 +88,26 @@ def regenerate_witness(
 ) -> tuple[ContactSet, ContactSet, np.ndarray | None, str]:
     """(s1 measured, s2 with its held contacts measured, the new witness or None, why not): the son's
     rule of the search (§2.3): a removal keeps the removed contact as geometry with the stability on the
-    rest; an addition puts the new contact (at its planned place) out of the stability."""
+    rest; an addition puts the new contact (at its planned place) out of the stability. The posture
+    generation starts from the measured posture, then (if it fails) from the planned witness."""
     s1 = measured_contacts(gen, s1_planned, q_measured)
     by_pair = {c.pair: c for c in s1}
     s2 = tuple(by_pair.get(c.pair, c) for c in s2_planned)
     added = [c for c in s2 if c.pair not in by_pair]
     geometric = s1 + tuple(added)
     stable = s1 if added else s2
-    result = gen.generate(geometric, stable, q_measured, PostureTask(gen.model, q2_planned))
-    if not result.ok:
-        return s1, s2, None, result.reason
+    reference = PostureTask(gen.model, q2_planned)
+    result = gen.generate(geometric, stable, q_measured, reference)
+    if not result.ok:  # from the planned witness (near the answer when the supports moved little)
+        retry = gen.generate(geometric, stable, q2_planned, reference)
+        if not retry.ok:
+            return (
+                s1,
+                s2,
+                None,
+                f"from the measured posture: {result.reason}; from the planned one: {retry.reason}",
+            )
+        result = retry
     return s1, s2, result.q, ""
 
 
