@@ -362,11 +362,11 @@ def test_a_witness_regenerated_from_the_measured_state_keeps_the_supports_where_
     assert planned.ok and planned.contact is not None, planned.reason
     s2 = (*start, planned.contact)
     measured_q = q0.copy()
-    measured_q[0] += 0.01  # the robot slid 1 cm forward on the seat
+    measured_q[0] += 0.02  # the robot slid 2 cm forward on the seat (more than REREAD_M)
     s1, s2_measured, q2, reason = regenerate_witness(gen, start, s2, planned.q, measured_q)
     assert q2 is not None, reason
-    for c in s1:  # the held contacts are where the measured spots are, 1 cm from the plan
-        assert abs(c.x - next(p for p in start if p.pair == c.pair).x) == pytest.approx(0.01, abs=1e-6)
+    for c in s1:  # the held contacts are where the measured spots are, 2 cm from the plan
+        assert abs(c.x - next(p for p in start if p.pair == c.pair).x) == pytest.approx(0.02, abs=1e-6)
     for c in s2_measured:  # the new witness matches them, and the new contact where it was planned
         T = gen.spot_pose(q2, c.spot)
         assert np.linalg.norm(T.translation - gen.contact_pose(c).translation) < 3e-3

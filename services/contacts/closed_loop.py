@@ -65,16 +65,29 @@ class ClosedLoopResult:
     replan_s: float = 0.0
 
 
-def measured_contacts(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) -> ContactSet:
-    """The contacts of ``planned`` re-read where their spots are at ``q`` (projected on their surfaces)."""
-    return tuple(contact_at(gen.spots[c.spot], c.surface, gen.env, gen.spot_pose(q, c.spot)) for c in planned)
+REREAD_M = 0.01  # a held contact is re-read where its spot is when it slid more than this [m]
 
 
-def _support_error(gen: PostureGenerator, planned: ContactSet, measured: ContactSet) -> float:
-    """Largest distance [m] between the planned and measured places of the same contacts."""
+def measured_contacts(
+    gen: PostureGenerator, planned: ContactSet, q: np.ndarray, min_slip_m: float = REREAD_M
+) -> ContactSet:
+    """The contacts of ``planned`` re-read where their spots are at ``q`` (projected on their surfaces)
+    when they slid more than ``min_slip_m`` [m]; the others as planned (a few mm are the contact's
+    compliance and the tracking error, and a posture generation from a spot a few mm off its surface,
+    tilted, can fail to match it)."""
+    out = []
+    for c in planned:
+        measured = contact_at(gen.spots[c.spot], c.surface, gen.env, gen.spot_pose(q, c.spot))
+        slip = np.linalg.norm(gen.contact_pose(measured).translation - gen.contact_pose(c).translation)
+        out.append(measured if slip > min_slip_m else c)
+    return tuple(out)
+
+
+def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) -> float:
+    """Largest distance [m] between a planned contact's place and where its spot is at ``q``."""
     errors = [
-        float(np.linalg.norm(gen.contact_pose(a).translation - gen.contact_pose(b).translation))
-        for a, b in zip(planned, measured, strict=True)
+        float(np.linalg.norm(gen.spot_pose(q, c.spot).translation - gen.contact_pose(c).translation))
+        for c in planned
     ]
     return max(errors, default=0.0)
 
@@ -141,7 +154,7 @@ def replan_transition(
     config = config or InterpolationConfig()
     q1 = np.asarray(q_measured, float)
     s1, s2, q2, reason = regenerate_witness(gen, s1_planned, s2_planned, np.asarray(q2_planned, float), q1)
-    error = _support_error(gen, s1_planned, s1)
+    error = _support_error(gen, s1_planned, q1)
     if q2 is None:
         raise InfeasibleError(
             f"no witness of the next set from the measured supports (off the plan by up to "
