@@ -102,7 +102,9 @@ def regenerate_witness(
     """(s1 measured, s2 with its held contacts measured, the new witness or None, why not): the son's
     rule of the search (§2.3): a removal keeps the removed contact as geometry with the stability on the
     rest; an addition puts the new contact (at its planned place) out of the stability. The posture
-    generation starts from the measured posture, then (if it fails) from the planned witness."""
+    generation starts from the measured posture, then (if it fails) from the planned witness; when
+    both fail, the planned sets and witness are returned with the reason (the transition then drags the
+    slid supports back, as the open-loop replay does)."""
     s1 = measured_contacts(gen, s1_planned, q_measured)
     by_pair = {c.pair: c for c in s1}
     s2 = tuple(by_pair.get(c.pair, c) for c in s2_planned)
@@ -110,18 +112,16 @@ def regenerate_witness(
     geometric = s1 + tuple(added)
     stable = s1 if added else s2
     reference = PostureTask(gen.model, q2_planned)
-    result = gen.generate(geometric, stable, q_measured, reference)
-    if not result.ok:  # from the planned witness (near the answer when the supports moved little)
-        retry = gen.generate(geometric, stable, q2_planned, reference)
-        if not retry.ok:
-            return (
-                s1,
-                s2,
-                None,
-                f"from the measured posture: {result.reason}; from the planned one: {retry.reason}",
-            )
-        result = retry
-    return s1, s2, result.q, ""
+    reasons = []
+    for start in (q_measured, q2_planned):
+        result = gen.generate(geometric, stable, start, reference)
+        if result.ok:
+            return s1, s2, result.q, ""
+        reasons.append(result.reason)
+    if s1 != tuple(s1_planned):
+        reason = f"no witness for the supports where they slid ({'; '.join(reasons)}): the planned one"
+        return tuple(s1_planned), tuple(s2_planned), np.asarray(q2_planned, float), reason
+    return s1, s2, None, f"from the measured posture: {reasons[0]}; from the planned one: {reasons[1]}"
 
 
 @dataclass(frozen=True)
@@ -129,7 +129,7 @@ class ReplannedTransition:
     """A transition re-planned from the measured state: the samples (``q``, every ``dt_s``, the first
     at the measured configuration), the new ``witness``, the largest distance [m] between a held
     contact's measured and planned place, and a segment still colliding after local re-planning
-    (``collision``, "" if none)."""
+    or a fallback to the planned witness (``collision``: what was played anyway, "" if nothing)."""
 
     q: np.ndarray
     dt_s: float
@@ -164,9 +164,10 @@ def replan_transition(
     released = measured_contacts(gen, released_planned, q1)
     v_max = np.asarray(gen.robot.v_max, float)
     timed, _path, hit, _refined = interpolate_transition(gen, s1, q1, s2, q2, released, config, v_max)
-    collision = ""
+    collision = reason  # a fallback to the planned witness, if any
     if hit is not None and hit[0] > config.collision_tol_m:
-        collision = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
+        segment = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
+        collision = f"{collision}; {segment}" if collision else segment
     return ReplannedTransition(timed, config.dt_s, q2, error, collision)
 
 

@@ -101,7 +101,9 @@ class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
     q: np.ndarray  # (N, nq) samples every dt_s, the first at q_measured
     witness: np.ndarray  # (nq,) the regenerated witness (the last sample)
     support_error_m: float  # largest distance between a held contact's measured and planned place
-    collision: str  # a segment still colliding after local re-planning ("" if none)
+    # played anyway: a segment still colliding after local re-planning, or the planned witness used
+    # because none was found for the supports where they slid ("" if nothing)
+    collision: str
     replan_s: float  # wall time [s]
 
 
