@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -66,6 +66,10 @@ class ClosedLoopResult:
 
 
 REREAD_M = 0.01  # a held contact is re-read where its spot is when it slid more than this [m]
+# a regenerated witness: contacts matched within 5 mm (the sim's contacts comply by that much), more
+# iterations (it starts from a measured posture a few cm off)
+REGENERATE_TOL_M = 5e-3
+REGENERATE_ITERS = 150
 
 
 def measured_contacts(
@@ -113,8 +117,9 @@ def regenerate_witness(
     stable = s1 if added else s2
     reference = PostureTask(gen.model, q2_planned)
     reasons = []
+    relaxed = replace(gen.config, tol=REGENERATE_TOL_M, max_iters=REGENERATE_ITERS)
     for start in (q_measured, q2_planned):
-        result = gen.generate(geometric, stable, start, reference)
+        result = gen.generate(geometric, stable, start, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
         reasons.append(result.reason)

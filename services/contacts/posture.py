@@ -54,7 +54,7 @@ GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in 
 @dataclass(frozen=True)
 class PostureConfig:
     """Settings of the posture generator: ``com_margin_m`` inside the equilibrium region [m] (
-    ``single_contact_margin_m`` when one contact holds the robot),
+    ``single_contact_margin_m`` when one contact, or contacts on one surface, hold the robot),
     ``collision_margin_m`` between capsules and boxes [m], ``self_margin_m`` between capsules [m],
     ``tol`` on levels 1-2 (m / rad), ``max_iters`` IK iterations per posture."""
 
@@ -180,6 +180,7 @@ class PostureGenerator:
         extra: Sequence[Task] = (),
         extra_touching: Sequence[tuple[str, str]] = (),
         guide: Sequence[Task] = (),
+        config: PostureConfig | None = None,
     ) -> PostureResult:
         """A posture matching every contact of ``geometric`` (and the ``floating`` one inside its
         volume), statically stable on ``stable`` (a subset of ``geometric``), collision free, within
@@ -187,10 +188,10 @@ class PostureGenerator:
         level (interpolation constraints C_i, §3.3); ``extra_touching`` lists the (spot, surface) pairs
         they bring in contact (excluded from the collision pairs); ``guide`` tasks form a level of their
         own between the contacts and the criterion, met as well as the levels above allow (the path of
-        a moving body, §3.3)."""
+        a moving body, §3.3). ``config`` overrides the generator's settings for this call."""
         start = time.perf_counter()
         self.calls += 1
-        cfg = self.config
+        cfg = config or self.config
         try:
             region = self.region(stable)
         except InfeasibleError as exc:
@@ -217,7 +218,8 @@ class PostureGenerator:
         ]
         if region.shape[0] >= 3:
             margin = cfg.com_margin_m
-            if len(stable) == 1:
+            if len(stable) == 1 or len({c.surface for c in stable}) == 1:
+                # one contact, or coplanar ones (standing, stepping): no other support to lean on
                 margin = max(margin, cfg.single_contact_margin_m)
             safety.append(
                 ComSupportPolygonTask(self.model, margin, polygon_world_xy=region, all_edges=True)
@@ -236,7 +238,7 @@ class PostureGenerator:
         if criterion is not None:
             # no error damping: f_T's task keeps a large value by design (the slope k t / 2)
             levels.append(Level((criterion,), name="criterion", tol=math.inf, error_damping=0.0))
-        q, iterations, residual = self._optimize(levels, np.asarray(q_init, float), criterion)
+        q, iterations, residual = self._optimize(levels, np.asarray(q_init, float), criterion, cfg)
         elapsed = time.perf_counter() - start
         safety_value, contact_value = residual
         if contact_value > cfg.tol:
@@ -270,7 +272,7 @@ class PostureGenerator:
         return PostureResult(True, q, contact, "", iterations, elapsed)
 
     def _optimize(
-        self, levels: list[Level], q: np.ndarray, criterion: Task | None
+        self, levels: list[Level], q: np.ndarray, criterion: Task | None, cfg: PostureConfig
     ) -> tuple[np.ndarray, int, tuple[float, float]]:
         """Prioritized IK steps from ``q``: first until the constraints (levels 1-2) are met, then on
         while the criterion still decreases; returns the best feasible iterate (lowest criterion), or
@@ -279,7 +281,6 @@ class PostureGenerator:
         (``services.ik.run`` stops once the required levels are met or when their task values stall;
         the criterion f_T's task value ||P (-) Q - k t / 2|| does not measure f_T's decrease, so the
         loop here watches f_T itself.)"""
-        cfg = self.config
         solver = self.solver
         bound = solver.bound_q_idx
         lower, upper = solver.q_lower[bound], solver.q_upper[bound]
