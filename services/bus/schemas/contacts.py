@@ -77,6 +77,9 @@ class PlanReply(msgspec.Struct, kw_only=True, frozen=True):
     interpolation_s: float  # interpolation wall time [s]
 
 
+ContactList = Annotated[list[ContactMsg], Meta(max_length=32)]
+
+
 class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """One transition of a plan re-planned from the robot's measured configuration ``q_measured``
     (executing set by set): the contacts of ``from_set`` are re-read where their spots are at
@@ -87,11 +90,11 @@ class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
 
     scene: SceneName
     q_measured: np.ndarray  # (nq,) float64
-    from_set: list[ContactMsg]  # the planned contacts holding at q_measured
-    to_set: list[ContactMsg]  # the next planned set
+    from_set: ContactList  # the planned contacts holding at q_measured
+    to_set: ContactList  # the next planned set
     witness: np.ndarray  # (nq,) the planned witness of to_set
-    released: list[ContactMsg] = msgspec.field(default_factory=list)
-    n_interpolation: Annotated[int, Meta(ge=2, le=1000)] = 10
+    released: ContactList = msgspec.field(default_factory=list)
+    n_interpolation: Annotated[int, Meta(ge=2, le=100)] = 10  # bounded work: <= 7 tries of 2n postures
 
 
 class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
