@@ -54,7 +54,7 @@ GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in 
 @dataclass(frozen=True)
 class PostureConfig:
     """Settings of the posture generator: ``com_margin_m`` inside the equilibrium region [m] (
-    ``single_contact_margin_m`` when one contact, or contacts on one surface, hold the robot),
+    ``single_contact_margin_m`` when one contact holds the robot),
     ``collision_margin_m`` between capsules and boxes [m], ``self_margin_m`` between capsules [m],
     ``tol`` on levels 1-2 (m / rad), ``max_iters`` IK iterations per posture."""
 
@@ -218,8 +218,7 @@ class PostureGenerator:
         ]
         if region.shape[0] >= 3:
             margin = cfg.com_margin_m
-            if len(stable) == 1 or len({c.surface for c in stable}) == 1:
-                # one contact, or coplanar ones (standing, stepping): no other support to lean on
+            if len(stable) == 1:
                 margin = max(margin, cfg.single_contact_margin_m)
             safety.append(
                 ComSupportPolygonTask(self.model, margin, polygon_world_xy=region, all_edges=True)
