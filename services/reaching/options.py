@@ -115,9 +115,9 @@ class ReachingOptions:
     arm_speed_per_knot: bool = False
     torque_ratio: float = 0.6
     hand_speed_m_s: float = 0.2
-    min_reach_s: float = 2.0
+    min_reach_s: float = 1.4
     max_reach_s: float = 5.0
-    final_hold_s: float = 0.6
+    final_hold_s: float = 0.3
     single_support_s: float | None = None
     double_support_s: float | None = None
     step_slowdown: float = 1.3
