@@ -109,6 +109,7 @@ class IKModel:
             self.q_upper,
             np.asarray(robot.effort_max)[self.free_v_idx],
             (robot.frames.left_sole, robot.frames.right_sole),
+            options.manipulability_of,
         )
         self.v_max_arm = v_max[self.monitor.arm_v_idx]
         # The arms' joints move at most velocity_ratio of their limits over a whole knot (the
@@ -233,6 +234,7 @@ class ReachTracker:
         t0 = time.perf_counter()
         opt = self.options
         limits = opt.thresholds(self.robot)
+        criteria = opt.criteria_for(self.robot)
         n = spec.n_samples
         knots = list(range(0, n, opt.knot_stride))
         if knots[-1] != n - 1:
@@ -293,7 +295,7 @@ class ReachTracker:
             Q[i] = q
             values.append(self._knot_values(ik, q_knot, q, spec, k, (k - knots[i - 1]) * DT_S))
             if violation is None:
-                violation = first_violation(opt.criteria, values[-1], limits)
+                violation = first_violation(criteria, values[-1], limits)
                 if violation is not None and stop_at_violation:
                     break
         monitors = MonitorSeries.from_knots(values)
