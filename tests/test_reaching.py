@@ -174,6 +174,19 @@ def test_weighted_pseudo_inverse_moves_the_light_arm_more_and_the_heavy_legs_les
     assert moves[True][1] < moves[False][1]
 
 
+def test_the_free_arm_ends_where_it_started():
+    """S = I: the arm without a task helps the CoM, and the rest level brings it back (the robot's width
+    after a reach: navigation plans with the arms' footprint)."""
+    robot = load_robot("hrp2_like")
+    request = _request(robot, (0.6, -0.6, 1.1))
+    other = [robot.joint_index(j).idx_q for j in robot.arm_joints("left")]
+    moved = {}
+    for rest in (True, False):
+        result = plan_reach(robot, request, ReachingOptions(other_arm_rest=rest))
+        moved[rest] = np.abs(result.q[-1, other] - robot.q_half_sitting[other]).max()
+    assert moved[True] < 0.01 < 0.1 < moved[False]
+
+
 def test_joint_limit_selection_matrix_keeps_arm_joints_off_their_limits():
     robot = load_robot("talos")
     request = _request(robot, (0.62, 0.3, 1.0))

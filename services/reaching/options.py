@@ -82,6 +82,9 @@ class ReachingOptions:
         other_arm_still: the selection matrix S leaves out the arm that does not reach (no task uses
             it; with the weighted pseudo-inverse the light arm swings to help the CoM). Off by
             default: S = I_n as in the paper's experiment.
+        other_arm_rest: with the other arm free, it is pulled back towards its starting posture in the
+            rest level (below the four tasks: only the redundancy they leave), so that it does not end
+            the reach swung out (the robot's width, for navigation afterwards).
         joint_limit_selection_rad: the selection matrix S_l: joints closer than this to a limit [rad] are
             left out of the CoM, hand and gaze levels; ``None``: S = I_n (the paper's experiment).
         knot_stride: 5 ms samples between two IK knots (the trajectory is a C2 spline of the knots).
@@ -123,6 +126,7 @@ class ReachingOptions:
     com_height: bool = False
     com_height_rest: bool = False
     other_arm_still: bool = False
+    other_arm_rest: bool = True
     joint_limit_selection_rad: float | None = None
     knot_stride: int = 10
     max_iterations_per_knot: int = 3
