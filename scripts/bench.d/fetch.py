@@ -8,20 +8,26 @@ A run succeeds when the script succeeds **and** the sim's ground truth (benchmar
 supervisor never does) has the orange ball resting on the yellow table: not held, its centre within the
 table top's rectangle and 0 to 6 cm above the top plus its radius.
 
-Writes ``bench/out/fetch.json`` (``--out``; rewritten after every layout, ``"partial": true`` until the
-last): ``n``, ``success_rate``, ``median_wall_s``, ``median_sim_s`` (over all runs), ``retries`` (total),
-``real_time_factor`` (median sim / wall), ``median_think_s`` (median wall time from an action attempt's
-start to its first ``sim/execute`` chunk, over every attempt that moved the robot: how long the robot
-stands still thinking), ``footsteps_plan_calls`` (median calls to ``footsteps/plan`` per fetch, counted
-in the recorded log: the recorder of the stack writes every ``footsteps/**`` message to an MCAP file,
-``--record``, and each fetch's ``footsteps/plan`` requests are those logged between its start and end),
-the load average before and after, and per run: seed, ok, script_ok, on_table, wall_s, sim_s, retries,
-think_s (median), footsteps_plan_calls, failure.
+Writes ``bench/out/fetch.json``: ``n``, ``success_rate``, ``median_wall_s``, ``median_sim_s`` (over all
+runs), ``retries`` (total), ``real_time_factor`` (median sim / wall), ``median_think_s`` (median wall
+time from an action attempt's start to its first ``sim/execute`` chunk, over every attempt that moved
+the robot: how long the robot stands still thinking), ``footsteps_plan_calls`` (median calls to
+``footsteps/plan`` per fetch, counted in the recorded log: the stack's recorder writes every
+``footsteps/**`` message to an MCAP file beside ``--out`` and each fetch's requests are those logged
+between its start and end; in ``--worker`` mode, the supervisor's requests as they go out), and per run: seed,
+ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure.
 Goals (issues 10, 15): success >= 95 %, wall time <= sim time, median think <= 1 s, >= 2 footstep
 plans per fetch.
 
-Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--out FILE] [--record FILE]
-       scripts/bench fetch --count-log FILE.mcap --out FILE   (recount a cut-off run's calls)
+Side by side (issue 15's wall-time goal): ``--baseline DIR`` runs a second checkout (e.g. a git worktree
+of the commit to compare with, its own ``.venv`` made by its ``scripts/_venv.sh``) in the same run. Each
+tree's stack runs in its own worker process (this file with ``--worker``, under that tree's Python and
+``PYTHONPATH``); the seeds alternate between the two (this tree first on even seeds, the baseline first on
+odd ones) so that the machine's load hits both alike. Adds ``baseline`` (the baseline's figures and runs),
+``baseline_median_wall_s`` and ``wall_ratio`` (this tree's median wall time / the baseline's) to the JSON.
+Neither stack has a subscriber on ``hrp/**`` (timings compare only under the same subscriber conditions).
+
+Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--baseline DIR]
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ import os
 import platform
 import socket
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -49,17 +56,18 @@ def _free_port() -> int:
 
 class CallWatch:
     """Per fetch: the wall time from each action attempt's start (the runner's ``started`` event) to
-    its first ``sim/execute`` request (the supervisor's bus hook)."""
+    its first ``sim/execute`` request, and the ``footsteps/plan`` requests (the supervisor's bus hook)."""
 
     def __init__(self, sup: Any) -> None:  # supervisor.core.Supervisor
         self.think_s: list[float] = []
+        self.footsteps_plans = 0
         self._started: float | None = None
         self._forward = sup.runner.on_event
         sup.runner.on_event = self._on_event
         sup.bus.on_call = self._on_call
 
     def reset(self) -> None:
-        self.think_s, self._started = [], None
+        self.think_s, self.footsteps_plans, self._started = [], 0, None
 
     def _on_event(self, event: Any) -> None:  # supervisor.runner.Event
         self._forward(event)
@@ -67,69 +75,11 @@ class CallWatch:
             self._started = time.monotonic()
 
     def _on_call(self, spec: Any) -> None:  # services.bus.spec.EndpointSpec
-        if spec.path == "sim/execute" and self._started is not None:
+        if spec.path == "footsteps/plan":
+            self.footsteps_plans += 1
+        elif spec.path == "sim/execute" and self._started is not None:
             self.think_s.append(time.monotonic() - self._started)
             self._started = None
-
-
-def summarize(runs: list[dict[str, Any]], load_before: tuple[float, ...], partial: bool) -> dict[str, Any]:
-    """The benchmark's JSON: figures over ``runs``, the goals, the machine."""
-    n = len(runs)
-    calls = [r["footsteps_plan_calls"] for r in runs if r["footsteps_plan_calls"] is not None]
-    return {
-        "n": n,
-        "seeds": [runs[0]["seed"], runs[-1]["seed"]] if runs else [],
-        "partial": partial,
-        "success_rate": sum(r["ok"] for r in runs) / max(n, 1),
-        "median_wall_s": statistics.median(r["wall_s"] for r in runs) if runs else None,
-        "median_sim_s": statistics.median(r["sim_s"] for r in runs) if runs else None,
-        "retries": sum(r["retries"] for r in runs),
-        "real_time_factor": statistics.median(r["sim_s"] / max(r["wall_s"], 1e-9) for r in runs)
-        if runs
-        else None,
-        "median_think_s": statistics.median(t for r in runs for t in r["think_samples_s"])
-        if any(r["think_samples_s"] for r in runs)
-        else None,
-        "footsteps_plan_calls": statistics.median(calls) if calls else None,
-        "footsteps_plan_calls_min": min(calls) if calls else None,
-        "goals": {
-            "success_rate": 0.95,
-            "real_time_factor": 1.0,
-            "median_think_s": 1.0,
-            "footsteps_plan_calls": 2,
-        },
-        "runs": runs,
-        "machine": {
-            "cpus": os.cpu_count(),
-            "python": platform.python_version(),
-            "load_avg_before": load_before,
-            "load_avg": os.getloadavg(),
-        },
-        "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
-    }
-
-
-def _write(out: Path, result: dict[str, Any]) -> None:
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2) + "\n")
-
-
-def _recount(log: str, out: Path) -> int:
-    """``--count-log``: fill a (cut-off) run's ``footsteps_plan_calls`` from its log."""
-    result = json.loads(out.read_text())
-    runs = result["runs"]
-    from services.bus.schemas import footsteps as fs_msg
-    from supervisor.evaluate import requests_in_log
-
-    counts = requests_in_log(log, fs_msg.PLAN, [(r["start_ns"], r["end_ns"]) for r in runs])
-    for run, count in zip(runs, counts, strict=True):
-        run["footsteps_plan_calls"] = count
-    calls = [r["footsteps_plan_calls"] for r in runs]
-    result["footsteps_plan_calls"] = statistics.median(calls) if calls else None
-    result["footsteps_plan_calls_min"] = min(calls) if calls else None
-    _write(out, result)
-    print(f"footsteps/plan calls per fetch from {log}: {counts}; wrote {out}")
-    return 0
 
 
 def main(argv: list[str]) -> int:
@@ -138,15 +88,11 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--seed0", type=int, default=0, help="first seed (0)")
     parser.add_argument("--log-dir", default="bench/out/fetch-logs", help="services' output")
     parser.add_argument("--out", default=str(OUT), help="JSON output file")
-    parser.add_argument(
-        "--record", help="MCAP log of the footstep planner's messages (default: beside --out, .mcap)"
-    )
-    parser.add_argument("--count-log", metavar="MCAP", help="only recount the calls of --out from this log")
+    parser.add_argument("--baseline", default="", help="another checkout to run side by side (its .venv)")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)  # seeds on stdin
     args = parser.parse_args(argv)
-    out = Path(args.out)
-    if args.count_log:
-        return _recount(args.count_log, out)
-    record = args.record or str(out.with_suffix(".mcap"))
+    if args.baseline:
+        return side_by_side(args, Path(args.baseline).resolve())
 
     from services.bus.config import BusConfig
     from services.bus.schemas import footsteps as fs_msg
@@ -156,10 +102,14 @@ def main(argv: list[str]) -> int:
     from supervisor.fetch import fetch, running_stack
 
     bus = BusConfig().with_hub_port(_free_port())
-    load_before = os.getloadavg()
-    runs: list[dict[str, Any]] = []
-    Path(args.log_dir).mkdir(parents=True, exist_ok=True)
-    config_path = record_config(Path(args.log_dir) / "record.yaml")
+    runs = []
+    windows: list[tuple[int, int]] = []
+    # The footstep planner's messages are recorded (not in a side-by-side worker: no subscriber there).
+    record = None if args.worker else str(Path(args.out).with_suffix(".mcap"))
+    config_path = None
+    if record:
+        Path(args.log_dir).mkdir(parents=True, exist_ok=True)
+        config_path = record_config(Path(args.log_dir) / "record.yaml")
     with (
         running_stack(bus, log_dir=args.log_dir, record=record, config_path=config_path),
         Supervisor.connect(bus) as sup,
@@ -168,11 +118,12 @@ def main(argv: list[str]) -> int:
         if missing:
             print(f"services missing: {', '.join(missing)}", file=sys.stderr)
         watch = CallWatch(sup)
-        for seed in range(args.seed0, args.seed0 + args.n):
+        seeds = _stdin_seeds() if args.worker else range(args.seed0, args.seed0 + args.n)
+        for seed in seeds:
             watch.reset()
             start_ns = time.time_ns()
             summary, _report = fetch(sup, seed=seed)
-            end_ns = time.time_ns()
+            windows.append((start_ns, time.time_ns()))
             gt = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
             on_table, why = ball_on_table(gt)
             run = {
@@ -185,26 +136,67 @@ def main(argv: list[str]) -> int:
                 "retries": summary.retries,
                 "think_s": round(statistics.median(watch.think_s), 2) if watch.think_s else None,
                 "think_samples_s": [round(t, 2) for t in watch.think_s],
-                "footsteps_plan_calls": None,  # from the log, once the recorder has closed it
+                "footsteps_plan_calls": watch.footsteps_plans,
                 "failure": summary.failure or why,
-                "start_ns": start_ns,
-                "end_ns": end_ns,
-                "load_avg": [round(v, 2) for v in os.getloadavg()],
             }
             runs.append(run)
-            _write(out, summarize(runs, load_before, partial=True))
             print(
                 f"seed {seed:3d}  {'ok  ' if run['ok'] else 'FAIL'}  wall {run['wall_s']:6.1f} s  "
                 f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  think {run['think_s']} s  "
-                f"load {run['load_avg'][0]:.1f}  {run['failure']}",
+                f"footsteps/plan x{run['footsteps_plan_calls']}  {run['failure']}",
                 flush=True,
             )
-    counts = requests_in_log(record, fs_msg.PLAN, [(r["start_ns"], r["end_ns"]) for r in runs])
-    for run, count in zip(runs, counts, strict=True):
-        run["footsteps_plan_calls"] = count
-    result = summarize(runs, load_before, partial=False)
+            if args.worker:
+                print(WORKER_TAG + json.dumps(run), flush=True)
+    if args.worker:
+        return 0
+    if record:  # the recorder has closed the log: count there
+        for run, count in zip(runs, requests_in_log(record, fs_msg.PLAN, windows), strict=True):
+            run["footsteps_plan_calls"] = count
+    result = summarize(runs)
+    result.update(
+        {
+            "goals": {
+                "success_rate": 0.95,
+                "real_time_factor": 1.0,
+                "median_think_s": 1.0,
+                "footsteps_plan_calls": 2,
+            },
+            "runs": runs,
+            "machine": {
+                "cpus": os.cpu_count(),
+                "python": platform.python_version(),
+                "load_avg": os.getloadavg(),
+            },
+            "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        }
+    )
+    print_table(result)
+    return write(result, Path(args.out))
+
+
+def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """The figures over ``runs`` (the per-seed dicts)."""
     n = len(runs)
-    print(f"footsteps/plan calls per fetch (from {record}): {counts}")
+    return {
+        "n": n,
+        "success_rate": sum(r["ok"] for r in runs) / max(n, 1),
+        "median_wall_s": statistics.median(r["wall_s"] for r in runs) if runs else None,
+        "median_sim_s": statistics.median(r["sim_s"] for r in runs) if runs else None,
+        "retries": sum(r["retries"] for r in runs),
+        "real_time_factor": statistics.median(r["sim_s"] / max(r["wall_s"], 1e-9) for r in runs)
+        if runs
+        else None,
+        "median_think_s": statistics.median(t for r in runs for t in r["think_samples_s"])
+        if any(r["think_samples_s"] for r in runs)
+        else None,
+        "footsteps_plan_calls": statistics.median(r["footsteps_plan_calls"] for r in runs) if runs else None,
+    }
+
+
+def print_table(result: dict[str, Any]) -> None:
+    """The summary table of one tree's figures."""
+    n = result["n"]
     print()
     print(
         f"{'n':>4} {'success':>8} {'median wall [s]':>16} {'median sim [s]':>15} "
@@ -216,6 +208,138 @@ def main(argv: list[str]) -> int:
         f"{result['retries']:>8} {result['real_time_factor']:>9.2f} "
         f"{result['median_think_s'] or 0.0:>10.2f} {result['footsteps_plan_calls'] or 0:>15}"
     )
-    _write(out, result)
+
+
+def write(result: dict[str, Any], out: Path) -> int:
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {out}")
     return 0
+
+
+# ------------------------------------------------------------------------ side by side with a baseline
+WORKER_TAG = "FETCH-RUN "
+"""Prefix of the line on which a worker prints a finished run (JSON)."""
+
+
+def _stdin_seeds() -> Any:
+    """Seeds, one per line on stdin, as the parent sends them (EOF ends)."""
+    for line in sys.stdin:
+        if line.strip():
+            yield int(line)
+
+
+class Worker:
+    """One tree's stack in a worker process: ``run(seed)`` fetches once and returns the run's dict."""
+
+    def __init__(self, tree: Path, log_dir: Path) -> None:
+        python = tree / ".venv" / "bin" / "python"
+        if not python.is_file():
+            raise SystemExit(f"{python} not found: make the tree's venv with its scripts/_venv.sh")
+        self.tree = tree
+        log_dir.mkdir(parents=True, exist_ok=True)
+        self.proc = subprocess.Popen(
+            [str(python), str(Path(__file__).resolve()), "--worker", "--log-dir", str(log_dir)],
+            cwd=tree,
+            env={**os.environ, "PYTHONPATH": str(tree)},
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            bufsize=1,
+        )
+
+    def run(self, seed: int) -> dict[str, Any]:
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        self.proc.stdin.write(f"{seed}\n")
+        self.proc.stdin.flush()
+        for line in self.proc.stdout:
+            if line.startswith(WORKER_TAG):
+                return json.loads(line[len(WORKER_TAG) :])
+        raise SystemExit(f"the worker of {self.tree} ended before seed {seed}'s result")
+
+    def close(self) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            self.proc.terminate()
+            self.proc.wait(timeout=10)
+
+
+def side_by_side(args: argparse.Namespace, baseline: Path) -> int:
+    """Run every seed on this tree and on ``baseline``, alternating which goes first."""
+    log_dir = Path(args.log_dir)
+    trees = {"this": REPO, "baseline": baseline}
+    workers = {name: Worker(tree, log_dir / name) for name, tree in trees.items()}
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
+    loads = []
+    try:
+        for seed in range(args.seed0, args.seed0 + args.n):
+            order = ("this", "baseline") if seed % 2 == 0 else ("baseline", "this")
+            for name in order:
+                run = workers[name].run(seed)
+                run["load_avg_1min"] = round(os.getloadavg()[0], 2)
+                loads.append(run["load_avg_1min"])
+                runs[name].append(run)
+                print(
+                    f"{name:8s} seed {seed:3d}  {'ok  ' if run['ok'] else 'FAIL'}  "
+                    f"wall {run['wall_s']:6.1f} s  "
+                    f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  load {run['load_avg_1min']}  "
+                    f"{run['failure']}",
+                    flush=True,
+                )
+    finally:
+        for worker in workers.values():
+            worker.close()
+    result = summarize(runs["this"])
+    base = summarize(runs["baseline"])
+    result.update(
+        {
+            "baseline_median_wall_s": base["median_wall_s"],
+            "wall_ratio": round(result["median_wall_s"] / base["median_wall_s"], 3)
+            if result["median_wall_s"] and base["median_wall_s"]
+            else None,
+            "goals": {
+                "success_rate": 0.95,
+                "wall_ratio": 0.7,
+                "median_think_s": 1.0,
+                "footsteps_plan_calls": 2,
+            },
+            "runs": runs["this"],
+            "baseline": {
+                **base,
+                "tree": str(baseline),
+                "commit": _commit(baseline),
+                "runs": runs["baseline"],
+            },
+            "commit": _commit(REPO),
+            "machine": {
+                "cpus": os.cpu_count(),
+                "python": platform.python_version(),
+                "load_avg": os.getloadavg(),
+                "load_avg_1min_during": [min(loads), statistics.median(loads), max(loads)] if loads else None,
+            },
+            "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        }
+    )
+    for name, figures in (("this tree", result), ("baseline", base)):
+        print(f"\n{name}:", end="")
+        print_table(figures)
+    print(f"\nwall ratio (this / baseline, medians): {result['wall_ratio']}")
+    return write(result, Path(args.out))
+
+
+def _commit(tree: Path) -> str:
+    """The short commit of ``tree``'s HEAD (+ ``-dirty`` with uncommitted changes)."""
+    head = subprocess.run(
+        ["git", "-C", str(tree), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    )
+    dirty = subprocess.run(
+        ["git", "-C", str(tree), "status", "--porcelain", "-uno"], capture_output=True, text=True
+    )
+    return head.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+
+
+if __name__ == "__main__":  # a worker: scripts/bench.d/fetch.py --worker (seeds on stdin)
+    raise SystemExit(main(sys.argv[1:]))
