@@ -413,9 +413,7 @@ class ManipulationActions:
                 hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
             )
             low = point.copy()
-            # The second time down, the top estimate is in doubt too: down to the lowest a top can be.
-            depth = self.config.put_depth_m if attempt == 1 else point[2] - self.config.put_lowest_m
-            low[2] = max(self.config.put_lowest_m, point[2] - depth)
+            low[2] = max(self.config.put_lowest_m, point[2] - self.config.put_depth_m)
             plan = self.planners.reach(hand, low, yaw_rad=None, allow_stepping=False)
             what = f"lower {obj} onto {place}"
             self.progress(f"{what}: {plan.describe()}, until it touches")
