@@ -77,6 +77,7 @@ MUTATIONS = ("valid", "leaf", "unknown", "bytes", "binary")
 #: themselves are tested by the leaf mutations.
 NARROWER = {
     "time_budget_s": st.floats(0.01, 2.0),
+    "total_budget_s": st.floats(0.01, 5.0),
     "count": st.integers(1, 20),
     "hold_s": st.floats(0.0, 1.0),
     "max_iterations": st.integers(0, 300),

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from services import budget
 from services.errors import InvalidRequestError, NotFoundError
 from vision.backproject import back_project
 from vision.camera import StereoRig
@@ -320,6 +321,7 @@ def localize(
     missing: dict[str, str] = {}
     messages: list[str] = []
     for model in models:
+        budget.check(f"the localization of {model.name}", {"found": [f.name for f in found]})
         try:
             found.append(locate_in_frame(model, frame, config))
         except NotFoundError as e:

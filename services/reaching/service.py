@@ -22,6 +22,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small dense problems: thre
 
 import numpy as np
 
+from services import budget
+from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import reaching as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InvalidRequestError
@@ -37,10 +39,17 @@ from services.reaching.result import ReachResult
 @dataclass(frozen=True)
 class ReachingConfig(ReachingOptions):
     """Options of the service: the robot model (``hrp2_like`` or ``talos``), whether to measure the
-    reach envelopes at start-up (else at the first request of each hand), and the planner options."""
+    reach envelopes at start-up (else at the first request of each hand), the wall-clock budget of a
+    request that gives none (``time_budget_s`` [s], at most ``services.bus.limits.MAX_BUDGET_S``; past
+    it the reply is ``timeout``) and the planner options."""
 
     model: str = "hrp2_like"
     warm_up: bool = True
+    time_budget_s: float = MAX_BUDGET_S
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_budget(self.time_budget_s, "reaching.time_budget_s")
 
     def planner_options(self, **overrides: Any) -> ReachingOptions:
         """The :class:`ReachingOptions` part, with ``overrides`` (None values ignored)."""
@@ -94,16 +103,17 @@ class ReachingService(Service):
         options = self.config.planner_options(
             weighted=request.weighted, joint_limit_selection_rad=request.joint_limit_selection_rad
         )
-        result = self._planner(options).plan(
-            ReachRequest(
-                hand=request.hand,
-                target_world_m=np.asarray(request.target, dtype=float),
-                q_start=q_start,
-                R_world_hand=rotation,
-                gaze=request.gaze,
-                allow_stepping=request.allow_stepping,
+        with budget.within(request.time_budget_s or self.config.time_budget_s):
+            result = self._planner(options).plan(
+                ReachRequest(
+                    hand=request.hand,
+                    target_world_m=np.asarray(request.target, dtype=float),
+                    q_start=q_start,
+                    R_world_hand=rotation,
+                    gaze=request.gaze,
+                    allow_stepping=request.allow_stepping,
+                )
             )
-        )
         return to_reply(result, list(self.robot.joint_names))
 
 
