@@ -19,6 +19,7 @@ from services.errors import (
     InvalidRequestError,
     NotFoundError,
     NotGraspedError,
+    RequestTimeoutError,
     WorldOutcomeError,
 )
 from supervisor.body import Body, Progress
@@ -150,7 +151,7 @@ class ManipulationActions:
         self.body.straighten()
         try:
             plan, found = self.planners.last_steps(hand, target_m, gaze_m)
-        except InfeasibleError as exc:
+        except (InfeasibleError, RequestTimeoutError) as exc:  # none found, or none within its budget
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")
             return 0
         if plan is None:
