@@ -9,6 +9,8 @@ configuration, a goal pose or object and an optional carried bar in; the path, f
 trajectory and reshaping report out: the trajectory stage 2 checked for collisions and reshaped, to be
 executed as it is. A near goal whose car-like path is a detour is walked straight (``path_curve``
 "straight", services/navigation/straight.py). Stateless: the reply is a function of the request.
+``total_budget_s`` bounds the whole goto (each stage-1 search gets at most what is left of it); past it
+the reply is ``timeout`` with ``details.stage``.
 """
 
 from __future__ import annotations

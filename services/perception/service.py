@@ -15,6 +15,8 @@ Endpoints (services/bus/schemas/perception.py; README.md has the details and fai
 
 Stateless: models are loaded once at start-up (restart to pick up newly learned ones). Looking around
 for an object that is not in view is the supervisor's job (services/perception/look_around.py).
+``perception/locate``'s ``time_budget_s`` bounds the whole request (the sim's state and render get what
+is left of it): past it the reply is ``timeout`` with ``details.stage``.
 """
 
 from __future__ import annotations

@@ -7,7 +7,8 @@ of the config file (:class:`ReachingConfig`: the robot model and every :class:`R
 Endpoint ``reaching/reach`` (:mod:`services.bus.schemas.reaching`): a stateless planner, the reply is a
 deterministic function of the request. Failure codes: ``invalid_request`` (unknown hand, malformed
 target or orientation, ``q_start`` of the wrong size or not standing on flat ground), ``infeasible``
-(the message and ``details.criterion`` name the criterion that failed and why reshaping did not help).
+(the message and ``details.criterion`` name the criterion that failed and why reshaping did not help),
+``timeout`` (``time_budget_s`` ran out: ``details.stage`` and the ``attempts`` made).
 """
 
 from __future__ import annotations

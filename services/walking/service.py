@@ -17,7 +17,8 @@ Failure codes: ``invalid_request`` (malformed request: unknown model, q of the w
 soles, a zero duration, a bad upper-body task, q_start and the starting soles more than 5 mm apart);
 ``infeasible`` (a step beyond the robot's bounds - the message and ``details.step_index`` name it -; a
 multibody ZMP still outside the support polygon after the corrections; a joint faster than its limit;
-an upper-body task missed by more than its tolerance).
+an upper-body task missed by more than its tolerance); ``timeout`` (the request's ``time_budget_s``, or
+the service's, ran out: ``details.stage``, ``knots_done``, ``knots``).
 """
 
 from __future__ import annotations
