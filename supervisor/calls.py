@@ -32,8 +32,8 @@ class ServiceCaller:
         self.stop = stop or threading.Event()
         self.sim_time_s = 0.0
         self.calls: dict[str, int] = {}
-        #: The sim's restarts seen (HealthMonitor comebacks) when its world was last set up.
-        self._world_comebacks: int | None = None
+        #: The sim's (token comebacks, heartbeat pid) when its world was last set up.
+        self._world: tuple[int, int] | None = None
         #: Called with the spec before each call (tracing; tests use it to kill a service mid-request).
         self.on_call: Callable[[EndpointSpec], None] | None = None
 
@@ -64,7 +64,8 @@ class ServiceCaller:
             raise
         self.calls[spec.path] = self.calls.get(spec.path, 0) + 1
         if spec.path == WORLD_RESET:
-            self._world_comebacks = self.health.health(WORLD_SERVICE).comebacks
+            state = self.health.health(WORLD_SERVICE)
+            self._world = (state.comebacks, state.pid)
         sim_time = getattr(reply, "sim_time_s", None)
         if isinstance(sim_time, float) and sim_time > 0.0:
             self.sim_time_s = sim_time
@@ -74,10 +75,14 @@ class ServiceCaller:
         """UnavailableError (``details.reason`` "world_lost") when the sim restarted since its world was
         set up (its last sim/reset, or the first call): the launcher brings a fresh sim back, but the
         scene, the objects and the robot's place died with the old process."""
-        comebacks = self.health.health(WORLD_SERVICE).comebacks
-        if self._world_comebacks is None:
-            self._world_comebacks = comebacks
-        elif comebacks != self._world_comebacks and spec.path != WORLD_RESET:
+        state = self.health.health(WORLD_SERVICE)
+        if self._world is None or (self._world[1] == 0 and state.comebacks == self._world[0]):
+            self._world = (state.comebacks, state.pid)  # (the pid, once the first heartbeat came)
+            return
+        comebacks, pid = self._world
+        # its token came back, from another process (or one not heard from yet): a new sim
+        restarted = state.comebacks != comebacks and (state.pid == 0 or state.pid != pid)
+        if restarted and spec.path != WORLD_RESET:
             raise UnavailableError(
                 "the simulation is gone: the sim process died and was restarted, and the world it held "
                 "(the scene, its objects, the robot's place and what it carried) was lost with it; reset "
