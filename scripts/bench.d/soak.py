@@ -125,6 +125,7 @@ def soak(args: argparse.Namespace, launcher: Any, sup: Any) -> dict[str, Any]:
             truth = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
             row["on_table"] = bool(ball_on_table(truth)[0])
             row["ok"] = row["ok"] and row["on_table"]
+        row["loadavg_1min"] = round(os.getloadavg()[0], 2)
         runs.append(row)
         if i == 0:
             after_first = snapshot(launcher)
@@ -132,10 +133,34 @@ def soak(args: argparse.Namespace, launcher: Any, sup: Any) -> dict[str, Any]:
               f"({row['wall_s']} s)", flush=True)  # fmt: skip
         if row["hung"]:
             break
-    end = snapshot(launcher)
+        if i + 1 < args.n:  # the figures so far, on disk after every fetch: a long soak stopped early
+            partial = _soak_result(args, launcher, runs, start, after_first, snapshot(launcher))
+            _write(Path(args.out or OUT), {**partial, "complete": False, "machine": _machine()})
+    return {**_soak_result(args, launcher, runs, start, after_first, snapshot(launcher)), "complete": True}
+
+
+def _machine() -> dict[str, Any]:
+    return {"platform": platform.platform(), "cpus": os.cpu_count(), "loadavg": os.getloadavg()}
+
+
+def _write(path: Path, result: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result, indent=1))
+
+
+def _soak_result(
+    args: argparse.Namespace,
+    launcher: Any,
+    runs: list[dict[str, Any]],
+    start: dict[str, dict[str, float]],
+    after_first: dict[str, dict[str, float]],
+    end: dict[str, dict[str, float]],
+) -> dict[str, Any]:
+    """The soak's figures over ``runs``: success rate, growth from after the first fetch to ``end``."""
     worst, where = growth(after_first, end)
     return {
         "n": len(runs),
+        "n_asked": args.n,
         "layouts": args.layouts,
         "success_rate": sum(r["ok"] for r in runs) / max(1, len(runs)),
         "max_growth": round(worst, 4),
@@ -232,10 +257,9 @@ def main(argv: list[str]) -> int:
             return 1
         result = kill_each(args, launcher, sup) if args.kill else soak(args, launcher, sup)
     result["wall_s"] = round(time.monotonic() - started, 1)
-    result["machine"] = {"platform": platform.platform(), "cpus": os.cpu_count(), "loadavg": os.getloadavg()}
+    result["machine"] = _machine()
     out = Path(args.out or (OUT_KILL if args.kill else OUT))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=1))
+    _write(out, result)
     if args.kill:
         ok = all(r.get("ok") == (r.get("victim") != "sim") for r in result["kills"] if "skipped" not in r)
         print(f"wrote {out} (load average {os.getloadavg()[0]:.1f})")
