@@ -1,8 +1,13 @@
-"""Plot the reaching paper's Figs. 6-7 and 8 for a reach beyond the arm's reach, as PNG files under out/.
+"""Plot the reaching paper's Figs. 6, 7 and 8 for a reach beyond the arm's reach, as PNG files under out/.
 
-Each for the paper's experiment (``paper``: its two criteria, S = I) and the stack's defaults (``stack``):
+For the settings asked (``--settings``): ``paper``, the defaults, which are the paper's experiment (its
+two criteria, the manipulability of the arm's Jacobian and the end-effector error, S = I; TALOS adds
+its joint torque); ``position``, the manipulability of the translation rows only (then the end-effector
+error fires instead); ``joint_speed``, the extension criterion (an arm joint beyond 50 % of its limit):
 
-* ``reaching_<robot>_<settings>_criteria.png`` (Figs. 6-7): the two criteria of the paper's experiment,
+* ``reaching_<robot>_<settings>_snapshots.png`` (Fig. 6): the robot at five instants of the kept motion
+  (start, weight on the support foot, mid-swing, landing, goal reached), side and top views;
+* ``reaching_<robot>_<settings>_criteria.png`` (Fig. 7): the two criteria of the paper's experiment,
   the arm's manipulability (eq. 5) and the end-effector error, over time on the initial support polygon
   (computed to its end: "without reshaping"; the planner discards it at the first criterion out of
   range, marked) and in the motion with support polygon reshaping, against their thresholds.
@@ -30,6 +35,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+import pinocchio as pin
 from matplotlib.patches import Polygon
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,8 +49,9 @@ from services.reaching.planner import planner_for  # noqa: E402
 from services.walking.support_polygon import support_hull  # noqa: E402
 
 MEASURED_WINDOW = 20  # samples (0.1 s) of the moving mean of the measured centre of pressure
-# Beyond the left arm's reach on the initial support polygon (left hand).
-DEFAULT_TARGETS = {"hrp2_like": (0.90, 0.30, 0.90), "talos": (0.20, 0.80, 1.00)}
+# Beyond the left arm's reach on the initial support polygon, one step away (left hand). (0.2, 0.75, 0.9)
+# is within hrp2_like's whole-body reach with S = I: reached without a step, nothing triggers.
+DEFAULT_TARGETS = {"hrp2_like": (0.60, 0.60, 1.10), "talos": (0.50, 0.65, 1.10)}
 
 
 def polygon_extents(result, robot) -> np.ndarray:
@@ -94,8 +101,73 @@ def smooth(x: np.ndarray, window: int = MEASURED_WINDOW) -> np.ndarray:
     return np.convolve(padded, kernel, mode="valid")
 
 
+def snapshot_times(result) -> list[tuple[str, float]]:
+    """Fig. 6's instants: start, weight on the support foot (end of the first double support), mid-swing,
+    landing, goal reached (end of the hand's motion)."""
+    t = result.times_s
+    single = np.flatnonzero(result.phase != result.phase[0])
+    if single.size == 0:
+        instants = np.linspace(0.0, result.reach_end_s, 5)
+        return [(f"({c})", float(x)) for c, x in zip("abcde", instants, strict=True)]
+    first, last = int(single[0]), int(single[-1])
+    return [
+        ("(a) start", 0.0),
+        ("(b) weight on the support foot", float(t[first])),
+        ("(c) swing", float(t[(first + last) // 2])),
+        ("(d) landing", float(t[last])),
+        ("(e) goal reached", float(result.reach_end_s)),
+    ]
+
+
+def _segments(robot, q: np.ndarray) -> list[np.ndarray]:
+    """Lines [m] from each joint to its parent joint and from the hands' joints to the grasp frames."""
+    model, data = robot.model, robot.new_data()
+    pin.forwardKinematics(model, data, q)
+    pin.updateFramePlacements(model, data)
+    lines = [
+        np.array([data.oMi[model.parents[j]].translation, data.oMi[j].translation])
+        for j in range(2, model.njoints)
+    ]
+    for side in ("left", "right"):
+        fid = robot.frame_id(robot.frames.grasp(side))
+        parent = model.frames[fid].parentJoint
+        lines.append(np.array([data.oMi[parent].translation, data.oMf[fid].translation]))
+    return lines
+
+
+def plot_snapshots(path: Path, result, robot, label: str) -> None:
+    """Fig. 6: the robot (its joints as a stick figure) at five instants, side view (x-z) above, top view
+    (x-y) below, with the soles and the target."""
+    instants = snapshot_times(result)
+    fig, axes = plt.subplots(2, len(instants), figsize=(3.0 * len(instants), 6.0))
+    length, width = robot.sole_size_m
+    for c, (name, t_s) in enumerate(instants):
+        k = min(round(t_s / result.dt_s), result.q.shape[0] - 1)
+        lines = _segments(robot, result.q[k])
+        for row, (i, j) in enumerate(((0, 2), (0, 1))):
+            ax = axes[row, c]
+            for line in lines:
+                ax.plot(line[:, i], line[:, j], color="tab:blue", lw=1.2)
+            ax.plot(result.target_world_m[i], result.target_world_m[j], "r*", ms=9)
+            if row == 1:
+                for sole in (result.left_sole[k], result.right_sole[k]):
+                    hull = support_hull(1, sole[[0, 1, 3]], sole[[0, 1, 3]], length, width)
+                    ax.add_patch(Polygon(hull, closed=True, fill=False, ec="0.4", lw=0.8))
+            ax.set_aspect("equal")
+            ax.set_xlim(-0.4, 1.0)
+            ax.set_ylim((0.0, 1.6) if row == 0 else (-0.5, 0.9))
+            ax.tick_params(labelsize=6)
+        axes[0, c].set_title(f"{name}\nt = {t_s:.2f} s", fontsize=8)
+    axes[0, 0].set_ylabel("z [m] (side view)")
+    axes[1, 0].set_ylabel("y [m] (top view)")
+    fig.suptitle(f"Fig. 6 — {robot.name} ({label}): reaching with support polygon reshaping", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def plot_criteria(path: Path, result, monitors_without, robot_name: str) -> None:
-    """Figs. 6-7: the two monitored criteria of the paper's experiment over time, on the initial support
+    """Fig. 7: the two monitored criteria of the paper's experiment over time, on the initial support
     polygon (computed to its end: "without reshaping") and in the kept motion, with the threshold and
     the trigger (the first criterion out of range: where the motion on the initial polygon is
     discarded and reshaping starts) marked."""
@@ -125,14 +197,17 @@ def plot_criteria(path: Path, result, monitors_without, robot_name: str) -> None
         axes[0].annotate(
             f"'{violation.criterion}' fails at t = {violation.time_s:.2f} s:\nmotion discarded, reshaping "
             f"({len(result.footsteps)} step{'s' if len(result.footsteps) != 1 else ''})",
-            (violation.time_s, axes[0].get_ylim()[1] * 0.3),
+            (violation.time_s, 0.55),
+            xycoords=("data", "axes fraction"),
+            xytext=(6, 0),
+            textcoords="offset points",
             fontsize=8,
             color="tab:red",
         )
     axes[1].set_xlabel("time [s]")
     axes[0].legend(fontsize=8, loc="lower left")
     axes[0].set_title(
-        f"Figs. 6-7 — {robot_name}\nthe monitored criteria with and without support polygon reshaping",
+        f"Fig. 7 — {robot_name}\nthe monitored criteria with and without support polygon reshaping",
         fontsize=9,
     )
     fig.tight_layout()
@@ -187,8 +262,15 @@ def plot_zmp(path: Path, result, robot, cop: np.ndarray | None, label: str = "")
 
 
 SETTINGS = {
-    "stack": ("the stack's defaults", ReachingOptions()),
-    "paper": ("the paper's experiment (2 criteria, S = I)", ReachingOptions.paper_experiment()),
+    "paper": ("defaults = the paper's experiment (2 criteria, S = I)", ReachingOptions()),
+    "position": (
+        "manipulability of the translation rows only",
+        ReachingOptions(manipulability_of="position"),
+    ),
+    "joint_speed": (
+        "with the joint-speed criterion (extension)",
+        ReachingOptions(criteria=("manipulability", "ee_error", "joint_speed")),
+    ),
 }
 
 
@@ -202,8 +284,8 @@ def main(argv: list[str] | None = None) -> int:
         "--settings",
         nargs="+",
         choices=sorted(SETTINGS),
-        default=["paper", "stack"],
-        help="planner settings to plot: the paper's experiment and/or the stack's defaults (default both)",
+        default=["paper"],
+        help="planner settings to plot (default: paper, the defaults)",
     )
     parser.add_argument("--out", default=str(ROOT / "out"), help="output directory (default out/)")
     args = parser.parse_args(argv)
@@ -230,9 +312,10 @@ def main(argv: list[str] | None = None) -> int:
         )
         cop = None if args.no_sim else measured_zmp(robot, result)
         stem = f"reaching_{robot.name}_{name}"
+        plot_snapshots(out / f"{stem}_snapshots.png", result, robot, label)
         plot_criteria(out / f"{stem}_criteria.png", result, without, f"{robot.name}, {label}")
         plot_zmp(out / f"{stem}_zmp.png", result, robot, cop, label)
-        print(f"wrote {out}/{stem}_criteria.png and {stem}_zmp.png")
+        print(f"wrote {out}/{stem}_snapshots.png, {stem}_criteria.png and {stem}_zmp.png")
     return 0
 
 

@@ -60,7 +60,9 @@ ACTIONS: dict[str, Signature] = {
     "put": Signature(("object",), ("on",), help="put the held object on a place"),
     "look_at": Signature(("object",), help="turn the head toward an object"),
     "stand_up": Signature(
-        ("goal_y",), optional_positional=1, help="get out of the chair (contact planning), stand beside it"
+        ("goal_y", "budget_s"),
+        optional_positional=2,
+        help="get out of the chair (contact planning), stand beside it (waist y > goal_y [m]; budget [s])",
     ),
 }
 

@@ -1,8 +1,10 @@
 """The ``stand_up`` action: get out of a chair (script ``stand_up``, console "get up" / "stand up").
 
 Calls ``contacts/plan`` (contact-before-motion planning, Escande et al.) from the robot's current
-configuration in the sim's current scene, then plays the planned multi-contact motion with
-``sim/execute``, the chair and the table allowed as supports. Failure reasons: the planner's typed
+configuration in the sim's current scene, then plays the plan set by set: for each transition,
+``contacts/transition`` re-plans it from the measured configuration (``sim/state``: the supports where
+they are, not where they were planned) and ``sim/execute`` plays it, the chair and the table allowed
+as supports. Failure reasons: the planner's typed
 errors (``infeasible`` with the best set reached, ``timeout`` with the partial plan), ``fell`` /
 ``collision`` from the execution.
 
@@ -15,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from services.bus.schemas import contacts as contacts_msg
-from services.errors import FellError
+from services.errors import FellError, InvalidRequestError
 from supervisor.body import Body
 from supervisor.calls import ServiceCaller
 from supervisor.report import ActionReport
@@ -30,40 +32,70 @@ SEATED_CONTACTS = [
 ]
 GOAL_AXIS, GOAL_VALUE_M = "y", 0.6
 PLAN_BUDGET_S = 300.0
-PLAN_TIMEOUT_S = PLAN_BUDGET_S + 60.0
 SUPPORTS = ("chair", "table")
+N_INTERPOLATION = 10  # posture generations per transition (§3.3's n)
+TRANSITION_TIMEOUT_S = 120.0
 
 
 def stand_up(
     bus: ServiceCaller, body: Body, progress: Callable[[str], None], args: tuple[str, ...] = ()
 ) -> ActionReport:
-    """Plan and execute getting up; ``args``: optional goal value [m] of the waist's y."""
+    """Plan and execute getting up; ``args``: optional goal value [m] of the waist's y, optional plan
+    budget [s] (``PLAN_BUDGET_S``)."""
     state = body.state()
     if state.fallen:
         raise FellError("the robot is on the ground: reset the sim")
     goal = float(args[0]) if args else GOAL_VALUE_M
-    progress(f"stand up: planning contacts in scene {state.scene} (budget {PLAN_BUDGET_S:.0f} s)")
+    budget = float(args[1]) if len(args) > 1 else PLAN_BUDGET_S
+    if not 0.0 < budget <= 600.0:
+        raise InvalidRequestError(f"stand_up: the plan budget must be in ]0, 600] s, got {budget}")
+    progress(f"stand up: planning contacts in scene {state.scene} (budget {budget:.0f} s)")
     request = contacts_msg.PlanRequest(
         scene=state.scene,
         q_start=state.q,
         start_contacts=SEATED_CONTACTS,
         goal_axis=GOAL_AXIS,
         goal_value_m=goal,
-        time_budget_s=PLAN_BUDGET_S,
+        time_budget_s=budget,
+        interpolate=False,  # each transition is interpolated from the measured state
     )
-    plan = bus.call(contacts_msg.PLAN, request, PLAN_TIMEOUT_S)
+    plan = bus.call(contacts_msg.PLAN, request, budget + 60.0)
     for k, (change, contacts) in enumerate(zip(plan.changes, plan.sets, strict=True)):
         progress(f"  set {k}: {change} -> {len(contacts)} contacts")
-    progress(
-        f"stand up: {len(plan.sets)} sets, {plan.nodes_generated} nodes in {plan.plan_s:.0f} s; "
-        f"playing {plan.q.shape[0] * plan.dt_s:.0f} s of motion"
-    )
-    executed = body.execute(
-        plan.q, what="stand up", dt_s=plan.dt_s, progress=progress, hold_s=1.0, supports=SUPPORTS
-    )
+    progress(f"stand up: {len(plan.sets)} sets, {plan.nodes_generated} nodes in {plan.plan_s:.0f} s")
+    played = 0.0
+    for k in range(1, len(plan.sets)):
+        released = [c for c in plan.sets[k - 2] if c not in plan.sets[k - 1]] if k > 1 else []
+        step = bus.call(
+            contacts_msg.TRANSITION,
+            contacts_msg.TransitionRequest(
+                scene=state.scene,
+                q_measured=body.q(),
+                from_set=plan.sets[k - 1],
+                to_set=plan.sets[k],
+                witness=plan.witnesses[k],
+                released=released,
+                n_interpolation=N_INTERPOLATION,
+            ),
+            TRANSITION_TIMEOUT_S,
+        )
+        progress(
+            f"  transition {k}/{len(plan.sets) - 1} ({plan.changes[k]}): supports off the plan by "
+            f"{step.support_error_m * 100:.1f} cm, re-planned in {step.replan_s:.1f} s"
+            + (f"; {step.collision}" if step.collision else "")
+        )
+        executed = body.execute(
+            step.q,
+            what=f"stand up, transition {k} ({plan.changes[k]})",
+            dt_s=step.dt_s,
+            progress=progress,
+            hold_s=1.0 if k == len(plan.sets) - 1 else 0.0,
+            supports=SUPPORTS,
+        )
+        played += executed.duration_s
     return ActionReport(
         "stand_up",
         args,
-        message=f"stood up in {len(plan.sets)} contact sets ({executed.duration_s:.0f} s of motion)",
+        message=f"stood up in {len(plan.sets)} contact sets ({played:.0f} s of motion)",
         details={"sets": len(plan.sets), "nodes_generated": plan.nodes_generated, "plan_s": plan.plan_s},
     )

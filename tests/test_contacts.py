@@ -12,16 +12,18 @@ import pinocchio as pin
 import pytest
 
 from services.contacts import chair_egress
+from services.contacts.closed_loop import regenerate_witness
 from services.contacts.contact_tasks import InVolumeTask, OnPlaneTask
 from services.contacts.environment import environment_of
+from services.contacts.interpolate import deepest_collision
 from services.contacts.posture import Floating, PostureGenerator
 from services.contacts.potential import PotentialTask, RoughTrajectory, base_point
 from services.contacts.search import ContactPlanner, Goal, SearchConfig
-from services.contacts.sets import Contact, contact_at
+from services.contacts.sets import Contact, contact_at, patch_of
 from services.contacts.spots import robot_spots
 from services.contacts.stability import ContactPatch, equilibrium_region, is_statically_stable
 from services.contacts.volumes import SearchVolume, around, full_volume, subtract
-from services.errors import InvalidRequestError
+from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import compute_kinematics
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox, segment_box_distances
 from services.model import load_robot
@@ -295,3 +297,90 @@ def test_goal_needs_the_coordinate_and_the_final_contacts():
     assert not goal.reached((Contact("left_sole", "floor", 0, 0, 0),), q)
     with pytest.raises(InvalidRequestError, match="axis"):
         Goal("w", 0.0)
+
+
+# ------------------------------------------------------------------------------------------ geometry
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    t = float(np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0))
+    return float(np.linalg.norm(p - (a + t * (b - a))))
+
+
+def test_planner_capsules_reach_the_faces_of_the_urdf_foot_box(chair):
+    robot, _env, gen, _q0, _start = chair
+    geometry = robot.build_geometry_model("collision")
+    box = next(o for o in geometry.geometryObjects if robot.model.frames[o.parentFrame].name == "LLEG_LINK5")
+    half, centre = np.array(box.geometry.halfSide), box.placement.translation
+    capsules = [c for c in gen.capsules if c.frame == "LLEG_LINK5"]
+    assert len(capsules) > 1  # the model's foot capsule and the box's
+    # points on the box's faces (lateral faces where the heels met the chair's legs, sole, toe, heel)
+    for axis, sign in [(1, 1), (1, -1), (0, 1), (0, -1), (2, -1)]:
+        for along in (-0.8, 0.0, 0.8):
+            p = centre.copy()
+            p[axis] += sign * half[axis]
+            other = 1 if axis == 0 else 0
+            p[other] += along * (half[other] - half[2])
+            inside = min(
+                _segment_distance(p, np.array(c.p0_local), np.array(c.p1_local)) - c.radius_m
+                for c in capsules
+            )
+            # toe and heel: the capsules' end caps round the box's vertical edges (< 4 mm, under the
+            # planner's 1.5 cm collision margin)
+            assert inside <= (4e-3 if axis == 0 else 1e-4), (axis, sign, along, inside)
+    # the foot's own contact (sole on the floor) excludes every foot capsule from the floor
+    floor = next(j for j, b in enumerate(gen.boxes) if b.name == "floor")
+    foot = {i for i, c in enumerate(gen.capsules) if c.frame == "LLEG_LINK5"}
+    pairs = gen.box_pairs([("left_sole", "floor")])
+    assert not any((i, floor) in pairs for i in foot)
+
+
+def test_the_space_under_the_table_is_an_obstacle(chair):
+    _robot, env, _gen, _q0, _start = chair
+    under = next(b for b in env.boxes if b.name == "table[under]")
+    top = env.surface("table.top")
+    lowest = under.T_world_box.translation[2] - under.half_extents_m[2]
+    highest = under.T_world_box.translation[2] + under.half_extents_m[2]
+    assert lowest == pytest.approx(0.0, abs=1e-9)
+    assert highest < top.T_world_surface.translation[2]
+    assert under.half_extents_m[:2] == pytest.approx(top.half_size_m)
+
+
+# ----------------------------------------------------------------------------------- interpolation, execution
+def test_a_sample_into_a_box_is_found_and_named(chair):
+    _robot, _env, gen, q0, start = chair
+    touching = [c.pair for c in start]
+    assert deepest_collision(gen, np.array([q0, q0]), touching) is None
+    moved = q0.copy()
+    moved[0] += 0.45  # the seated robot moved 0.45 m forward: its legs under the table
+    depth, capsule, box, index = deepest_collision(gen, np.array([q0, moved, q0]), touching)
+    assert depth > 0.01 and box.startswith("table") and index == 1, (depth, capsule, box)
+
+
+def test_a_witness_regenerated_from_the_measured_state_keeps_the_supports_where_they_are(chair):
+    _robot, _env, gen, q0, start = chair
+    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
+    planned = gen.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
+    assert planned.ok and planned.contact is not None, planned.reason
+    s2 = (*start, planned.contact)
+    measured_q = q0.copy()
+    measured_q[0] += 0.02  # the robot slid 2 cm forward on the seat (more than REREAD_M)
+    s1, s2_measured, q2, reason = regenerate_witness(gen, start, s2, planned.q, measured_q)
+    assert q2 is not None, reason
+    for c in s1:  # the held contacts are where the measured spots are, 2 cm from the plan
+        assert abs(c.x - next(p for p in start if p.pair == c.pair).x) == pytest.approx(0.02, abs=1e-6)
+    for c in s2_measured:  # the new witness matches them, and the new contact where it was planned
+        T = gen.spot_pose(q2, c.spot)
+        assert np.linalg.norm(T.translation - gen.contact_pose(c).translation) < 3e-3
+    assert planned.contact in s2_measured
+
+
+def test_a_patch_bears_only_on_its_surface(chair):
+    _robot, env, gen, _q0, _start = chair
+    seat = env.surface("chair.seat")
+    hx = seat.half_size_m[0]
+    on_edge = Contact("left_thigh", "chair.seat", hx - 0.02, 0.06, 0.0)  # 2 cm from the front edge
+    corners = patch_of(on_edge, gen.spots["left_thigh"], env).corners_world
+    local = np.array([seat.T_world_surface.actInv(c) for c in corners])
+    assert local[:, 0].max() == pytest.approx(hx) and local[:, 0].min() == pytest.approx(hx - 0.02 - 0.10)
+    off = Contact("left_thigh", "chair.seat", hx + 0.2, 0.06, 0.0)
+    with pytest.raises(InfeasibleError, match="off the surface"):
+        patch_of(off, gen.spots["left_thigh"], env)

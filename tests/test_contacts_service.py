@@ -1,5 +1,6 @@
 """The contacts service over the bus (services/contacts/service.py): a short plan (one contact removed:
-goal reached after one expansion) with its interpolated motion and progress messages, the typed errors
+goal reached after one expansion) with its interpolated motion and progress messages, its transition
+re-planned from a measured state (``contacts/transition``), the typed errors
 (an unknown spot, a start contact that does not hold, a budget too small: ``timeout`` with the partial
 plan), and the seated chair scene in the sim (it holds the robot, not reported fallen)."""
 
@@ -65,6 +66,38 @@ def test_a_one_removal_plan_with_its_motion_and_progress(services, q_seated):
     np.testing.assert_allclose(reply.q[-1][:3], reply.witnesses[-1][:3], atol=5e-3)
     assert reply.nodes_expanded >= 1 and reply.nodes_generated >= 1 and reply.posture_generations >= 1
     assert first.depth == 0 and first.change == "start" and first.nodes_expanded == 1
+    # the same transition re-planned from a measured state 2 cm off (executing set by set)
+    measured = q_seated.copy()
+    measured[0] += 0.02
+    step = services.client.call(
+        msg.TRANSITION,
+        msg.TransitionRequest(
+            scene="chair_egress",
+            q_measured=measured,
+            from_set=reply.sets[0],
+            to_set=reply.sets[1],
+            witness=reply.witnesses[1],
+            n_interpolation=4,
+        ),
+        timeout_s=120,
+    )
+    np.testing.assert_allclose(step.q[0], measured, atol=1e-9)
+    np.testing.assert_allclose(step.q[-1], step.witness, atol=1e-9)
+    assert step.support_error_m == pytest.approx(0.02, abs=1e-3) and step.collision == ""
+    assert abs(step.witness[0] - reply.witnesses[1][0] - 0.02) < 5e-3  # it sits where it was measured
+    bad = msg.ContactMsg(spot="left_elbow", surface="floor", x=0.0, y=0.0, theta=0.0)
+    with pytest.raises(InvalidRequestError, match="unknown contact spot 'left_elbow'"):
+        services.client.call(
+            msg.TRANSITION,
+            msg.TransitionRequest(
+                scene="chair_egress",
+                q_measured=measured,
+                from_set=[bad],
+                to_set=reply.sets[1],
+                witness=reply.witnesses[1],
+            ),
+            timeout_s=60,
+        )
 
 
 @pytest.mark.integration

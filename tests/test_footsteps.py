@@ -449,6 +449,26 @@ def test_plan_becomes_a_walk_and_a_reach(robot, near_reach):
         assert np.allclose(sole.as_array()[:2], [step.x_m, step.y_m], atol=2e-3)
 
 
+def test_the_papers_reach_is_walked_with_its_joints_within_their_speed_limits(robot):
+    """Section 4.1's 7 steps put a foot at the corner of the step bounds: at the half-sitting CoM height
+    the knee stretches to its singular configuration and flips (the walk is refused at any timing);
+    ``executable_walk`` lowers the CoM until the joints stay within their limits."""
+    from services.footsteps.execution import execute_plan
+    from services.walking.two_stage import WalkAdjustment, executable_walk
+
+    request = scenarios.reach(robot.name).request
+    result = plan_footsteps(request, robot)
+    with pytest.raises(InfeasibleError, match="LEG_JOINT3") as info:
+        steps = result.footstep_sequence()
+        executable_walk(robot, steps, robot.q_half_sitting, adjustments=(WalkAdjustment(),))
+    assert info.value.details["adjustments_tried"] == [(0.0, 1.0)]
+    motion = execute_plan(robot, request, result)
+    assert motion.walk_adjustment is not None and motion.walk_adjustment.com_lowering_m > 0.0
+    speed = np.abs(np.diff(motion.q[:, 7:], axis=0)) / motion.dt_s
+    assert np.all(speed <= robot.v_max[6:] + 1e-9)
+    assert motion.final_errors_m["reach:right"] < 2e-3
+
+
 @pytest.mark.integration
 @pytest.mark.slow
 def test_plan_executed_in_the_simulator(robot, near_reach):

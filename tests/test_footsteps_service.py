@@ -4,13 +4,15 @@ unreachable target answered with ``infeasible`` and the residuals within the req
 
 from __future__ import annotations
 
+import math
+
 import msgspec
 import numpy as np
 import pytest
 
 from services.bus.schemas import footsteps as msg
 from services.errors import InfeasibleError, InvalidRequestError, RequestTimeoutError
-from services.footsteps.service import plan_reply
+from services.footsteps.service import plan_reply, planner_options
 from services.model import load_robot
 from services.model.ground import Rectangle
 from services.walking.footsteps import (
@@ -98,6 +100,14 @@ def test_trace_returns_the_task_values_per_iteration(client):
         (msg.PlanRequest(tasks=[msg.Task(kind="posture")], front_foot="both"), "front_foot"),
         (msg.PlanRequest(tasks=[msg.Task(kind="posture")], model="nao"), "nao"),
         (msg.PlanRequest(tasks="oops"), r"\$\.tasks"),  # type: ignore[arg-type]  (wrong type on the wire)
+        (
+            msg.PlanRequest(tasks=[msg.Task(kind="posture")], options=msg.Options(damping=-1.0)),
+            r"options\.damping",
+        ),
+        (
+            msg.PlanRequest(tasks=[msg.Task(kind="posture")], options=msg.Options(polish_iterations=5000)),
+            r"options\.polish_iterations",
+        ),
     ],
 )
 def test_malformed_requests_are_invalid_and_the_service_keeps_serving(client, request_, field):
@@ -108,6 +118,20 @@ def test_malformed_requests_are_invalid_and_the_service_keeps_serving(client, re
         msg.PLAN, msg.PlanRequest(tasks=[msg.Task(kind="reach", target=[0.3, -0.25, 0.8])]), timeout_s=60
     )
     assert reply.footsteps == [] and reply.residuals[0].solved
+
+
+def test_algorithm_1_numerics_switched_to_the_papers_form_over_the_bus(client):
+    """The request's options turn each numerical device of Algorithm 1 off (eqs. 2, 7, 15 as written):
+    the planner runs without them (another plan) and still solves this reach."""
+    paper = msg.Options(saturation=False, dq_cap=False, epsilon_rule=False, polish_iterations=0)
+    paper = msgspec.structs.replace(paper, damping=0.0, error_damping=0.0)
+    options = planner_options(paper)
+    assert math.isinf(options.dq_max) and math.isinf(options.max_rate_m) and math.isinf(options.max_rate_rad)
+    assert math.isinf(options.relative_epsilon) and options.polish_iterations == 0 and options.damping == 0
+    default = client.call(msg.PLAN, REQUEST, timeout_s=120)
+    reply = client.call(msg.PLAN, msgspec.structs.replace(REQUEST, options=paper), timeout_s=120)
+    assert reply.residuals[0].solved
+    assert (reply.iterations, len(reply.footsteps)) != (default.iterations, len(default.footsteps))
 
 
 def test_a_payload_that_is_not_a_request_is_invalid(client):

@@ -17,6 +17,7 @@ from services.navigation.demo_scenes import (
     enclosed_goal_room,
 )
 from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle
+from services.navigation.service import goto_options
 
 pytestmark = pytest.mark.integration
 
@@ -98,6 +99,20 @@ def test_goto_over_the_bus(module_bus_harness) -> None:
     # a malformed request names the field
     with pytest.raises(InvalidRequestError, match="exactly one goal"):
         client.call(msg.GOTO, msg.GotoRequest(q_start=q, goal_pose=[1.0, 0.0, 0.0], goal_object="crate"))
+    with pytest.raises(InvalidRequestError, match="reshape_mode"):
+        bad = msg.GotoRequest(q_start=q, goal_pose=[1.0, 0.0, 0.0], reshape_mode="tilt")  # type: ignore[arg-type]
+        client.call(msg.GOTO, bad)
+
+
+def test_reshaping_mode_and_seed_of_a_request_reach_the_planner() -> None:
+    """``reshape_mode`` (the paper's random sampling, or lift only) and ``reshape_seed`` of a request are
+    the smooth reshaping's options."""
+    q = ROBOT.half_sitting_at(0.0, 0.0, 0.0)
+    default = goto_options(msg.GotoRequest(q_start=q, goal_pose=[1.0, 0.0, 0.0])).stage2.reshape
+    assert default.mode == "sample" and default.sampling.seed == 0
+    request = msg.GotoRequest(q_start=q, goal_pose=[1.0, 0.0, 0.0], reshape_mode="lift", reshape_seed=7)
+    reshape = goto_options(request).stage2.reshape
+    assert reshape.mode == "lift" and reshape.sampling.seed == 7 and reshape.max_iterations == 5
 
 
 def test_a_near_goal_beside_the_robot_is_walked_straight_and_planned_once() -> None:

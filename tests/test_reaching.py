@@ -16,6 +16,7 @@ from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.reaching import CRITERIA, ReachingOptions, ReachRequest, plan_reach
 from services.reaching.monitors import ArmMonitor
+from services.reaching.options import PAPER_CRITERIA
 from services.reaching.support_polygon import SupportPolygonPlanner
 from services.walking.footsteps import FootstepBounds, FootstepSequence, SolePose, validate_footsteps
 from services.walking.timing import DOUBLE, LEFT, RIGHT
@@ -24,7 +25,8 @@ ROBOTS = ("hrp2_like", "talos")
 # Targets in the frame of the robot standing at the origin (x forward, y left) [m].
 WITHIN_REACH = {"hrp2_like": (0.45, 0.30, 0.90), "talos": (0.45, 0.30, 1.00)}
 FORWARD_BEYOND = {"hrp2_like": (0.90, 0.30, 0.90), "talos": (0.90, 0.30, 1.00)}
-SIDEWAYS_BEYOND = {"hrp2_like": (0.20, 0.75, 0.90), "talos": (0.20, 0.80, 1.00)}
+# (0.2, 0.75, 0.9) is within hrp2_like's whole-body reach with S = I (the other arm balancing).
+SIDEWAYS_BEYOND = {"hrp2_like": (0.30, 0.85, 0.90), "talos": (0.20, 0.80, 1.00)}
 FAR_AWAY = (3.0, 0.3, 0.8)  # 3 m away
 
 
@@ -40,18 +42,25 @@ def robot(request):
 
 # ------------------------------------------------------------------------------------------ monitors
 def test_manipulability_is_eq5_of_the_finite_difference_arm_jacobian():
+    """w = sqrt(det(J J^T)) of the arm's whole Jacobian (``pose``: translation and rotation, the default)
+    and of its translation rows (``position``), against finite differences."""
     robot = load_robot("hrp2_like")
     model = robot.model
     arm = robot.arm_joints("left")
-    monitor = ArmMonitor(
-        model,
-        robot.frames.grasp("left"),
-        arm,
-        robot.q_lower,
-        robot.q_upper,
-        robot.effort_max,
-        (robot.frames.left_sole, robot.frames.right_sole),
-    )
+    monitors = {
+        of: ArmMonitor(
+            model,
+            robot.frames.grasp("left"),
+            arm,
+            robot.q_lower,
+            robot.q_upper,
+            robot.effort_max,
+            (robot.frames.left_sole, robot.frames.right_sole),
+            of,
+        )
+        for of in ("pose", "position")
+    }
+    grasp = robot.frames.grasp("left")
     rng = np.random.default_rng(3)
     step = 1e-6
     for _ in range(3):
@@ -59,13 +68,18 @@ def test_manipulability_is_eq5_of_the_finite_difference_arm_jacobian():
         idx = [robot.joint_index(j).idx_q for j in arm]
         q[idx] += rng.uniform(-0.4, 0.4, len(idx))
         q[idx] = np.clip(q[idx], robot.q_lower[idx] + 0.01, robot.q_upper[idx] - 0.01)
-        hand, w, _, _ = monitor.evaluate(q)
-        J = np.empty((3, len(idx)))
+        T0 = robot.frame_pose(q, grasp)
+        J = np.empty((6, len(idx)))
         for c, i in enumerate(idx):
             dq = q.copy()
             dq[i] += step
-            J[:, c] = (monitor.hand_position(dq) - hand) / step
-        assert w == pytest.approx(math.sqrt(np.linalg.det(J @ J.T)), rel=1e-4)
+            T1 = robot.frame_pose(dq, grasp)
+            J[:3, c] = (T1.translation - T0.translation) / step
+            J[3:, c] = pin.log3(T1.rotation @ T0.rotation.T) / step  # angular velocity, world axes
+        w_pose = monitors["pose"].evaluate(q)[1]
+        w_position = monitors["position"].evaluate(q)[1]
+        assert w_pose == pytest.approx(math.sqrt(np.linalg.det(J @ J.T)), rel=1e-4)
+        assert w_position == pytest.approx(math.sqrt(np.linalg.det(J[:3] @ J[:3].T)), rel=1e-4)
 
 
 # ------------------------------------------------------------------------------------------ planning
@@ -160,6 +174,19 @@ def test_weighted_pseudo_inverse_moves_the_light_arm_more_and_the_heavy_legs_les
     assert moves[True][1] < moves[False][1]
 
 
+def test_the_free_arm_ends_where_it_started():
+    """S = I: the arm without a task helps the CoM, and the rest level brings it back (the robot's width
+    after a reach: navigation plans with the arms' footprint)."""
+    robot = load_robot("hrp2_like")
+    request = _request(robot, (0.6, -0.6, 1.1))
+    other = [robot.joint_index(j).idx_q for j in robot.arm_joints("left")]
+    moved = {}
+    for rest in (True, False):
+        result = plan_reach(robot, request, ReachingOptions(other_arm_rest=rest))
+        moved[rest] = np.abs(result.q[-1, other] - robot.q_half_sitting[other]).max()
+    assert moved[True] < 0.01 < 0.1 < moved[False]
+
+
 def test_joint_limit_selection_matrix_keeps_arm_joints_off_their_limits():
     robot = load_robot("talos")
     request = _request(robot, (0.62, 0.3, 1.0))
@@ -170,11 +197,16 @@ def test_joint_limit_selection_matrix_keeps_arm_joints_off_their_limits():
     assert selected.monitors.joint_limit_margin_rad.min() > margin - 0.01
 
 
-def test_single_step_reshaping():
-    """The paper's case: one step of the foot on the target side, turning towards the target."""
-    robot = load_robot("talos")
-    result = plan_reach(robot, _request(robot, (0.5, 0.65, 1.1)))
-    assert [a.kind for a in result.attempts][-1] == "single"
+@pytest.mark.parametrize(("name", "target"), [("talos", (0.5, 0.65, 1.1)), ("hrp2_like", (0.6, 0.6, 1.1))])
+def test_single_step_reshaping(name, target):
+    """The paper's case (Figs. 6-7): the arm's manipulability falls below 1.5e-4 on the initial polygon
+    (TALOS: its shoulders' torque first), then one step of the foot on the target side, turning
+    towards the target."""
+    robot = load_robot(name)
+    result = plan_reach(robot, _request(robot, target))
+    assert [a.kind for a in result.attempts] == ["no_step", "single"]
+    expected = "manipulability" if name == "hrp2_like" else "joint_torque"
+    assert result.attempts[0].violation.criterion == expected
     assert len(result.footsteps) == 1 and result.footsteps[0].side == "left"
     assert result.footsteps[0].pose.yaw_rad > 0.1
     _check_plan(robot, result)
@@ -231,6 +263,8 @@ def test_options_are_validated():
         ReachingOptions(knot_stride=0)
     with pytest.raises(InvalidRequestError, match="recovery_iterations"):
         ReachingOptions(recovery_iterations=-1)
+    with pytest.raises(InvalidRequestError, match="manipulability_of"):
+        ReachingOptions(manipulability_of="wrist")
 
 
 def test_the_papers_experiment_triggers_on_its_two_criteria_and_keeps_a_stable_reshaping():
@@ -240,6 +274,10 @@ def test_the_papers_experiment_triggers_on_its_two_criteria_and_keeps_a_stable_r
     assert options.criteria == ("manipulability", "ee_error") and not options.other_arm_still
     assert options.joint_limit_selection_rad is None and options.weighted
     robot = load_robot("hrp2_like")
+    # The defaults are the paper's on hrp2_like; TALOS adds the static torque (its weak shoulders).
+    defaults = ReachingOptions()
+    assert defaults.criteria_for(robot) == PAPER_CRITERIA and not defaults.other_arm_still
+    assert defaults.criteria_for(load_robot("talos")) == (*PAPER_CRITERIA, "joint_torque")
     result = plan_reach(robot, _request(robot, FORWARD_BEYOND[robot.name]), options)
     first = result.attempts[0]
     assert result.stepped and first.violation.criterion in ("manipulability", "ee_error", "multibody_zmp")

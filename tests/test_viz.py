@@ -11,14 +11,21 @@ import numpy as np
 import pytest
 
 from services.bus import schemas
-from services.bus.codec import encode
+from services.bus.codec import decode, encode
 from services.bus.foxglove import message_schema, schema_problems
-from services.bus.logform import OCTETS_SCHEMA, from_log_form, to_log_form
+from services.bus.logform import (
+    DELTA_PLANES,
+    OCTETS_SCHEMA,
+    from_log_form,
+    pack_array,
+    to_log_form,
+    unpack_array,
+)
 from services.bus.schemas import navigation as nav_msg
 from services.bus.schemas import perception as per_msg
 from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
-from services.bus.schemas.common import ErrorInfo, Heartbeat
+from services.bus.schemas.common import ErrorInfo, Heartbeat, LogLine
 from services.bus.schemas.supervisor import SupervisorEvent
 from services.bus.spec import json_schema
 from services.model import load_robot
@@ -28,7 +35,7 @@ from tests.test_viz_live import protobuf_class
 
 
 def _registered_types() -> set[type]:
-    types: set[type] = {Heartbeat, ErrorInfo}
+    types: set[type] = {Heartbeat, ErrorInfo, LogLine}
     for endpoint in schemas.endpoints().values():
         types |= {endpoint.request, endpoint.reply}
     types |= {topic.message for topic in schemas.topics().values()}
@@ -91,6 +98,68 @@ def test_log_form_rebuilds_every_kind_of_frame_exactly():
     assert json.loads(stored)["T_world_camera"][0] == {"values": [1.0, 0.0, 0.0, 0.0]}
     kind, stored = to_log_form(frames[0][1], sim_msg.JointState)
     assert kind == "hrpb" and set(json.loads(stored)["q"]) == {"dtype", "shape", "data"}
+
+
+def test_delta_planes_arrays_are_exact_and_compress_smooth_trajectories():
+    import zstandard
+
+    rng = np.random.default_rng(5)
+    t = np.linspace(0.0, 15.0, 3001)
+    smooth = np.stack([np.sin(t * (1 + k / 7)) * (k + 1) + rng.normal(0, 1e-9, t.size) for k in range(37)], 1)
+    arrays = [
+        smooth,
+        smooth.astype("<f4"),
+        rng.random((6, 4, 3)),
+        rng.random(100),
+        np.arange(70.0),
+        smooth[:1],
+    ]
+    for a in arrays:
+        raw = np.ascontiguousarray(a).tobytes()
+        node = pack_array(raw, a.dtype.str, list(a.shape))
+        assert node.get("layout") == (DELTA_PLANES if a.shape[0] > 1 else None), a.shape
+        assert unpack_array(json.loads(json.dumps(node))) == raw
+    special = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324, 1.7e308] * 10)
+    assert unpack_array(pack_array(special.tobytes(), "<f8", [70])) == special.tobytes()
+    # A walking plan's joint trajectory: its log form compresses clearly better than the plain bytes.
+    plain = {
+        "dtype": "<f8",
+        "shape": list(smooth.shape),
+        "data": pack_array(smooth.tobytes(), "<f8", [1])["data"],
+    }
+    packed = pack_array(smooth.tobytes(), "<f8", list(smooth.shape))
+    size = {
+        k: len(zstandard.compress(json.dumps(n).encode())) for k, n in (("plain", plain), ("packed", packed))
+    }
+    assert size["packed"] < 0.8 * size["plain"], size
+    with pytest.raises(ValueError, match="layout"):
+        unpack_array({**packed, "layout": "zigzag"})
+
+
+def test_a_sensor_stream_is_written_rounded_as_numbers():
+    rng = np.random.default_rng(4)
+    state = sim_msg.JointState(sim_time_s=1.005, q=rng.normal(0, 1, 37), v=rng.normal(0, 3, 36))
+    kind, stored = to_log_form(encode(state), sim_msg.JointState, 6)
+    doc = json.loads(stored)
+    assert kind == "hrpb" and set(doc["q"]) == {"dtype", "shape", "values"} and len(doc["q"]["values"]) == 37
+    back = decode(from_log_form(kind, stored, sim_msg.JointState), sim_msg.JointState)
+    assert back.sim_time_s == 1.005
+    assert np.abs(back.q - state.q).max() <= 0.5e-6 and np.abs(back.v - state.v).max() <= 0.5e-6
+    assert back.q.dtype == np.float64 and back.q.shape == (37,)
+    pose = sim_msg.BasePose(
+        sim_time_s=2.0,
+        position=[0.12345678, 1.0, 0.6],
+        quaternion=[0.0, 0.0, 0.0, 1.0],
+        linear_velocity=[1e-9, 0.0, 0.0],
+        angular_velocity=[0.0, 0.0, 0.3333333333],
+    )
+    kind, stored = to_log_form(encode(pose), sim_msg.BasePose, 6)
+    assert kind == "json" and json.loads(stored)["position"][0] == 0.123457
+    assert (
+        decode(from_log_form(kind, stored, sim_msg.BasePose), sim_msg.BasePose).angular_velocity[2]
+        == 0.333333
+    )
+    assert schema_problems(message_schema(sim_msg.JointState)) == []
 
 
 def _decode_all(views) -> dict[str, list]:

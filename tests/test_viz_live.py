@@ -47,6 +47,7 @@ def stack(module_bus_harness, log_path):
     h.spawn_service("services.bus.recorder", "--output", str(log_path), name="record")
     h.spawn_service("sim.service", "--scene", "empty", name="sim", timeout_s=60)
     h.spawn_service("services.walking.service", name="walking", timeout_s=60)
+    h.spawn_service("services.bus.diag", name="diag")
     port = free_port()
     viz = h.spawn_service("services.viz.service", "--port", str(port), name="viz", timeout_s=60)
     return h, port, viz
@@ -86,6 +87,12 @@ def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
             start = h.client.call(sim_msg.STATE, sim_msg.StateRequest(), 30.0).q
             result = _walk(h)
             time.sleep(1.0)
+            # On a loaded machine the 1 Hz world poll may not have been answered yet: up to 10 s more.
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline and not {c.WORLD_OBJECTS, c.PLAN_FOOTSTEPS} <= {
+                m.topic for m in list(got)
+            }:
+                time.sleep(0.1)
         finally:
             stop.set()
             reader.join()
@@ -138,6 +145,27 @@ def test_misbehaving_viewers_do_not_hurt_the_stack(stack):
         odd.close()
 
 
+def test_a_service_warning_reaches_the_log_panel(stack):
+    """A service's Python warning (diag drops an undecodable ping) -> its ``log`` key -> foxglove.Log."""
+    h, port, _viz = stack
+    Log = protobuf_class("foxglove.Log", _schema_data("foxglove.Log"))
+    with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+        assert client.wait_for_topics([c.LOG])
+        client.subscribe([c.LOG])
+        time.sleep(0.3)
+        h.session.put(f"hrp/{h.bus.robot}/diag/ping", b"\xff not a ping")  # kept as octets in the log
+        deadline = time.monotonic() + 10.0
+        lines = []
+        while time.monotonic() < deadline and not lines:
+            got = client.receive(0.5)
+            if got is not None and got.topic == c.LOG:
+                log = Log.FromString(got.data)
+                if log.name.startswith("diag") and "dropped a diag/ping message" in log.message:
+                    lines.append(log)
+    assert lines, "no log line of diag on /log"
+    assert lines[0].level == 3 and lines[0].file.endswith("service.py") and lines[0].line > 0  # WARNING
+
+
 def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log_path):
     """Runs after the other tests of the module (pytest keeps file order): the recorder saw them."""
     import json
@@ -150,11 +178,15 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
     recorder = next(p for p in h.procs if "services.bus.recorder" in " ".join(map(str, p.args)))
     assert h.stop(recorder) == 0
     topics: dict[str, int] = {}
+    robot = h.bus.robot
     with open(log_path, "rb") as stream:
         reader = make_reader(stream, validate_crcs=True)
         summary = reader.get_summary()
         for schema, channel, message in reader.iter_messages():
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
+            if channel.topic == f"hrp/{robot}/sim/joint_state":  # rounded, as numbers Foxglove plots
+                assert channel.metadata["hrp.decimals"] == "6"
+                assert len(json.loads(message.data)["q"]["values"]) >= 37
             if channel.message_encoding == "protobuf":
                 protobuf_class(schema.name, schema.data).FromString(message.data)
             else:
@@ -164,14 +196,36 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
                     assert schema.encoding == "jsonschema"
                     assert schema_problems(json.loads(schema.data), channel.topic) == []
     assert summary is not None and summary.statistics.message_count == sum(topics.values())
-    robot = h.bus.robot
-    for topic in (c.TF, c.ROBOT, c.PLAN_FOOTSTEPS, c.PLAN_COM_ZMP, f"hrp/{robot}/sim/joint_state"):
+    for topic in (
+        c.TF,
+        c.ROBOT,
+        c.PLAN_FOOTSTEPS,
+        c.PLAN_COM_ZMP,
+        c.LOG,
+        f"hrp/{robot}/sim/joint_state",
+        f"hrp/{robot}/diag/log",
+    ):
         assert topics.get(topic, 0) > 0, topic
     # One copy of the 200 Hz joint state, at its own rate; the transforms at about 30 Hz.
     assert [t for t in topics if t.startswith(f"hrp/{robot}/sim/joint_state")] == [
         f"hrp/{robot}/sim/joint_state"
     ]
     assert topics[c.TF] < topics[f"hrp/{robot}/sim/joint_state"] / 2
+
+
+def test_foxglove_own_reader_decodes_every_message_of_the_recorded_log(stack, log_path):
+    """The same log through Foxglove's published code (scripts/foxglove_check, Node): every channel's
+    every message decodes. Runs after the log was closed by the test above."""
+    from services.viz import nodecheck
+
+    reason = nodecheck.unavailable()
+    if reason:
+        pytest.skip(reason)
+    report = nodecheck.check_log(log_path)
+    bad = [ch for ch in report["channels"] if not ch["ok"]]
+    assert bad == [] and report["exit_code"] == 0, bad
+    assert report["channels_ok"] == report["channels_total"] > 10
+    assert report["summary_message_count"] == report["messages"] > 0
 
 
 def test_up_foxglove_starts_the_live_view_and_only_then(tmp_path):

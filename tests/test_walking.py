@@ -371,7 +371,9 @@ def test_straight_walk_timing_and_phases():
     seq = straight_walk(10, 0.2)
     timing = WalkTiming(single_support_s=0.8, double_support_s=0.1)
     p = plan_pattern(seq, timing, PatternOptions(com_height_m=0.75))
-    expected = 0.8 + 1.0 + 10 * 0.8 + 9 * 0.1 + 1.0 + 1.0
+    t = timing  # start hold, first transfer, 10 single + 9 double supports, last transfer, final hold
+    expected = t.initial_hold_s + t.initial_double_support_s + 10 * 0.8 + 9 * 0.1
+    expected += t.final_double_support_s + t.final_hold_s
     assert p.duration_s == pytest.approx(expected)
     assert np.count_nonzero(p.phase != DOUBLE) == 10 * 160
     assert p.phase_names()[0] == "double"

@@ -57,7 +57,7 @@ def test_plain_json_request_gives_the_whole_walk():
 
 def test_stop_at_end_adds_the_final_hold():
     held, brief = plan_reply(_request()), plan_reply(_request(stop_at_end=False))
-    assert held.figures.duration_s == pytest.approx(brief.figures.duration_s + 1.0)
+    assert held.figures.duration_s == pytest.approx(brief.figures.duration_s + _request().final_hold_s)
     assert np.abs(brief.q[-1] - brief.q[-2]).max() < 1e-6  # at rest at the end either way
 
 

@@ -17,7 +17,15 @@ ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_pla
 Goals (issues 10, 15): success >= 95 %, wall time <= sim time, median think <= 1 s, >= 2 footstep
 plans per fetch.
 
-Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR]
+Side by side (issue 15's wall-time goal): ``--baseline DIR`` runs a second checkout (e.g. a git worktree
+of the commit to compare with, its own ``.venv`` made by its ``scripts/_venv.sh``) in the same run. Each
+tree's stack runs in its own worker process (this file with ``--worker``, under that tree's Python and
+``PYTHONPATH``); the seeds alternate between the two (this tree first on even seeds, the baseline first on
+odd ones) so that the machine's load hits both alike. Adds ``baseline`` (the baseline's figures and runs),
+``baseline_median_wall_s`` and ``wall_ratio`` (this tree's median wall time / the baseline's) to the JSON.
+Neither stack has a subscriber on ``hrp/**`` (timings compare only under the same subscriber conditions).
+
+Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--baseline DIR]
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ import os
 import platform
 import socket
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -77,7 +86,11 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--seed0", type=int, default=0, help="first seed (0)")
     parser.add_argument("--log-dir", default="bench/out/fetch-logs", help="services' output")
     parser.add_argument("--out", default=str(OUT), help="JSON output file")
+    parser.add_argument("--baseline", default="", help="another checkout to run side by side (its .venv)")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)  # seeds on stdin
     args = parser.parse_args(argv)
+    if args.baseline:
+        return side_by_side(args, Path(args.baseline).resolve())
 
     from services.bus.config import BusConfig
     from services.bus.schemas import sim as sim_msg
@@ -92,7 +105,8 @@ def main(argv: list[str]) -> int:
         if missing:
             print(f"services missing: {', '.join(missing)}", file=sys.stderr)
         watch = CallWatch(sup)
-        for seed in range(args.seed0, args.seed0 + args.n):
+        seeds = _stdin_seeds() if args.worker else range(args.seed0, args.seed0 + args.n)
+        for seed in seeds:
             watch.reset()
             summary, _report = fetch(sup, seed=seed)
             gt = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
@@ -117,8 +131,36 @@ def main(argv: list[str]) -> int:
                 f"footsteps/plan x{run['footsteps_plan_calls']}  {run['failure']}",
                 flush=True,
             )
+            if args.worker:
+                print(WORKER_TAG + json.dumps(run), flush=True)
+    if args.worker:
+        return 0
+    result = summarize(runs)
+    result.update(
+        {
+            "goals": {
+                "success_rate": 0.95,
+                "real_time_factor": 1.0,
+                "median_think_s": 1.0,
+                "footsteps_plan_calls": 2,
+            },
+            "runs": runs,
+            "machine": {
+                "cpus": os.cpu_count(),
+                "python": platform.python_version(),
+                "load_avg": os.getloadavg(),
+            },
+            "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        }
+    )
+    print_table(result)
+    return write(result, Path(args.out))
+
+
+def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """The figures over ``runs`` (the per-seed dicts)."""
     n = len(runs)
-    result = {
+    return {
         "n": n,
         "success_rate": sum(r["ok"] for r in runs) / max(n, 1),
         "median_wall_s": statistics.median(r["wall_s"] for r in runs) if runs else None,
@@ -131,16 +173,12 @@ def main(argv: list[str]) -> int:
         if any(r["think_samples_s"] for r in runs)
         else None,
         "footsteps_plan_calls": statistics.median(r["footsteps_plan_calls"] for r in runs) if runs else None,
-        "goals": {
-            "success_rate": 0.95,
-            "real_time_factor": 1.0,
-            "median_think_s": 1.0,
-            "footsteps_plan_calls": 2,
-        },
-        "runs": runs,
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "load_avg": os.getloadavg()},
-        "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
     }
+
+
+def print_table(result: dict[str, Any]) -> None:
+    """The summary table of one tree's figures."""
+    n = result["n"]
     print()
     print(
         f"{'n':>4} {'success':>8} {'median wall [s]':>16} {'median sim [s]':>15} "
@@ -152,8 +190,138 @@ def main(argv: list[str]) -> int:
         f"{result['retries']:>8} {result['real_time_factor']:>9.2f} "
         f"{result['median_think_s'] or 0.0:>10.2f} {result['footsteps_plan_calls'] or 0:>15}"
     )
-    out = Path(args.out)
+
+
+def write(result: dict[str, Any], out: Path) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {out}")
     return 0
+
+
+# ------------------------------------------------------------------------ side by side with a baseline
+WORKER_TAG = "FETCH-RUN "
+"""Prefix of the line on which a worker prints a finished run (JSON)."""
+
+
+def _stdin_seeds() -> Any:
+    """Seeds, one per line on stdin, as the parent sends them (EOF ends)."""
+    for line in sys.stdin:
+        if line.strip():
+            yield int(line)
+
+
+class Worker:
+    """One tree's stack in a worker process: ``run(seed)`` fetches once and returns the run's dict."""
+
+    def __init__(self, tree: Path, log_dir: Path) -> None:
+        python = tree / ".venv" / "bin" / "python"
+        if not python.is_file():
+            raise SystemExit(f"{python} not found: make the tree's venv with its scripts/_venv.sh")
+        self.tree = tree
+        log_dir.mkdir(parents=True, exist_ok=True)
+        self.proc = subprocess.Popen(
+            [str(python), str(Path(__file__).resolve()), "--worker", "--log-dir", str(log_dir)],
+            cwd=tree,
+            env={**os.environ, "PYTHONPATH": str(tree)},
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            bufsize=1,
+        )
+
+    def run(self, seed: int) -> dict[str, Any]:
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        self.proc.stdin.write(f"{seed}\n")
+        self.proc.stdin.flush()
+        for line in self.proc.stdout:
+            if line.startswith(WORKER_TAG):
+                return json.loads(line[len(WORKER_TAG) :])
+        raise SystemExit(f"the worker of {self.tree} ended before seed {seed}'s result")
+
+    def close(self) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            self.proc.terminate()
+            self.proc.wait(timeout=10)
+
+
+def side_by_side(args: argparse.Namespace, baseline: Path) -> int:
+    """Run every seed on this tree and on ``baseline``, alternating which goes first."""
+    log_dir = Path(args.log_dir)
+    trees = {"this": REPO, "baseline": baseline}
+    workers = {name: Worker(tree, log_dir / name) for name, tree in trees.items()}
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
+    loads = []
+    try:
+        for seed in range(args.seed0, args.seed0 + args.n):
+            order = ("this", "baseline") if seed % 2 == 0 else ("baseline", "this")
+            for name in order:
+                run = workers[name].run(seed)
+                run["load_avg_1min"] = round(os.getloadavg()[0], 2)
+                loads.append(run["load_avg_1min"])
+                runs[name].append(run)
+                print(
+                    f"{name:8s} seed {seed:3d}  {'ok  ' if run['ok'] else 'FAIL'}  "
+                    f"wall {run['wall_s']:6.1f} s  "
+                    f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  load {run['load_avg_1min']}  "
+                    f"{run['failure']}",
+                    flush=True,
+                )
+    finally:
+        for worker in workers.values():
+            worker.close()
+    result = summarize(runs["this"])
+    base = summarize(runs["baseline"])
+    result.update(
+        {
+            "baseline_median_wall_s": base["median_wall_s"],
+            "wall_ratio": round(result["median_wall_s"] / base["median_wall_s"], 3)
+            if result["median_wall_s"] and base["median_wall_s"]
+            else None,
+            "goals": {
+                "success_rate": 0.95,
+                "wall_ratio": 0.7,
+                "median_think_s": 1.0,
+                "footsteps_plan_calls": 2,
+            },
+            "runs": runs["this"],
+            "baseline": {
+                **base,
+                "tree": str(baseline),
+                "commit": _commit(baseline),
+                "runs": runs["baseline"],
+            },
+            "commit": _commit(REPO),
+            "machine": {
+                "cpus": os.cpu_count(),
+                "python": platform.python_version(),
+                "load_avg": os.getloadavg(),
+                "load_avg_1min_during": [min(loads), statistics.median(loads), max(loads)] if loads else None,
+            },
+            "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        }
+    )
+    for name, figures in (("this tree", result), ("baseline", base)):
+        print(f"\n{name}:", end="")
+        print_table(figures)
+    print(f"\nwall ratio (this / baseline, medians): {result['wall_ratio']}")
+    return write(result, Path(args.out))
+
+
+def _commit(tree: Path) -> str:
+    """The short commit of ``tree``'s HEAD (+ ``-dirty`` with uncommitted changes)."""
+    head = subprocess.run(
+        ["git", "-C", str(tree), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    )
+    dirty = subprocess.run(
+        ["git", "-C", str(tree), "status", "--porcelain", "-uno"], capture_output=True, text=True
+    )
+    return head.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+
+
+if __name__ == "__main__":  # a worker: scripts/bench.d/fetch.py --worker (seeds on stdin)
+    raise SystemExit(main(sys.argv[1:]))

@@ -8,7 +8,12 @@ at 0.1-1.2 m height, 0-2 disk obstacles). Both start feet are solved (section 5.
 The scenarios run with the paper's task sets (section 4: the reach alone with its disks; gaze >
 posture) and ``scenarios.PAPER_OPTIONS``; ``paper_tasks`` lists them beside the paper's steps and
 times and beside the stack's variant (``posture_objective``: the rest posture as lowest objective, the
-stack's default numerics). ``epsilon_study`` is Fig. 10's threshold study (reach > gaze > posture,
+stack's default numerics). ``executed`` plays the reach and the pick-up (paper task sets, the CoM kept
+6 cm inside the support polygon instead of 3; both start at half-sitting, as the sim does) in the
+sim: the footsteps walked with ``services.walking.two_stage.executable_walk`` (the CoM lowered, then
+slower supports, until every joint stays within its speed limit), then the final reach (outcome,
+fall, foot slip, hand error).
+``epsilon_study`` is Fig. 10's threshold study (reach > gaze > posture,
 every epsilon_i x0.1 / x1 / x5: steps, step additions, time). ``numerics`` runs the three paper
 scenarios with each of Algorithm 1's numerics that differ from eqs. 2/15 switched to the paper's
 form one at a time (saturated task rates off, the 0.25 per-coordinate cap on, LM damping off,
@@ -17,7 +22,7 @@ epsilon as written, no polish iterations), and all of them at once: which result
 Writes ``bench/out/footsteps.json``::
 
     {"scenarios": [{name, solve_s, cpu_s, steps, paper_s, paper_steps, solved}, ...],
-     "paper_tasks": [...], "epsilon_study": [...], "numerics": {variant: [...]},
+     "paper_tasks": [...], "executed": [...], "epsilon_study": [...], "numerics": {variant: [...]},
      "random": {n, success_rate, median_s, median_cpu_s, p90_s, max_s, failures: [...]}, ...}
 
 ``solve_s`` is the best wall time of ``--repeat`` runs (the machine is shared), ``cpu_s`` the process
@@ -138,6 +143,61 @@ def bench_paper_tasks(robot) -> list[dict]:
     return rows
 
 
+# The scenarios' CoM margin (d of eq. 11) for execution in the sim: at the default 3 cm the reach's
+# final posture, folded 32 deg over with the hand 0.9 m ahead of the feet, tips forward in the
+# open-loop sim as it arrives (the joints sag under gravity); 6 cm holds.
+EXECUTION_COM_MARGIN_M = 0.06
+
+
+def bench_executed(robot) -> list[dict]:
+    """The reach and the pick-up with the paper's task sets executed (the posture scenario starts from
+    a configuration the sim does not start in): the footsteps walked
+    (``services.walking.two_stage.executable_walk``: the CoM height and timing derived so that the
+    joints stay within their speed limits), then the final reach, played open loop in the sim."""
+    import numpy as np
+
+    from services.footsteps.execution import execute_plan
+    from sim.world import World
+
+    rows = []
+    for name in ("reach", "pickup"):
+        scenario = scenarios.SCENARIOS[name](robot.name)
+        options = replace(scenario.request.options, com_margin_m=EXECUTION_COM_MARGIN_M)
+        request = replace(scenario.request, options=options)
+        result = plan_footsteps(request, robot)
+        row: dict = {"name": name, "steps": len(result.footsteps), "com_margin_m": EXECUTION_COM_MARGIN_M}
+        try:
+            motion = execute_plan(robot, request, result)
+        except InfeasibleError as exc:
+            rows.append({**row, "executable": False, "message": exc.message})
+            continue
+        speed = np.abs(np.diff(motion.q[:, 7:], axis=0)) / motion.dt_s / robot.v_max[6:]
+        adjustment = motion.walk_adjustment
+        row.update(
+            executable=True,
+            com_lowering_m=None if adjustment is None else adjustment.com_lowering_m,
+            slowdown=None if adjustment is None else adjustment.slowdown,
+            duration_s=motion.duration_s,
+            max_joint_speed_ratio=float(speed.max()),
+        )
+        with World(robot, "empty") as world:
+            execution = world.execute(motion.q, motion.dt_s, hold_s=1.0)
+            q = world.state().q
+            errors = {}
+            for task in request.tasks:
+                if task.kind == "reach":
+                    hand = robot.frame_pose(q, robot.frames.grasp(task.hand)).translation
+                    errors[task.name] = float(np.linalg.norm(hand - np.asarray(task.target_m)))
+            row.update(
+                outcome=execution.outcome,
+                fallen=world.fallen(),
+                foot_slip_m=execution.foot_slip_m,
+                hand_error_m=errors,
+            )
+        rows.append(row)
+    return rows
+
+
 def bench_numerics(robot) -> dict:
     """The paper scenarios with each numerical device switched to eqs. 2/15's form."""
     out = {}
@@ -187,6 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed0", type=int, default=0, help="first seed of the random layouts")
     parser.add_argument("--repeat", type=int, default=3, help="runs per scenario, best wall time kept")
     parser.add_argument("--robot", default="hrp2_like")
+    parser.add_argument("--no-sim", action="store_true", help="skip executing the scenarios in the sim")
     parser.add_argument("--out", type=Path, default=ROOT / "bench" / "out" / "footsteps.json")
     args = parser.parse_args(argv)
     robot = load_robot(args.robot)
@@ -216,6 +277,19 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"  {r['label']:8s} x{r['epsilon_scale']:<4g} steps {r['steps']} "
             f"added after {r['steps_added_at']} {r['solve_s']:.3f} s wall, {r['cpu_s']:.3f} s CPU"
+        )
+    executed = [] if args.no_sim else bench_executed(robot)
+    print("executed in the sim (paper task sets; walk derived by executable_walk)")
+    for r in executed:
+        if not r["executable"]:
+            print(f"  {r['name']:8s} {r['steps']} steps NOT EXECUTABLE: {r['message']}")
+            continue
+        print(
+            f"  {r['name']:8s} {r['steps']} steps, CoM lowered {100 * (r['com_lowering_m'] or 0):.0f} cm, "
+            f"supports x{r['slowdown'] or 1:g}, joints <= {100 * r['max_joint_speed_ratio']:.0f} % of their "
+            f"limits, {r['duration_s']:.1f} s: {r['outcome']}, fallen {r['fallen']}, foot slip "
+            f"{1e3 * r['foot_slip_m']:.1f} mm, hand "
+            + ", ".join(f"{k} {1e3 * v:.1f} mm" for k, v in r["hand_error_m"].items())
         )
     numerics = bench_numerics(robot)
     print("numerics (paper scenarios; each device switched to eqs. 2/15's form)")
@@ -250,6 +324,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "scenarios": rows,
         "paper_tasks": paper,
+        "executed": executed,
         "epsilon_study": study,
         "numerics": numerics,
         "random": rand,

@@ -11,15 +11,17 @@ Figures (issue 7), all from one run:
   and executed in ``sim.world.World`` (scene ``empty``); a success is a completed execution, the robot
   standing and the hand within 1 cm of the target (goal: >= 95 %). Planning times are wall times on
   this shared machine (CPU times alongside).
-- ``trigger``: over the random targets (executed with the stack's defaults), how many reshapings each
-  criterion triggered (the first attempt's violation, on the initial support polygon: the paper's
-  ``manipulability`` (< 1.5e-4) and ``ee_error`` (> 4e-5 m), the stack's ``joint_speed`` and
-  ``joint_torque``, and ``multibody_zmp``: a motion whose ZMP does not exist or leaves the polygon,
-  discarded); ``single_step_share``: the share of the reshaped reaches done with one step (the
-  paper's Fig. 6 makes one step);
-- ``paper_experiment``: the same targets planned (not executed) with the paper's settings
-  (``ReachingOptions.paper_experiment()``: its two criteria, S = I): planned share, trigger counts,
-  single-step share, median steps.
+- ``trigger``: over the random targets (executed with the defaults, which are the paper's experiment:
+  its two criteria, S = I; TALOS adds ``joint_torque``), how many reshapings each criterion triggered
+  (the first attempt's violation, on the initial support polygon: the paper's ``manipulability``
+  (< 1.5e-4) and ``ee_error`` (> 4e-5 m), ``joint_torque``, and ``multibody_zmp``: a motion whose ZMP
+  does not exist or leaves the polygon, discarded); ``single_step_share``: the share of the reshaped
+  reaches done with one step (the paper's Fig. 6 makes one step);
+- ``just_beyond``: ``n`` other seeded targets only 0.05-0.3 m beyond the arm's reach, planned (not
+  executed) with the defaults: the same trigger counts and ``single_step_share`` (one step suffices
+  for some of these);
+- ``extension_joint_speed``: the random targets planned (not executed) with the extension criterion
+  ``joint_speed`` (an arm joint beyond 50 % of its velocity limit) added: trigger counts, steps.
 
 The envelopes of reach (measured once per hand, see ``services/reaching/envelope.py``) are computed
 before the timings.
@@ -56,13 +58,17 @@ NO_STEP_TARGETS = {
     "talos": [(0.45, 0.30, 1.00), (0.40, 0.35, 0.60), (0.35, -0.30, 1.20), (0.55, 0.25, 0.90)],
 }
 STEP_TARGETS = {
-    "hrp2_like": [(0.90, 0.30, 0.90), (0.20, 0.75, 0.90), (0.85, -0.30, 0.60), (0.60, 0.60, 1.10)],
+    # (0.2, 0.75, 0.9) is within hrp2_like's whole-body reach with S = I (no step): (0.3, 0.85, 0.9) instead
+    "hrp2_like": [(0.90, 0.30, 0.90), (0.30, 0.85, 0.90), (0.85, -0.30, 0.60), (0.60, 0.60, 1.10)],
     "talos": [(0.90, 0.30, 1.00), (0.20, 0.80, 1.00), (0.85, -0.30, 0.70), (0.60, 0.60, 1.20)],
 }
 
 
-def random_targets(robot, n: int, seed: int) -> list[tuple[str, np.ndarray, float]]:
-    """(hand, target [m], distance beyond the arm's reach [m]) around the robot at the origin."""
+def random_targets(
+    robot, n: int, seed: int, beyond_m: tuple[float, float] = (0.3, 1.0)
+) -> list[tuple[str, np.ndarray, float]]:
+    """(hand, target [m], distance beyond the arm's reach [m], within ``beyond_m``) around the robot at
+    the origin."""
     from services.reaching import SupportPolygonPlanner
 
     support = SupportPolygonPlanner(robot)
@@ -71,7 +77,7 @@ def random_targets(robot, n: int, seed: int) -> list[tuple[str, np.ndarray, floa
     for _ in range(n):
         bearing = rng.uniform(-math.pi, math.pi)
         height = rng.uniform(0.3, 1.4)
-        beyond = rng.uniform(0.3, 1.0)
+        beyond = rng.uniform(*beyond_m)
         hand = "left" if math.sin(bearing) >= 0 else "right"
         s = support.shoulder_in_mid[hand]
         u = np.array([math.cos(bearing), math.sin(bearing)])
@@ -147,14 +153,13 @@ def timings(robot, targets: list[tuple[float, float, float]], expect_step: bool)
     }
 
 
-def paper_experiment(robot, targets: list[tuple[str, np.ndarray, float]]) -> dict:
-    """Plan (no execution) every target with the paper's settings: triggers and steps."""
+def planned_only(robot, targets: list[tuple[str, np.ndarray, float]], options) -> dict:
+    """Plan (no execution) every target with ``options``: triggers and steps."""
     from services.errors import HumanoidError
     from services.reaching import ReachRequest
-    from services.reaching.options import ReachingOptions
     from services.reaching.planner import ReachPlanner
 
-    planner = ReachPlanner(robot, ReachingOptions.paper_experiment())
+    planner = ReachPlanner(robot, options)
     triggers: dict[str, int] = {}
     steps, failures = [], 0
     for hand, target, _ in targets:
@@ -250,7 +255,14 @@ def main(argv: list[str] | None = None) -> int:
         sum(r["steps"] == 1 for r in reshaped) / len(reshaped) if reshaped else None
     )
     results["paper_single_step"] = "Fig. 6: one step"
-    results["paper_experiment"] = paper_experiment(robot, random_targets(robot, args.n, args.seed))
+    results["just_beyond"] = planned_only(
+        robot, random_targets(robot, args.n, args.seed + 1, beyond_m=(0.05, 0.3)), ReachingOptions()
+    )
+    results["extension_joint_speed"] = planned_only(
+        robot,
+        random_targets(robot, args.n, args.seed),
+        ReachingOptions(criteria=(*ReachingOptions().criteria_for(robot), "joint_speed")),
+    )
     results["random"] = {
         "n": len(runs),
         "seed": args.seed,
@@ -285,12 +297,15 @@ def main(argv: list[str] | None = None) -> int:
         "  single_step_share (reshapings with one step; paper Fig. 6: one step): "
         + ("-" if share is None else f"{share:.2f} of {len(reshaped)}")
     )
-    pe = results["paper_experiment"]
-    print(
-        f"paper's settings (2 criteria, S = I; planned only): {pe['planned']}/{pe['n']} planned, "
-        f"trigger {pe['trigger']}, single_step_share {pe['single_step_share']}, median steps "
-        f"{pe['median_steps']}"
-    )
+    for key, label in (
+        ("just_beyond", "targets 0.05-0.3 m beyond reach (defaults; planned only)"),
+        ("extension_joint_speed", "random targets with joint_speed added (planned only)"),
+    ):
+        pe = results[key]
+        print(
+            f"{label}: {pe['planned']}/{pe['n']} planned, trigger {pe['trigger']}, single_step_share "
+            f"{pe['single_step_share']}, median steps {pe['median_steps']}"
+        )
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
     print(f"wrote {OUT.relative_to(ROOT)}")

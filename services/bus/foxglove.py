@@ -26,14 +26,19 @@ from typing import Any
 import msgspec
 import numpy as np
 
-#: A numpy array in a log: dtype (numpy ``str``, e.g. ``<f8``), shape, and the raw bytes in base64.
+#: A numpy array in a log (:mod:`services.bus.logform`): dtype (numpy ``str``, e.g. ``<f8``), shape,
+#: and either its bytes in base64 (``data``, in the byte ``layout`` named, none = C order) or its
+#: values as numbers (``values``, flattened in C order; floats rounded to the channel's
+#: ``hrp.decimals``).
 ARRAY_SCHEMA: dict[str, Any] = {
     "type": "object",
-    "description": "numpy array: raw C-order bytes (base64) of the given dtype and shape",
+    "description": "numpy array: base64 bytes (data, in the given layout) or numbers (values, C order)",
     "properties": {
         "dtype": {"type": "string"},
         "shape": {"type": "array", "items": {"type": "integer"}},
+        "layout": {"type": "string"},
         "data": {"type": "string", "contentEncoding": "base64"},
+        "values": {"type": "array", "items": {"type": "number"}},
     },
 }
 #: The key under which each inner list of a list of lists is kept in a log (``[[1, 2]]`` ->

@@ -42,6 +42,10 @@ MAX_NAME_CHARS = 128
 MAX_ITERATIONS = 100_000
 #: Seeds are unsigned 32-bit (numpy and OMPL accept them all).
 MAX_SEED = 2**32 - 1
+#: Regularization of a least-squares solver (Levenberg-Marquardt mu_0, or its growth with the residual).
+MAX_DAMPING = 100.0
+#: Iterations a solver may add after it stopped (polishing).
+MAX_POLISH_ITERATIONS = 1000
 #: Image sides [px] (renders and snapshots).
 MAX_IMAGE_PX = 2048
 #: Configurations of one forward-kinematics request (120 s of motion at 5 ms), and frame poses in its
@@ -68,6 +72,8 @@ Gain = Annotated[float, Meta(gt=0.0, le=1000.0, description="positive gain")]
 Budget = Annotated[float, Meta(gt=0.0, le=MAX_BUDGET_S, description="wall-clock budget [s]")]
 Phase = Annotated[float, Meta(ge=0.0, le=MAX_PHASE_S, description="duration [s]")]
 Iterations = Annotated[int, Meta(ge=0, le=MAX_ITERATIONS)]
+Damping = Annotated[float, Meta(ge=0.0, le=MAX_DAMPING, description="damping >= 0 (0: undamped)")]
+PolishIterations = Annotated[int, Meta(ge=0, le=MAX_POLISH_ITERATIONS, description="extra iterations")]
 Seed = Annotated[int, Meta(ge=0, le=MAX_SEED, description="seed, unsigned 32-bit")]
 Name = Annotated[str, Meta(max_length=MAX_NAME_CHARS)]
 ImageSide = Annotated[int, Meta(ge=1, le=MAX_IMAGE_PX, description="image side [px]")]

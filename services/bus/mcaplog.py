@@ -8,7 +8,8 @@ Layout of a log (one MCAP file, every channel decodable by Foxglove):
   Channel metadata: ``hrp.key`` (the zenoh key), ``hrp.role`` = ``original`` and ``hrp.frame`` (the
   frame kind on the bus: ``json``, ``hrpb`` or ``octets``), from which :class:`LogReader` rebuilds the
   exact bytes that were published. The request id attachment of the ``<endpoint>/request|reply|error``
-  mirrors is the MCAP message ``sequence``.
+  mirrors is the MCAP message ``sequence``. A channel written rounded (a sensor stream, see
+  :mod:`services.bus.logform`) has ``hrp.decimals``: its floats are rounded to that many decimals.
 * **views** (``hrp.role`` = ``view``): Foxglove's own messages (transforms, scene, images, logs),
   protobuf, made by a ``views`` callable (the recorder passes :mod:`services.viz`'s converters).
 
@@ -25,7 +26,7 @@ import json
 import struct
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -70,7 +71,7 @@ Views = Callable[[str, bytes, int], Iterable[View]]
 def message_type_for_key(key: str) -> type | None:
     """The msgspec type published on ``key`` according to the spec registry, or None."""
     from services.bus import schemas
-    from services.bus.schemas.common import ErrorInfo, Heartbeat
+    from services.bus.schemas.common import ErrorInfo, Heartbeat, LogLine
 
     try:
         _robot, service, rest = keys.parse(key)
@@ -79,6 +80,8 @@ def message_type_for_key(key: str) -> type | None:
     parts = rest.split("/")
     if parts == ["heartbeat"]:
         return Heartbeat
+    if parts == ["log"]:
+        return LogLine
     if len(parts) == 1:
         topic = schemas.topics().get(f"{service}/{parts[0]}")
         return topic.message if topic is not None else None
@@ -112,7 +115,10 @@ class LogWriter:
         chunk_size_bytes: int = 1 << 20,
         views: Views | None = None,
         metadata: dict[str, str] | None = None,
+        decimals: Mapping[str, int] | None = None,
     ) -> None:
+        """``decimals``: topics (``service/topic``, e.g. ``sim/joint_state``) written rounded to that
+        many decimals (:mod:`services.bus.logform`); every other message is written exactly."""
         if compression not in COMPRESSIONS:
             raise InvalidRequestError(f"compression {compression!r} is not one of: {', '.join(COMPRESSIONS)}")
         self.path = Path(path)
@@ -123,6 +129,8 @@ class LogWriter:
         if metadata:
             self._writer.add_metadata("recording", dict(metadata))
         self._views = views
+        self._decimals = dict(decimals or {})
+        self._rounding: dict[str, int | None] = {}
         self._channels: dict[tuple[str, str], int] = {}
         self._schemas: dict[str, int] = {}
         self.message_counts: Counter[str] = Counter()
@@ -133,8 +141,9 @@ class LogWriter:
     def write(self, key: str, data: bytes, log_time_ns: int, sequence: int = 0) -> None:
         """Log one message published on ``key`` (one copy, in its log form), then its Foxglove views."""
         type_ = message_type_for_key(key)
-        kind, stored = to_log_form(data, type_)
-        channel = self._original_channel(key, kind, type_)
+        decimals = self._decimals_of(key)
+        kind, stored = to_log_form(data, type_, decimals)
+        channel = self._original_channel(key, kind, type_, decimals)
         self._writer.add_message(channel, log_time_ns, stored, log_time_ns, sequence)
         self.message_counts[key] += 1
         if self._views is not None:
@@ -163,7 +172,16 @@ class LogWriter:
             sid = self._schemas[name] = self._writer.register_schema(name, encoding, data)
         return sid
 
-    def _original_channel(self, key: str, kind: str, type_: type | None) -> int:
+    def _decimals_of(self, key: str) -> int | None:
+        if key not in self._rounding:
+            try:
+                _robot, service, rest = keys.parse(key)
+                self._rounding[key] = self._decimals.get(f"{service}/{rest}")
+            except ValueError:
+                self._rounding[key] = None
+        return self._rounding[key]
+
+    def _original_channel(self, key: str, kind: str, type_: type | None, decimals: int | None) -> int:
         cid = self._channels.get((key, kind))
         if cid is None:
             if kind == "octets":
@@ -174,6 +192,8 @@ class LogWriter:
             else:
                 schema = 0  # JSON of an unknown key: Foxglove shows schemaless JSON as it is
             meta = {"hrp.key": key, "hrp.role": ROLE_ORIGINAL, "hrp.frame": kind}
+            if decimals is not None and kind != "octets":
+                meta["hrp.decimals"] = str(decimals)
             topic = key if kind != "octets" else f"{key}#octets"  # json and hrpb share the schema
             cid = self._channels[(key, kind)] = self._writer.register_channel(topic, "json", schema, meta)
         return cid

@@ -382,13 +382,19 @@ def serve(
     bus: BusConfig,
     stop: threading.Event,
     ready: Callable[[Service], None] | None = None,
+    bus_log_level: str | None = None,
 ) -> None:
-    """Run ``service_type`` until ``stop`` is set (in this thread; the session is closed on return)."""
+    """Run ``service_type`` until ``stop`` is set (in this thread; the session is closed on return).
+    Log records at ``bus_log_level`` and up go on the bus too (:mod:`services.bus.buslog`)."""
+    from services.bus import buslog
+
     session = open_session(bus, identity=service_type.name)
+    bus_log = None
     try:
         service = service_type(config, bus, session)
         runtime = _Runtime(service)
         runtime.declare()
+        bus_log = buslog.attach(session, bus.robot, service.name, bus_log_level)
         service.start()
         runtime.announce()
         service.log.info("ready (pid %d) on %s", os.getpid(), keys.alive(bus.robot, service.name))
@@ -403,6 +409,8 @@ def serve(
         finally:
             runtime.shutdown(deadline)
     finally:
+        if bus_log is not None:
+            bus_log.close()
         close_session(session)
 
 
@@ -424,6 +432,11 @@ def service_argparser(service_type: type[Service]) -> argparse.ArgumentParser:
     parser.add_argument("--robot", help="robot name in the key expressions (default: hrp2)")
     parser.add_argument("--hub", help="zenoh endpoint of the hub, e.g. tcp/127.0.0.1:7447")
     parser.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING or ERROR")
+    parser.add_argument(
+        "--bus-log-level",
+        help="log records published on hrp/<robot>/<service>/log from this level up: DEBUG, INFO, "
+        "WARNING, ERROR or OFF (default: $HUMANOID_BUS_LOG_LEVEL, else WARNING)",
+    )
     parser.add_argument(
         "--parent-pid",
         type=int,
@@ -448,8 +461,14 @@ def run_service(
         if config is None:
             config = load_section(args.config, service_type.name, service_type.Config)
         config = service_type.configure(config, args)
+        from services.bus.buslog import level_from
+
+        level_from(args.bus_log_level)
     except HumanoidError as exc:
         log.error("%s", exc.message)
+        return 2
+    except ValueError as exc:  # a bad --bus-log-level
+        log.error("%s", exc)
         return 2
     stop = threading.Event()
 
@@ -463,7 +482,7 @@ def run_service(
     if args.parent_pid:
         _watch_parent(args.parent_pid, stop, log)
     try:
-        serve(service_type, config, bus, stop)
+        serve(service_type, config, bus, stop, bus_log_level=args.bus_log_level)
     except HumanoidError as exc:
         log.error("%s", exc.message)
         return 2

@@ -63,7 +63,7 @@ def seated_guess(robot: RobotModel, q: np.ndarray) -> np.ndarray:
 
 
 def seated_posture(
-    robot: RobotModel, env: Environment, q_init: np.ndarray, seat_x_m: float = 0.23
+    robot: RobotModel, env: Environment, q_init: np.ndarray, seat_x_m: float = 0.18
 ) -> np.ndarray:
     """A witness of the seated start: both thighs on the seat ``seat_x_m`` from its centre (y = +-0.06
     m), the soles flat on the floor wherever the legs put them, statically stable on the thighs."""

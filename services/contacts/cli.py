@@ -32,7 +32,50 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument("--no-best-first", action="store_true", help="generate every son (§2.8 off)")
     p.add_argument("--n", type=int, default=10, help="posture generations per transition (§3.3's n)")
     p.add_argument("--no-execute", action="store_true", help="plan and interpolate only")
+    p.add_argument(
+        "--open-loop",
+        action="store_true",
+        help="play the planned motion as is (default: set by set, re-planned from the measured state)",
+    )
     p.set_defaults(func=cmd_scenario)
+
+
+SUPPORTS = ("chair", "table")  # objects any link may touch during the motion (sim/execute's supports)
+
+
+def _closed_loop(robot: Any, problem: Any, result: Any, world: Any, n: int) -> tuple[str, str]:
+    """Play the plan set by set in ``world``, each transition re-planned from the measured state
+    (``services.contacts.closed_loop``); prints one line per transition; (outcome, message)."""
+    from services.contacts.closed_loop import TransitionReport, execute_set_by_set
+    from services.contacts.interpolate import InterpolationConfig
+    from services.contacts.posture import PostureGenerator
+    from services.contacts.spots import robot_spots
+
+    gen = PostureGenerator(robot, result.environment, robot_spots(robot))
+
+    def play(q, dt):
+        executed = world.execute(q, dt, supports=SUPPORTS)
+        return executed.outcome, executed.message
+
+    def report(r: TransitionReport) -> None:
+        print(
+            f"  transition {r.index:3d}: {r.outcome:9s} supports off by {r.support_error_m * 100:4.1f} cm, "
+            f"{'re-planned' if r.replanned else 'as planned'} in {r.replan_s:.1f} s "
+            f"{r.reason}".rstrip(),
+            flush=True,
+        )
+
+    run = execute_set_by_set(
+        gen,
+        result.sets,
+        list(result.witnesses),
+        play,
+        lambda: world.state().q,
+        InterpolationConfig(n=n),
+        report,
+    )
+    world.hold(1.0)
+    return run.outcome, run.message
 
 
 def cmd_scenario(args: argparse.Namespace) -> int:
@@ -80,19 +123,24 @@ def cmd_scenario(args: argparse.Namespace) -> int:
     if args.no_execute:
         return 0
     with World(robot, "chair_egress") as world:
-        executed = world.execute(motion.q, motion.dt_s, supports=("chair", "table"), hold_s=1.0)
-        q = executed.state.q
+        if args.open_loop:
+            executed = world.execute(motion.q, motion.dt_s, supports=SUPPORTS, hold_s=1.0)
+            outcome, message = executed.outcome, executed.message
+        else:
+            outcome, message = _closed_loop(robot, problem, result, world, args.n)
+        q = world.state().q
         standing = all(
             abs(float(robot.sole_pose(q, side).translation[2])) < 0.01 for side in ("left", "right")
         )
         print(
-            f"execution: {executed.outcome}: {executed.message}; waist at "
+            f"execution: {outcome}: {message}; waist at "
             f"({q[0]:+.2f}, {q[1]:+.2f}, {q[2]:.2f}) m, tilt {math.degrees(world.tilt_rad()):.1f} deg, "
             f"{'standing on both soles' if standing else 'not standing on both soles'}"
         )
         ok = (
-            executed.outcome == "completed"
+            outcome == "completed"
             and standing
+            and not world.fallen()
             and float(np.asarray(q)[1]) > problem.goal.value_m - 0.05
         )
     print("chair egress:", "succeeded" if ok else "failed")

@@ -28,13 +28,15 @@ FLOOR_BOX_DEPTH_M = 0.5
 class Surface:
     """A flat, convex (rectangular) contact surface: its frame in the world (origin at the centre of
     the rectangle, z = outer normal, §2.1), its half sizes along its x and y [m], the object it
-    belongs to (``floor`` for the floor) and its friction coefficient."""
+    belongs to (``floor`` for the floor), its friction coefficient and the obstacle box it is a face
+    of."""
 
     name: str
     T_world_surface: pin.SE3
     half_size_m: tuple[float, float]
     owner: str
     friction: float
+    box: str = ""  # the obstacle box whose face the surface is ("" if none)
 
     def placement(self, x: float, y: float, theta: float) -> pin.SE3:
         """The world frame of a contact at (x [m], y [m], theta [rad]) on the surface (§2.5)."""
@@ -86,14 +88,34 @@ def _yaw_se3(yaw: float, xyz: Sequence[float]) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.array(xyz, dtype=float))
 
 
+def _under(name: str, T_obj: pin.SE3, top_xyz: np.ndarray, top_half: np.ndarray) -> Box:
+    """The space under a table's top, down to the floor, as an obstacle box (owned by the table): the
+    planner keeps the robot's limbs out from under the top (a conservative convex hull of the table, as
+    the paper's environment is a set of convex shapes, §2.2). A free arm hanging under the top cannot
+    reach the top without passing through it: witnesses with an arm there make the interpolation (§3.3)
+    drive that arm through the table."""
+    top_under_z = float(T_obj.act(top_xyz)[2]) - float(top_half[2])
+    floor_z = -float(T_obj.translation[2])  # the floor (z = 0) in the object's frame
+    height = top_under_z - float(T_obj.translation[2]) - floor_z
+    centre = np.array([top_xyz[0], top_xyz[1], floor_z + 0.5 * height])
+    half = np.array([top_half[0], top_half[1], 0.5 * height])
+    return Box(f"{name}[under]", T_obj * pin.SE3(np.eye(3), centre), half, name)
+
+
 def environment_of(layout: Layout, floor_friction: float | None = None) -> Environment:
-    """Surfaces and boxes of a laid-out scene. Surfaces: ``floor``, ``<chair>.seat``, ``<table>.top``,
+    """Surfaces and boxes of a laid-out scene (a table's boxes include the space under its top:
+    :func:`_under`). Surfaces: ``floor``, ``<chair>.seat``, ``<table>.top``,
     ``<box>.top`` (static objects only: the planner does not handle moving objects, §3.1)."""
     friction = layout.scene.floor_friction if floor_friction is None else floor_friction
     rx, ry = layout.robot_xy
     surfaces = [
         Surface(
-            "floor", _yaw_se3(0.0, (rx, ry, 0.0)), (FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M), "floor", friction
+            "floor",
+            _yaw_se3(0.0, (rx, ry, 0.0)),
+            (FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M),
+            "floor",
+            friction,
+            "floor",
         )
     ]
     boxes = [
@@ -115,6 +137,8 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
             T_part = T_obj * pin.SE3(np.eye(3), np.array(part.xyz))
             boxes.append(Box(f"{spec.name}[{i}]", T_part, np.array(part.half_extents), spec.name))
         top = parts_of(spec)[0]  # box: the box; table: the top; chair: the seat
+        if spec.kind == "table":
+            boxes.append(_under(spec.name, T_obj, np.array(top.xyz), np.array(top.half_extents)))
         label = {"box": "top", "table": "top", "chair": "seat"}[spec.kind]
         T_top = T_obj * pin.SE3(np.eye(3), np.array(top.xyz) + np.array([0.0, 0.0, top.half_extents[2]]))
         surfaces.append(
@@ -124,6 +148,7 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
                 (top.half_extents[0], top.half_extents[1]),
                 spec.name,
                 spec.friction,
+                f"{spec.name}[0]",  # parts_of's first part: the box's, table's or seat's top
             )
         )
     return Environment(tuple(surfaces), tuple(boxes))

@@ -16,8 +16,14 @@ interpolation between q1 and q2, as criterion. The discrete path is then timed w
 profile (null speed at every contact change, §4) through a clamped cubic spline of the postures, and
 sampled every ``dt_s`` (5 ms).
 
-Collisions: every posture of the path is generated collision free (capsules against the scene's boxes
-and each other); a segment whose posture generation fails is reported (no hand correction).
+Collisions (§4: "the interpolation must be checked for collisions"): every posture of the path is
+generated collision free (capsules against the scene's boxes and each other), and the timed segment
+between them is checked sample by sample (capsules against boxes, the pairs in contact excluded); a
+segment that goes more than ``collision_tol_m`` into a box is re-planned locally: twice as many
+posture generations (so with collision constraints between the former samples), then the moving
+body's path bent sideways or up around the obstacle (``DETOURS_M``), up to ``max_refinements`` tries;
+a segment still colliding is listed in ``Motion.collisions`` (never hidden).
+A segment whose posture generation fails is reported (no hand correction).
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +41,7 @@ from services.contacts.posture import PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
 from services.errors import InfeasibleError, RequestTimeoutError
 from services.ik import FramePoseTask, PostureTask
+from services.ik.tasks.capsule_box import CapsuleBoxTask
 
 
 @dataclass(frozen=True)
@@ -42,6 +49,8 @@ class InterpolationConfig:
     """``n`` postures per transition (the paper's n = 20), lift/approach height along the normal [m],
     quasi-static speed limits: base ``base_speed_m_s`` [m/s], moving spot ``spot_speed_m_s`` [m/s],
     joints ``joint_speed_ratio`` of their velocity limits, ``min_segment_s`` [s], sample ``dt_s`` [s],
+    collision check of the timed segments every ``check_every`` samples, a segment deeper than
+    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times,
     ``deadline`` (``time.monotonic()`` [s]) past which RequestTimeoutError is raised."""
 
     n: int = 20
@@ -51,6 +60,9 @@ class InterpolationConfig:
     joint_speed_ratio: float = 0.1
     min_segment_s: float = 0.8
     dt_s: float = 0.005
+    collision_tol_m: float = 0.005
+    max_refinements: int = 4
+    check_every: int = 4
     deadline: float = math.inf  # time.monotonic() after which the interpolation gives up (timeout)
 
 
@@ -58,13 +70,29 @@ class InterpolationConfig:
 class Motion:
     """The interpolated motion: ``q`` (N x nq) every ``dt_s``, the index in ``q`` where each contact
     set's witness posture is reached (``set_samples``), the discrete path (``waypoints``), the
-    interpolation time [s]."""
+    interpolation time [s], the segments still colliding after local re-planning (``collisions``) and
+    the number of local re-plannings done (``refinements``)."""
 
     q: np.ndarray
     dt_s: float
     set_samples: list[int]
     waypoints: np.ndarray
     interpolation_s: float
+    collisions: tuple[SegmentCollision, ...] = ()
+    refinements: int = 0
+
+
+@dataclass(frozen=True)
+class SegmentCollision:
+    """The deepest capsule-box penetration of a timed segment (transition ``transition``: from set
+    ``transition - 1`` to ``transition``): ``depth_m`` > 0 into ``box``, capsule ``capsule``, at sample
+    ``sample`` of the whole motion."""
+
+    transition: int
+    depth_m: float
+    capsule: str
+    box: str
+    sample: int
 
 
 def _moving_spot(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2: np.ndarray) -> str | None:
@@ -86,12 +114,57 @@ def _on_surface(gen: PostureGenerator, T: pin.SE3) -> np.ndarray | None:
     return None
 
 
-def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: float) -> list[pin.SE3]:
+RISE_M = 0.05  # a body coming onto a surface this much higher goes over its edge (_over_the_edge)
+EDGE_CLEARANCE_M = 0.12  # height above the surface the body passes at [m] (a hand capsule's radius + margin)
+
+
+def _over_the_edge(
+    T1: pin.SE3, T2: pin.SE3, a: np.ndarray, n2: np.ndarray, n: int, detour_m: tuple[float, float]
+) -> list[pin.SE3]:
+    """n frames onto a surface higher than the body (a hand from hanging to a table's top): straight up
+    to ``EDGE_CLEARANCE_M`` above the surface's level, across, then straight down along its normal; a
+    Hermite chord from below would cut the surface's edge, and the posture generator's collision
+    constraints then hold the body under the edge until the witness makes it jump through (§4)."""
+    p2 = T2.translation
+    above = p2 + EDGE_CLEARANCE_M * n2
+    rise = np.array([a[0], a[1], above[2]])
+    points = [T1.translation, a, rise, above, p2]
+    chord = (above - rise)[:2]
+    across = np.array([-chord[1], chord[0], 0.0]) / max(float(np.linalg.norm(chord)), 1e-9)
+    bend = detour_m[0] * across + np.array([0.0, 0.0, detour_m[1]])
+    points[2:4] = [rise + 0.5 * bend, above + 0.5 * bend] if np.any(bend) else points[2:4]
+    lengths = np.array([np.linalg.norm(points[k + 1] - points[k]) for k in range(len(points) - 1)])
+    total = max(float(lengths.sum()), 1e-9)
+    cumulative = np.concatenate([[0.0], np.cumsum(lengths)])
+    r1, r2 = pin.Quaternion(T1.rotation), pin.Quaternion(T2.rotation)
+    out = []
+    for i in range(n):
+        s = (i + 1) / n * total
+        k = min(int(np.searchsorted(cumulative, s, side="right")) - 1, len(lengths) - 1)
+        u = (s - cumulative[k]) / max(float(lengths[k]), 1e-12)
+        p = points[k] + min(u, 1.0) * (points[k + 1] - points[k])
+        out.append(pin.SE3(r1.slerp(s / total, r2).toRotationMatrix(), np.asarray(p, float)))
+    return out
+
+
+def spot_path(
+    gen: PostureGenerator,
+    T1: pin.SE3,
+    T2: pin.SE3,
+    n: int,
+    lift_m: float,
+    detour_m: tuple[float, float] = (0.0, 0.0),
+) -> list[pin.SE3]:
     """n frames from T1 to T2 (§3.3): straight out along the normal when T1 is on a surface, straight in
-    along the normal when T2 is, a C1 cubic (Hermite) between, orientation by slerp."""
+    along the normal when T2 is, a C1 cubic (Hermite) between, orientation by slerp (a surface higher
+    than the body is reached over its edge: :func:`_over_the_edge`). ``detour_m``
+    (sideways, up) [m] bends the cubic by that much at its middle (sin(pi u) profile): sideways is
+    horizontal, across the chord (a path around an obstacle, §4)."""
     n1, n2 = _on_surface(gen, T1), _on_surface(gen, T2)
     p1, p2 = T1.translation, T2.translation
     a = p1 + (lift_m * n1 if n1 is not None else 0.0)
+    if n2 is not None and p2[2] > a[2] + RISE_M:
+        return _over_the_edge(T1, T2, a, n2, n, detour_m)
     b = p2 + (lift_m * n2 if n2 is not None else 0.0)
     span = max(float(np.linalg.norm(b - a)), 1e-6)
     # Hermite tangents: along the normals at the ends of the straight lines (C1 junctions)
@@ -100,6 +173,9 @@ def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: f
     up = np.array([0.0, 0.0, 1.0])
     ta = (n1 if n1 is not None else (up if b[2] > a[2] else (b - a) / span)) * span
     tb = (-n2 if n2 is not None else (b - a) / span) * span
+    chord = (b - a)[:2]
+    across = np.array([-chord[1], chord[0], 0.0]) / max(float(np.linalg.norm(chord)), 1e-9)
+    bend = detour_m[0] * across + detour_m[1] * up
     lengths = [lift_m if n1 is not None else 0.0, span, lift_m if n2 is not None else 0.0]
     total = sum(lengths)
     out = []
@@ -113,13 +189,20 @@ def spot_path(gen: PostureGenerator, T1: pin.SE3, T2: pin.SE3, n: int, lift_m: f
             u = (s - lengths[0]) / lengths[1]
             h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
             h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
-            p = h00 * a + h10 * ta + h01 * b + h11 * tb
+            p = h00 * a + h10 * ta + h01 * b + h11 * tb + math.sin(math.pi * u) * bend
             r = q1.slerp(u, q2)
         else:
             p = b - (s - lengths[0] - lengths[1]) * n2
             r = q2
         out.append(pin.SE3(r.toRotationMatrix(), np.asarray(p, float)))
     return out
+
+
+def path_mask(spot: str) -> tuple[bool, ...]:
+    """The components of a moving spot's path C_i the interpolation follows: a hand's position only (a
+    fist kept pointing down while it is raised over a table's edge is beyond the arm's joint limits: the
+    6-D path held the hand under the edge), the whole pose of other spots (a sole stays level)."""
+    return (True, True, True, False, False, False) if spot.endswith("_hand") else (True,) * 6
 
 
 def transition(
@@ -130,6 +213,8 @@ def transition(
     q2: np.ndarray,
     geometric_extra: ContactSet,
     config: InterpolationConfig,
+    detour_m: tuple[float, float] = (0.0, 0.0),
+    lead: float = 1.0,
 ) -> list[np.ndarray]:
     """The n postures from q1 to q2 (q2 last). ``geometric_extra``: a contact removed at the previous
     transition, still in place at q1 (its body leaves it now). Raises InfeasibleError naming the step."""
@@ -147,15 +232,19 @@ def transition(
     stable = tuple(c for c in s1 if c in held) or held
     frames = []
     if moving is not None:
-        frames = spot_path(gen, gen.spot_pose(q1, moving), gen.spot_pose(q2, moving), config.n, config.lift_m)
+        T1, T2 = gen.spot_pose(q1, moving), gen.spot_pose(q2, moving)
+        frames = spot_path(gen, T1, T2, config.n, config.lift_m, detour_m)
     # the moving body may touch the surface it leaves during the first step and the one it enters
     # during the last (within the straight lines along the normal); elsewhere it must clear them
     leaving = [c.pair for c in pairs1.values() if c.spot == moving]
     entering = [c.pair for c in s2 if c.spot == moving]
+    # a contact released now that is not the moving body's: its body leaves the surface with the
+    # interpolated posture (it touches it at q1: a collision margin there would fight the held contacts)
+    released = [c.pair for c in geometric_extra if c not in held and c.spot != moving]
     out: list[np.ndarray] = []
     q = q1.copy()
     for i in range(1, config.n + 1):
-        q_ref = pin.interpolate(gen.model, q1, q2, i / config.n)
+        q_ref = pin.interpolate(gen.model, q1, q2, min(1.0, lead * i / config.n))
         extra = []
         if moving is not None:
             extra = [
@@ -165,6 +254,7 @@ def transition(
                     frames[i - 1],
                     max_step=0.1,
                     name=f"C_{i}:{moving}",
+                    mask=path_mask(moving),
                 )
             ]
         result = gen.generate(
@@ -173,7 +263,7 @@ def transition(
             q,
             PostureTask(gen.model, q_ref),
             guide=extra,
-            extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []),
+            extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []) + released,
         )
         if not result.ok:
             raise InfeasibleError(
@@ -230,6 +320,69 @@ def time_segment(gen: PostureGenerator, waypoints: np.ndarray, duration_s: float
     return q
 
 
+# local re-planning of a colliding transition (§4): twice the postures, then detours of the moving
+# body's path: (sideways [m], up [m]) at mid-path, sideways = horizontal, across the path's chord
+# ``lead``: the reference posture runs ahead of the moving body (the torso leans before the hand
+# comes over a table's edge)
+DETOURS_M = ((0.0, 0.0), (0.12, 0.0), (-0.12, 0.0), (0.0, 0.12), (0.25, 0.0), (-0.25, 0.0))
+# (postures x config.n, detour, lead) in order
+TRIES = (
+    (1, (0.0, 0.0), 1.0),
+    (2, (0.0, 0.0), 1.0),
+    (2, (0.0, 0.0), 2.0),
+    *((2, d, 1.0) for d in DETOURS_M[1:]),
+)
+
+
+def interpolate_transition(
+    gen: PostureGenerator,
+    s1: ContactSet,
+    q1: np.ndarray,
+    s2: ContactSet,
+    q2: np.ndarray,
+    removed: ContactSet,
+    config: InterpolationConfig,
+    v_max: np.ndarray,
+) -> tuple[np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None, int]:
+    """One transition, timed and checked (§3.3, §4): (samples every dt from q1 to q2, the discrete path,
+    the deepest collision of the samples or None, local re-plannings done). A segment deeper than
+    ``config.collision_tol_m`` into a box (or whose posture generation fails) is re-planned locally:
+    with twice the postures, with the reference posture leading, then with the moving body's path bent
+    around (``TRIES``), at most
+    ``config.max_refinements`` times; the least colliding try is returned with its collision, or
+    InfeasibleError when every try failed."""
+    # held contacts: their objects are excluded; a body that leaves or comes: only its surface's box
+    touching = [c.pair for c in s1 if c in s2]
+    moving = [c.pair for c in (*s1, *s2, *removed) if c.pair not in touching]
+    tries = [(k * config.n, detour, lead) for k, detour, lead in TRIES]
+    best: tuple[float, np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None] | None = None
+    failure: InfeasibleError | None = None
+    refinements = 0
+    for n, detour, lead in tries[: config.max_refinements + 1]:
+        # the last posture generated aims at q2; the witness itself (stable and collision free by
+        # construction) ends the segment, so that the next one starts exactly there
+        try:
+            generated = transition(gen, s1, q1, s2, q2, removed, replace(config, n=n), detour, lead)
+        except InfeasibleError as exc:
+            failure = failure or exc
+            refinements += 1
+            continue
+        path = [q1, *generated[:-1], q2]
+        segment = np.array(path)
+        timed = time_segment(gen, segment, segment_duration(gen, segment, config, v_max), config.dt_s)
+        hit = deepest_collision(gen, timed, touching, config.check_every, moving)
+        depth = 0.0 if hit is None else hit[0]
+        if best is None or depth < best[0]:
+            best = (depth, timed, path, hit)
+        if depth <= config.collision_tol_m:
+            break
+        refinements += 1
+    if best is None:
+        assert failure is not None
+        raise failure
+    return best[1], best[2], best[3], refinements
+
+
 def interpolate_plan(
     gen: PostureGenerator,
     sets: Sequence[ContactSet],
@@ -245,6 +398,8 @@ def interpolate_plan(
     waypoints = [np.asarray(witnesses[0], float)]
     count = 1
     removed: ContactSet = ()
+    collisions: list[SegmentCollision] = []
+    refinements = 0
     for k in range(1, len(sets)):
         if time.monotonic() > config.deadline:
             raise RequestTimeoutError(
@@ -253,17 +408,49 @@ def interpolate_plan(
             )
         s1, s2 = sets[k - 1], sets[k]
         q1, q2 = np.asarray(witnesses[k - 1], float), np.asarray(witnesses[k], float)
-        # the last posture generated aims at q2; the witness itself (stable and collision free by
-        # construction) ends the segment, so that the next one starts exactly there
-        path = [q1, *transition(gen, s1, q1, s2, q2, removed, config)[:-1], q2]
+        timed, path, hit, refined = interpolate_transition(gen, s1, q1, s2, q2, removed, config, v_max)
+        refinements += refined
+        if hit is not None and hit[0] > config.collision_tol_m:
+            collisions.append(SegmentCollision(k, hit[0], hit[1], hit[2], count + hit[3] - 1))
         removed = tuple(c for c in s1 if c not in s2)
-        segment = np.array(path)
-        duration = segment_duration(gen, segment, config, v_max)
-        timed = time_segment(gen, segment, duration, config.dt_s)
         samples.append(timed[1:])
         count += len(timed) - 1
         set_samples.append(count - 1)
         waypoints.extend(path[1:])
     return Motion(
-        np.concatenate(samples), config.dt_s, set_samples, np.array(waypoints), time.perf_counter() - t0
+        np.concatenate(samples),
+        config.dt_s,
+        set_samples,
+        np.array(waypoints),
+        time.perf_counter() - t0,
+        tuple(collisions),
+        refinements,
     )
+
+
+def deepest_collision(
+    gen: PostureGenerator,
+    q: np.ndarray,
+    touching: Sequence[tuple[str, str]],
+    every: int = 1,
+    moving: Sequence[tuple[str, str]] = (),
+) -> tuple[float, str, str, int] | None:
+    """The deepest penetration (depth [m] > 0, capsule, box, sample index) of the robot's capsules into
+    the scene's boxes over the samples ``q[::every]`` (and the last one), the objects of the ``touching``
+    (spot, surface) pairs excluded for their spots, and for the ``moving`` pairs only the surface's own
+    box (:meth:`PostureGenerator.box_pairs`); None if no sample penetrates."""
+    pairs = gen.box_pairs(touching, moving)
+    if not pairs:
+        return None
+    task = CapsuleBoxTask(gen.model, gen.capsules, gen.boxes, pairs)
+    data = gen.model.createData()
+    worst: tuple[float, str, str, int] | None = None
+    indices = sorted({*range(0, len(q), max(1, every)), len(q) - 1})
+    for i in indices:
+        pin.framesForwardKinematics(gen.model, data, q[i])
+        d = task.distances(data)
+        j = int(np.argmin(d))
+        if d[j] < 0.0 and (worst is None or -d[j] > worst[0]):
+            c, b = pairs[j]
+            worst = (float(-d[j]), gen.capsules[c].name, gen.boxes[b].name, i)
+    return worst

@@ -31,6 +31,7 @@ import pinocchio as pin
 
 from services.contacts.contact_tasks import InVolumeTask, OnPlaneTask
 from services.contacts.environment import Environment
+from services.contacts.robot_geometry import belongs_to, planner_capsules
 from services.contacts.sets import Contact, ContactSet, contact_at, patch_of
 from services.contacts.spots import ContactSpot, model_with_spots
 from services.contacts.stability import equilibrium_region, is_statically_stable
@@ -47,14 +48,19 @@ from services.ik import (
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox
 from services.model import RobotModel
 
+GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in the best iterate's choice
+
 
 @dataclass(frozen=True)
 class PostureConfig:
-    """Settings of the posture generator: ``com_margin_m`` inside the equilibrium region [m],
+    """Settings of the posture generator: ``com_margin_m`` inside the equilibrium region [m] (
+    ``single_contact_margin_m`` when one contact holds the robot),
     ``collision_margin_m`` between capsules and boxes [m], ``self_margin_m`` between capsules [m],
     ``tol`` on levels 1-2 (m / rad), ``max_iters`` IK iterations per posture."""
 
     com_margin_m: float = 0.02
+    # one support contact (a sole): the open-loop replay's sole slip is 3-6 cm (services/contacts/README.md)
+    single_contact_margin_m: float = 0.04
     collision_margin_m: float = 0.015  # the capsules are not the sim's shapes: room for the difference
     self_margin_m: float = 0.005
     tol: float = 2e-3
@@ -101,8 +107,7 @@ class PostureGenerator:
         self.model = model_with_spots(robot.model, spots)
         self.solver = HierarchicalSolver(self.model, robot.q_lower, robot.q_upper)
         self.data = self.model.createData()
-        self.capsules = tuple(robot.capsules)
-        self._capsule_index = {c.name: i for i, c in enumerate(self.capsules)}
+        self.capsules = planner_capsules(robot)  # the model's capsules + the URDF's foot boxes
         self.boxes = tuple(ObstacleBox(b.name, b.T_world_box, b.half_extents_m) for b in env.boxes)
         self._box_owner = [b.owner for b in env.boxes]
         self.self_collision = SelfCollisionTask(
@@ -125,19 +130,25 @@ class PostureGenerator:
         patches = [patch_of(c, self.spots[c.spot], self.env) for c in stable]
         return is_statically_stable(patches, com)[0]
 
-    def _box_pairs(self, touching: Sequence[tuple[str, str]]) -> list[tuple[int, int]]:
-        """Every (capsule, box) pair but those of a spot's capsule with the object it touches."""
+    def box_pairs(
+        self, touching: Sequence[tuple[str, str]], moving: Sequence[tuple[str, str]] = ()
+    ) -> list[tuple[int, int]]:
+        """Every (capsule, box) pair but those of a spot's capsules with the object it touches
+        (``touching``), or only with the box whose face the surface is (``moving``: a body coming to or
+        leaving a surface must not pass through the rest of the object, e.g. under a table's top)."""
         excluded = set()
-        for spot_name, surface_name in touching:
-            owner = self.env.surface(surface_name).owner
-            for capsule in self.spots[spot_name].capsules:
-                excluded.add((self._capsule_index[capsule], owner))
-        return [
-            (i, j)
-            for i in range(len(self.capsules))
-            for j, owner in enumerate(self._box_owner)
-            if (i, owner) not in excluded
-        ]
+        for pairs, whole in ((touching, True), (moving, False)):
+            for spot_name, surface_name in pairs:
+                surface = self.env.surface(surface_name)
+                for capsule in self.spots[spot_name].capsules:
+                    for i, c in enumerate(self.capsules):
+                        if not belongs_to(c.name, capsule):
+                            continue
+                        for j, box in enumerate(self.boxes):
+                            if (self._box_owner[j] == surface.owner) if whole else (box.name == surface.box):
+                                excluded.add((i, j))
+        every = ((i, j) for i in range(len(self.capsules)) for j in range(len(self.boxes)))
+        return [pair for pair in every if pair not in excluded]
 
     def contact_pose(self, contact: Contact) -> pin.SE3:
         return self.env.surface(contact.surface).placement(contact.x, contact.y, contact.theta)
@@ -169,6 +180,7 @@ class PostureGenerator:
         extra: Sequence[Task] = (),
         extra_touching: Sequence[tuple[str, str]] = (),
         guide: Sequence[Task] = (),
+        config: PostureConfig | None = None,
     ) -> PostureResult:
         """A posture matching every contact of ``geometric`` (and the ``floating`` one inside its
         volume), statically stable on ``stable`` (a subset of ``geometric``), collision free, within
@@ -176,10 +188,10 @@ class PostureGenerator:
         level (interpolation constraints C_i, §3.3); ``extra_touching`` lists the (spot, surface) pairs
         they bring in contact (excluded from the collision pairs); ``guide`` tasks form a level of their
         own between the contacts and the criterion, met as well as the levels above allow (the path of
-        a moving body, §3.3)."""
+        a moving body, §3.3). ``config`` overrides the generator's settings for this call."""
         start = time.perf_counter()
         self.calls += 1
-        cfg = self.config
+        cfg = config or self.config
         try:
             region = self.region(stable)
         except InfeasibleError as exc:
@@ -199,14 +211,17 @@ class PostureGenerator:
                 self.model,
                 self.capsules,
                 self.boxes,
-                self._box_pairs(touching),
+                self.box_pairs(touching),
                 margin_m=cfg.collision_margin_m,
             ),
             self.self_collision,
         ]
         if region.shape[0] >= 3:
+            margin = cfg.com_margin_m
+            if len(stable) == 1:
+                margin = max(margin, cfg.single_contact_margin_m)
             safety.append(
-                ComSupportPolygonTask(self.model, cfg.com_margin_m, polygon_world_xy=region, all_edges=True)
+                ComSupportPolygonTask(self.model, margin, polygon_world_xy=region, all_edges=True)
             )
         contacts: list[Task] = self.contact_tasks(geometric) + list(extra)
         if floating is not None:
@@ -222,7 +237,7 @@ class PostureGenerator:
         if criterion is not None:
             # no error damping: f_T's task keeps a large value by design (the slope k t / 2)
             levels.append(Level((criterion,), name="criterion", tol=math.inf, error_damping=0.0))
-        q, iterations, residual = self._optimize(levels, np.asarray(q_init, float), criterion)
+        q, iterations, residual = self._optimize(levels, np.asarray(q_init, float), criterion, cfg)
         elapsed = time.perf_counter() - start
         safety_value, contact_value = residual
         if contact_value > cfg.tol:
@@ -256,7 +271,7 @@ class PostureGenerator:
         return PostureResult(True, q, contact, "", iterations, elapsed)
 
     def _optimize(
-        self, levels: list[Level], q: np.ndarray, criterion: Task | None
+        self, levels: list[Level], q: np.ndarray, criterion: Task | None, cfg: PostureConfig
     ) -> tuple[np.ndarray, int, tuple[float, float]]:
         """Prioritized IK steps from ``q``: first until the constraints (levels 1-2) are met, then on
         while the criterion still decreases; returns the best feasible iterate (lowest criterion), or
@@ -265,11 +280,10 @@ class PostureGenerator:
         (``services.ik.run`` stops once the required levels are met or when their task values stall;
         the criterion f_T's task value ||P (-) Q - k t / 2|| does not measure f_T's decrease, so the
         loop here watches f_T itself.)"""
-        cfg = self.config
         solver = self.solver
         bound = solver.bound_q_idx
         lower, upper = solver.q_lower[bound], solver.q_upper[bound]
-        value = self._criterion_value(criterion)
+        value = self._criterion_value(criterion, levels)
         best: tuple[float, np.ndarray, int, tuple[float, float]] | None = None
         last = (q, 0, (math.inf, math.inf))
         f_history: list[float] = []
@@ -304,13 +318,18 @@ class PostureGenerator:
             return best[1], best[2], best[3]
         return last
 
-    def _criterion_value(self, criterion: Task | None) -> Callable[[np.ndarray, list], float]:
-        """f_T for the potential task (eq. 1), else the task values of the guide and criterion levels."""
+    def _criterion_value(
+        self, criterion: Task | None, levels: Sequence[Level]
+    ) -> Callable[[np.ndarray, list], float]:
+        """f_T for the potential task (eq. 1), else the task values of the guide and criterion levels,
+        the guide's weighted by ``GUIDE_WEIGHT``: its priority holds in the choice of the best iterate
+        too (with a plain sum, an iterate that follows the guide at the cost of the criterion lost to
+        the start, and an interpolated body stayed where it was: the hand under the table's edge)."""
         trajectory = getattr(criterion, "trajectory", None)
         if trajectory is not None:
             return lambda q, systems: trajectory.value(q)
-        # the guide's and the criterion's task values (levels below the contacts)
-        return lambda q, systems: sum(system.value for system in systems[2:])
+        weights = [GUIDE_WEIGHT if level.name == "guide" else 1.0 for level in levels[2:]]
+        return lambda q, systems: sum(w * s.value for w, s in zip(weights, systems[2:], strict=True))
 
 
 def pairs_allowed(spots: Sequence[ContactSpot], surfaces: Sequence[str]) -> list[tuple[str, str]]:

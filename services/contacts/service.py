@@ -4,7 +4,9 @@ Run: ``python -m services.contacts.service [--model hrp2_like]`` (plus the commo
 ``--config``, ``--robot``, ``--hub``, ``--log-level``).
 
 Endpoint ``contacts/plan`` (:mod:`services.bus.schemas.contacts`): a stateless planner (the reply is a
-function of the request). Every node selected during the search is published on ``contacts/progress``.
+function of the request). Endpoint ``contacts/transition``: one transition of a plan re-planned from
+the measured configuration (executing set by set, ``closed_loop.py``). Every node selected during the
+search is published on ``contacts/progress``.
 Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` of the wrong
 size, a start contact that does not hold at ``q_start``), ``infeasible`` (the search tree was exhausted,
 or an interpolation step failed; ``details`` has the best set reached and why), ``timeout`` (the time or
@@ -24,12 +26,18 @@ import numpy as np
 
 from services.bus.schemas import contacts as msg
 from services.bus.service import Service, handles, run_service
+from services.contacts.closed_loop import replan_transition
+from services.contacts.environment import environment_of
 from services.contacts.interpolate import InterpolationConfig
 from services.contacts.planner import Plan, PlanProblem, plan
+from services.contacts.posture import PostureGenerator
 from services.contacts.search import Goal, Node, SearchConfig
+from services.contacts.sets import Contact, ContactSet
+from services.contacts.spots import robot_spots
 from services.errors import InvalidRequestError
 from services.model import RobotModel, load_robot
 from services.model.options import add_model_argument, with_model
+from sim.scene import layout, load_scene
 
 SEARCH_SHARE = 0.7  # of the request's time budget for the search; the rest for the interpolation
 
@@ -57,6 +65,7 @@ class ContactsService(Service):
 
     def start(self) -> None:
         self.robot = load_robot(self.config.model)
+        self._generators: dict[str, PostureGenerator] = {}
         self._progress = self.publisher(msg.PROGRESS)
         self.log.info("contacts planner ready for %s", self.robot.name)
 
@@ -81,6 +90,47 @@ class ContactsService(Service):
             )
 
         return to_reply(plan(self.robot, problem, progress), self.robot)
+
+    @handles(msg.TRANSITION)
+    def transition(self, request: msg.TransitionRequest) -> msg.TransitionReply:
+        """One transition re-planned from the measured configuration (``closed_loop``)."""
+        t0 = time.perf_counter()
+        gen = self._generator(request.scene)
+        nq = self.robot.nq
+        q = np.asarray(request.q_measured, float).reshape(-1)
+        witness = np.asarray(request.witness, float).reshape(-1)
+        for name, value in (("q_measured", q), ("witness", witness)):
+            if value.shape != (nq,) or not np.all(np.isfinite(value)):
+                raise InvalidRequestError(f"{name} must have nq={nq} finite values, got shape {value.shape}")
+        sets = [to_contacts(gen, m) for m in (request.from_set, request.to_set, request.released)]
+        config = replace(InterpolationConfig(), n=request.n_interpolation)
+        step = replan_transition(gen, sets[0], sets[1], witness, q, sets[2], config)
+        return msg.TransitionReply(
+            dt_s=step.dt_s,
+            q=np.ascontiguousarray(step.q),
+            witness=np.ascontiguousarray(step.witness),
+            support_error_m=step.support_error_m,
+            collision=step.collision,
+            replan_s=time.perf_counter() - t0,
+        )
+
+    def _generator(self, scene: str) -> PostureGenerator:
+        """The posture generator of a scene (every contact spot of the robot; cached)."""
+        if scene not in self._generators:
+            env = environment_of(layout(load_scene(scene)))
+            self._generators[scene] = PostureGenerator(self.robot, env, robot_spots(self.robot))
+        return self._generators[scene]
+
+
+def to_contacts(gen: PostureGenerator, contacts: list[msg.ContactMsg]) -> ContactSet:
+    """Contacts of messages, their spots and surfaces checked (InvalidRequestError names the bad one)."""
+    out = []
+    for c in contacts:
+        if c.spot not in gen.spots:
+            raise InvalidRequestError(f"unknown contact spot {c.spot!r}; spots: {sorted(gen.spots)}")
+        gen.env.surface(c.surface)  # raises InvalidRequestError with the valid names
+        out.append(Contact(c.spot, c.surface, c.x, c.y, c.theta))
+    return tuple(out)
 
 
 def to_problem(request: msg.PlanRequest) -> PlanProblem:

@@ -16,6 +16,7 @@ import pinocchio as pin
 from services.contacts.environment import Environment
 from services.contacts.spots import ContactSpot
 from services.contacts.stability import ContactPatch
+from services.errors import InfeasibleError
 
 
 @dataclass(frozen=True, order=True)
@@ -59,12 +60,40 @@ def sets_close(a: ContactSet, b: ContactSet, tol_m: float, tol_rad: float) -> bo
     return all(x.close_to(y, tol_m, tol_rad) for x, y in zip(canonical(a), canonical(b), strict=True))
 
 
+def clip_to_rectangle(polygon: np.ndarray, hx: float, hy: float) -> np.ndarray:
+    """The part of a convex polygon (k x 2, in order) inside the rectangle [-hx, hx] x [-hy, hy]
+    (Sutherland-Hodgman); (0, 2) if none."""
+    out = np.asarray(polygon, float)
+    for axis, bound, sign in ((0, hx, 1.0), (0, -hx, -1.0), (1, hy, 1.0), (1, -hy, -1.0)):
+        if out.shape[0] == 0:
+            break
+        kept = []
+        for i in range(out.shape[0]):
+            a, b = out[i], out[(i + 1) % out.shape[0]]
+            a_in, b_in = sign * (a[axis] - bound) <= 0.0, sign * (b[axis] - bound) <= 0.0
+            if a_in:
+                kept.append(a)
+            if a_in != b_in:
+                t = (bound - a[axis]) / (b[axis] - a[axis])
+                kept.append(a + t * (b - a))
+        out = np.array(kept).reshape(-1, 2)
+    return out
+
+
 def patch_of(contact: Contact, spot: ContactSpot, env: Environment) -> ContactPatch:
-    """The stability patch of a contact: the spot's rectangle placed on the surface (world)."""
+    """The stability patch of a contact: the spot's rectangle placed on the surface, clipped to the
+    surface's rectangle (a thigh on a seat bears only up to the seat's front edge), in the world.
+    Raises InfeasibleError when the patch lies off the surface."""
     surface = env.surface(contact.surface)
-    T = surface.placement(contact.x, contact.y, contact.theta)
-    corners = spot.corners_local().dot(T.rotation.T) + T.translation
-    return ContactPatch(corners, surface.T_world_surface.rotation[:, 2].copy(), surface.friction)
+    c, s = math.cos(contact.theta), math.sin(contact.theta)
+    R = np.array([[c, -s], [s, c]])
+    local = spot.corners_local()[:, :2].dot(R.T) + np.array([contact.x, contact.y])  # surface frame
+    clipped = clip_to_rectangle(local, *surface.half_size_m)
+    if clipped.shape[0] < 3:
+        raise InfeasibleError(f"the patch of {contact.describe()} lies off the surface {surface.name}")
+    corners = np.column_stack([clipped, np.zeros(len(clipped))])
+    world = corners.dot(surface.T_world_surface.rotation.T) + surface.T_world_surface.translation
+    return ContactPatch(world, surface.T_world_surface.rotation[:, 2].copy(), surface.friction)
 
 
 def contact_at(spot: ContactSpot, surface_name: str, env: Environment, T_world_spot: pin.SE3) -> Contact:

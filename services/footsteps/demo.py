@@ -14,9 +14,6 @@ from services.footsteps import scenarios
 from services.footsteps.planner import plan_footsteps_best
 from services.footsteps.plotting import chain_states_figure, task_values_figure
 from services.model import load_robot
-from services.walking.timing import WalkTiming
-
-SLOW_WALK = WalkTiming(single_support_s=1.2, double_support_s=0.45)
 
 
 def run_scenario(
@@ -84,16 +81,15 @@ def run_scenario(
         t0 = time.perf_counter()
         try:
             motion = execute_plan(robot, request, result)
-            summary["walk_timing"] = "default"
-        except InfeasibleError:
-            # Steps at the corners of the paper's bounds (dx 0.22 m with a turn) can ask a knee for more
-            # than its velocity limit at the default timing: the same steps, walked slower.
-            try:
-                motion = execute_plan(robot, request, result, timing=SLOW_WALK)
-                summary["walk_timing"] = f"slow ({SLOW_WALK.single_support_s} s single support)"
-            except InfeasibleError as exc:
-                summary["motion_error"] = exc.message
-                return summary
+        except InfeasibleError as exc:
+            summary["motion_error"] = exc.message
+            return summary
+        adjustment = motion.walk_adjustment
+        summary["walk_timing"] = (
+            "default"
+            if adjustment is None or (adjustment.com_lowering_m == 0.0 and adjustment.slowdown == 1.0)
+            else f"CoM lowered {100 * adjustment.com_lowering_m:.0f} cm, supports x{adjustment.slowdown:g}"
+        )
         summary["motion"] = {
             "duration_s": motion.duration_s,
             "walk_end_s": motion.walk_end_s,

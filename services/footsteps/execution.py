@@ -32,7 +32,8 @@ from services.ik.tasks.self_collision import SelfCollisionTask
 from services.model import RobotModel
 from services.model.ground import signed_distance, smoothstep5
 from services.walking.timing import WalkTiming
-from services.walking.wholebody import WholeBodyResult, plan_walk
+from services.walking.two_stage import WalkAdjustment, executable_walk
+from services.walking.wholebody import WholeBodyResult
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,8 @@ class FootstepExecution:
         reach_min_self_distance_m: smallest surface distance between two checked capsules of the
             robot during the reach [m] (nan: the robot has no collision pairs).
         final_errors_m: distance of each reaching hand to its target at the last sample [m].
+        walk_adjustment: the CoM lowering and support slowdown the walk needed to keep every joint
+            within its speed limit (``services.walking.two_stage.executable_walk``; None without steps).
     """
 
     times_s: np.ndarray
@@ -61,6 +64,7 @@ class FootstepExecution:
     reach_min_com_margin_m: float
     final_errors_m: dict[str, float]
     reach_min_self_distance_m: float = math.nan
+    walk_adjustment: WalkAdjustment | None = None
 
     @property
     def duration_s(self) -> float:
@@ -221,9 +225,11 @@ def execute_plan(
         request.q_start if request.q_start is not None else robot.q_half_sitting, dtype=float
     )
     q_final = np.asarray(result.q_final, dtype=float)
-    walk = None
+    walk = adjustment = None
     if result.footsteps:
-        walk = plan_walk(robot, result.footstep_sequence(), q_start, timing=timing)
+        # The footsteps may sit at the corners of the paper's bounds: the walk's CoM height and timing
+        # are derived so that the joints stay within their speed limits.
+        walk, adjustment = executable_walk(robot, result.footstep_sequence(), q_start, timing)
         if abs(walk.pattern.dt_s - dt_s) > 1e-12:
             raise InvalidRequestError(f"dt_s must be the walking grid {walk.pattern.dt_s} s, got {dt_s}")
         q_walk = walk.q
@@ -260,4 +266,5 @@ def execute_plan(
         reach_min_com_margin_m=margin,
         final_errors_m=errors,
         reach_min_self_distance_m=self_distance,
+        walk_adjustment=adjustment,
     )

@@ -92,10 +92,28 @@ def _target(task: msg.Task, i: int) -> tuple[float, float, float] | None:
     return (x, y, z)
 
 
-def _options(options: msg.Options | None) -> PlannerOptions:
+# The bus's switches back to the paper's form of Algorithm 1 (``msg.Options``): False sets these
+# planner options to infinity (no saturation, no per-coordinate cap, epsilon_i as written).
+SWITCHES = {
+    "saturation": ("max_rate_m", "max_rate_rad"),
+    "dq_cap": ("dq_max",),
+    "epsilon_rule": ("relative_epsilon",),
+}
+
+
+def planner_options(options: msg.Options | None) -> PlannerOptions:
+    """The planner's options of a request's ``options`` (None fields: defaults; a switch set to false
+    overrides the values it turns off)."""
     if options is None:
         return PlannerOptions()
-    given = {f: getattr(options, f) for f in options.__struct_fields__ if getattr(options, f) is not None}
+    given = {
+        f: getattr(options, f)
+        for f in options.__struct_fields__
+        if getattr(options, f) is not None and f not in SWITCHES
+    }
+    for switch, names in SWITCHES.items():
+        if getattr(options, switch) is False:
+            given.update({name: math.inf for name in names})
     return dataclasses.replace(PlannerOptions(), **given)
 
 
@@ -124,7 +142,7 @@ def to_planner_request(
         max_steps=request.max_steps,
         max_iterations=request.max_iterations,
         time_budget_s=min(float(request.time_budget_s), max_budget_s),  # (nan and <= 0 are rejected)
-        options=_options(request.options),
+        options=planner_options(request.options),
         record_trace=request.trace,
     )
 

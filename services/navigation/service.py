@@ -32,7 +32,7 @@ from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto, start_pose
 from services.navigation.path import PlannerConfig
-from services.navigation.reshaping import ReshapeOptions
+from services.navigation.reshaping import ReshapeOptions, SamplingOptions
 from services.navigation.stage2 import Stage2Options
 from services.navigation.straight import StraightWalkOptions
 from services.navigation.upper_body import CarriedBar
@@ -196,6 +196,29 @@ def reply_from_result(model: str, result: GotoResult) -> msg.GotoReply:
     )
 
 
+def goto_options(request: msg.GotoRequest) -> GotoOptions:
+    """The planner's options of a ``navigation/goto`` request: the path search (turning radius, budget,
+    seed), the walk's double support, the carry height and the smooth reshaping (iterations, mode
+    ``sample``/``lift`` and the sampler's seed)."""
+    return GotoOptions(
+        planner=PlannerConfig(
+            turning_radius_m=request.turning_radius_m,
+            time_budget_s=request.time_budget_s,
+            seed=request.seed,
+        ),
+        stage2=Stage2Options(
+            timing=WalkTiming(double_support_s=request.double_support_s),
+            carry_height_m=request.carry_height_m,
+            reshape=ReshapeOptions(
+                max_iterations=request.max_iterations,
+                mode=request.reshape_mode,
+                sampling=SamplingOptions(seed=request.reshape_seed),
+            ),
+        ),
+        straight=StraightWalkOptions() if request.straight_walks else None,
+    )
+
+
 class NavigationService(Service):
     """Walking plans: car-like paths, footsteps, whole-body motion with smooth reshaping of a carried bar."""
 
@@ -235,19 +258,7 @@ class NavigationService(Service):
         if request.carried is not None:
             c = request.carried
             bar = CarriedBar(length_m=c.length_m, radius_m=c.radius_m, mass_kg=c.mass_kg)
-        options = GotoOptions(
-            planner=PlannerConfig(
-                turning_radius_m=request.turning_radius_m,
-                time_budget_s=request.time_budget_s,
-                seed=request.seed,
-            ),
-            stage2=Stage2Options(
-                timing=WalkTiming(double_support_s=request.double_support_s),
-                carry_height_m=request.carry_height_m,
-                reshape=ReshapeOptions(max_iterations=request.max_iterations),
-            ),
-            straight=StraightWalkOptions() if request.straight_walks else None,
-        )
+        options = goto_options(request)
         with budget.within(request.total_budget_s or cfg.goto_budget_s):
             result = plan_goto(robot, scene, q_start, goal, bar, options)
         return reply_from_result(robot.name, result)

@@ -16,7 +16,15 @@ import pinocchio as pin
 
 from services.ik import ArmManipulability
 from services.ik.dofs import joint_dofs
-from services.ik.kinematics import frame_id
+from services.ik.kinematics import frame_id, frame_jacobian
+from services.ik.monitors import manipulability
+
+MANIPULABILITY_ROWS = {"pose": 6, "position": 3}
+"""Rows of the arm's Jacobian in the manipulability of eq. (5): ``pose``, the whole 6 x n Jacobian of the
+arm (Yoshikawa's manipulability of the arm as a manipulator, translation and rotation: for a 6-joint arm
+|det J|, which vanishes at every singular configuration of the arm: the elbow stretched, the wrist
+aligned); ``position``, its 3 translation rows only (it vanishes only when the hand cannot move along
+some direction: a redundant arm keeps it high)."""
 
 
 @dataclass(frozen=True)
@@ -146,8 +154,10 @@ class ArmMonitor:
         q_upper: np.ndarray,
         effort_max: np.ndarray,
         sole_frames: tuple[str, ...],
+        manipulability_of: str = "pose",
     ) -> None:
         self.model = model
+        self.manipulability_rows = MANIPULABILITY_ROWS[manipulability_of]
         self.data = model.createData()
         self.frame_id = frame_id(model, grasp_frame)
         self.manipulability = ArmManipulability(model, grasp_frame, arm_joints[0])
@@ -172,7 +182,8 @@ class ArmMonitor:
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacement(self.model, self.data, self.frame_id)
         hand = self.data.oMf[self.frame_id].translation.copy()
-        w = self.manipulability(self.data)
+        J = frame_jacobian(self.model, self.data, self.frame_id)
+        w = manipulability(J[: self.manipulability_rows, self.manipulability.v_idx])
         arm_q = q[self.arm_q_idx]
         margin = float(np.minimum(arm_q - self.arm_lower, self.arm_upper - arm_q).min())
         gravity = pin.computeGeneralizedGravity(self.model, self.data, q)[self.free_v_idx]

@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from services.errors import InvalidRequestError
-from services.reaching.monitors import Thresholds
+from services.reaching.monitors import MANIPULABILITY_ROWS, Thresholds
 
 CRITERIA = ("manipulability", "ee_error", "joint_speed", "joint_torque", "joint_limits")
 """Monitored criteria (Fig. 4): the arm's manipulability (eq. 5) below its threshold, the end-effector
@@ -21,14 +21,24 @@ error above its threshold, an arm joint faster than ``velocity_ratio`` of its li
 of a joint without contact above ``torque_ratio`` of its effort limit, an arm joint at its limit."""
 
 
+PAPER_CRITERIA = ("manipulability", "ee_error")
+"""The criteria of the paper's experiment ("Experimental Results"): the arm's manipulability below
+1.5e-4 and the end-effector error above 4e-5 m."""
+
+TORQUE_TRIGGER_PARAM = "reaching_joint_torque_trigger"
+"""Robot parameter (``extra`` of ``services/model/data/<robot>.yaml``): nonzero when the robot's arms
+cannot hold themselves stretched out (TALOS: 22 N m shoulders), so that ``joint_torque`` is a default
+trigger on that robot besides the paper's two."""
+
 PAPER_EXPERIMENT: dict[str, Any] = {
-    "criteria": ("manipulability", "ee_error"),
+    "criteria": PAPER_CRITERIA,
+    "manipulability_of": "pose",
     "weighted": True,
     "other_arm_still": False,
     "joint_limit_selection_rad": None,
 }
-"""The fields that differ in the paper's experiment from the stack's defaults (see
-:meth:`ReachingOptions.paper_experiment`)."""
+"""The settings of the paper's experiment (see :meth:`ReachingOptions.paper_experiment`); the defaults
+are the same on a robot without :data:`TORQUE_TRIGGER_PARAM`."""
 
 
 @dataclass(frozen=True)
@@ -41,13 +51,18 @@ class ReachingOptions:
         ee_error_threshold_m: distance [m] between the hand reference and the hand computed by the IK
             above which the task counts as failing; ``None``: ``params.ee_error_threshold_m``.
         joint_limit_margin_rad: an arm joint closer than this to a limit [rad] fails ``joint_limits``.
+        manipulability_of: the rows of the arm's Jacobian in w (eq. 5): ``pose`` (default), the whole
+            6 x n Jacobian of the arm from the shoulder to the grasp frame (Yoshikawa's manipulability
+            of the arm as a manipulator: |det J| for a 6-joint arm, small when the elbow stretches or
+            the wrist aligns); ``position``, its 3 translation rows (with the whole body free to help,
+            it stays above 1.5e-4 until the elbow is on its limit: then ``ee_error`` fires instead).
         criteria: the criteria that trigger support polygon reshaping (a subset of :data:`CRITERIA`);
-            by default the two of the paper's experiment, the joint speed (near a singularity the
-            joints would have to move faster than the robot can; the paper's HRP-2 threshold of 1.5e-4
-            is reached much later on these models) and the static torque (a stretched arm may weigh
-            more than its shoulder can hold: TALOS). Joint limits are always monitored and reported;
-            as a trigger they are too eager (an arm joint may rest on a limit while the hand follows
-            its reference perfectly), so they are opt-in.
+            ``None`` (default): the paper's two (:data:`PAPER_CRITERIA`), plus ``joint_torque`` on a
+            robot whose parameters set :data:`TORQUE_TRIGGER_PARAM` (a stretched arm weighs more
+            than its shoulder can hold: TALOS). ``joint_speed`` (an arm joint beyond
+            ``velocity_ratio`` of its limit) is an extension, off by default. Joint limits are always
+            monitored and reported; as a trigger they are too eager (an arm joint may rest on a limit
+            while the hand follows its reference perfectly), so they are opt-in.
         torque_ratio: admissible static torque of the joints without contact (chest, head, arms) as
             a fraction of their effort limits.
 
@@ -65,7 +80,11 @@ class ReachingOptions:
             end-effector threshold after ``max_iterations_per_knot`` (transients: a joint reaching
             its limit, a foot landing).
         other_arm_still: the selection matrix S leaves out the arm that does not reach (no task uses
-            it; with the weighted pseudo-inverse the light arm would otherwise swing to help the CoM).
+            it; with the weighted pseudo-inverse the light arm swings to help the CoM). Off by
+            default: S = I_n as in the paper's experiment.
+        other_arm_rest: with the other arm free, it is pulled back towards its starting posture in the
+            rest level (below the four tasks: only the redundancy they leave), so that it does not end
+            the reach swung out (the robot's width, for navigation afterwards).
         joint_limit_selection_rad: the selection matrix S_l: joints closer than this to a limit [rad] are
             left out of the CoM, hand and gaze levels; ``None``: S = I_n (the paper's experiment).
         knot_stride: 5 ms samples between two IK knots (the trajectory is a C2 spline of the knots).
@@ -100,12 +119,14 @@ class ReachingOptions:
 
     manipulability_threshold: float | None = None
     ee_error_threshold_m: float | None = None
+    manipulability_of: str = "pose"
     joint_limit_margin_rad: float = 1e-3
-    criteria: tuple[str, ...] = ("manipulability", "ee_error", "joint_speed", "joint_torque")
+    criteria: tuple[str, ...] | None = None
     weighted: bool = True
     com_height: bool = False
     com_height_rest: bool = False
-    other_arm_still: bool = True
+    other_arm_still: bool = False
+    other_arm_rest: bool = True
     joint_limit_selection_rad: float | None = None
     knot_stride: int = 10
     max_iterations_per_knot: int = 3
@@ -115,9 +136,9 @@ class ReachingOptions:
     arm_speed_per_knot: bool = False
     torque_ratio: float = 0.6
     hand_speed_m_s: float = 0.2
-    min_reach_s: float = 2.0
+    min_reach_s: float = 1.4
     max_reach_s: float = 5.0
-    final_hold_s: float = 0.6
+    final_hold_s: float = 0.3
     single_support_s: float | None = None
     double_support_s: float | None = None
     step_slowdown: float = 1.3
@@ -130,10 +151,16 @@ class ReachingOptions:
     max_corrections: int = 2
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "criteria", tuple(self.criteria))
-        unknown = sorted(set(self.criteria) - set(CRITERIA))
-        if unknown:
-            raise InvalidRequestError(f"unknown criteria {unknown}; valid criteria are {list(CRITERIA)}")
+        if self.criteria is not None:
+            object.__setattr__(self, "criteria", tuple(self.criteria))
+            unknown = sorted(set(self.criteria) - set(CRITERIA))
+            if unknown:
+                raise InvalidRequestError(f"unknown criteria {unknown}; valid criteria are {list(CRITERIA)}")
+        if self.manipulability_of not in MANIPULABILITY_ROWS:
+            raise InvalidRequestError(
+                f"option manipulability_of must be one of {sorted(MANIPULABILITY_ROWS)}, got "
+                f"{self.manipulability_of!r}"
+            )
         positive = {
             "knot_tolerance_m": self.knot_tolerance_m,
             "velocity_ratio": self.velocity_ratio,
@@ -180,6 +207,14 @@ class ReachingOptions:
         if self.step_bound_ratio > 1.0:
             raise InvalidRequestError(f"option step_bound_ratio must be <= 1, got {self.step_bound_ratio}")
 
+    def criteria_for(self, robot: Any) -> tuple[str, ...]:
+        """The criteria that trigger reshaping on ``robot`` (``criteria``, or its default)."""
+        if self.criteria is not None:
+            return self.criteria
+        extra = getattr(robot.params, "extra", None) or {}
+        torque = ("joint_torque",) if extra.get(TORQUE_TRIGGER_PARAM, 0.0) else ()
+        return PAPER_CRITERIA + torque
+
     def thresholds(self, robot: Any) -> Thresholds:
         """The admissible ranges of the criteria for ``robot``."""
         w_min = self.manipulability_threshold
@@ -195,9 +230,9 @@ class ReachingOptions:
     @classmethod
     def paper_experiment(cls, **overrides: Any) -> ReachingOptions:
         """The settings of the paper's experiment ("Experimental Results"): the two monitored criteria
-        (manipulability 1.5e-4, end-effector error 4e-5 m) as the only triggers, the weighted
-        pseudo-inverse with S = I_n for every task (the other arm free too), S_l off; ``overrides``
-        change any field."""
+        (manipulability 1.5e-4 of the arm's Jacobian, end-effector error 4e-5 m) as the only triggers
+        on every robot, the weighted pseudo-inverse with S = I_n for every task (the other arm free
+        too), S_l off; ``overrides`` change any field."""
         values: dict[str, Any] = {**PAPER_EXPERIMENT, **overrides}
         return cls(**values)
 

@@ -35,6 +35,7 @@ from services.ik import (
     GazeTask,
     HierarchicalSolver,
     Level,
+    PostureTask,
     link_mass_weights,
 )
 from services.ik.dofs import joint_dofs
@@ -110,6 +111,7 @@ class IKModel:
             self.q_upper,
             np.asarray(robot.effort_max)[self.free_v_idx],
             (robot.frames.left_sole, robot.frames.right_sole),
+            options.manipulability_of,
         )
         self.v_max_arm = v_max[self.monitor.arm_v_idx]
         # The arms' joints move at most velocity_ratio of their limits over a whole knot (the
@@ -158,7 +160,9 @@ class ReachTracker:
         return model
 
     # ------------------------------------------------------------------------------------- levels
-    def _levels(self, ik: IKModel, spec: MotionSpec) -> tuple[list[Level], dict[str, Any]]:
+    def _levels(
+        self, ik: IKModel, spec: MotionSpec, q_start: np.ndarray
+    ) -> tuple[list[Level], dict[str, Any]]:
         m, frames, opt = ik.model, self.robot.frames, self.options
         identity = pin.SE3.Identity()
         feet = {
@@ -212,6 +216,13 @@ class ReachTracker:
             com_z = ComPositionTask(m, np.zeros(3), mask=(False, False, True), gain=REST_GAIN, name="com_z")
             tasks["com_z"] = com_z
             rest = (waist, com_z)
+        if opt.other_arm_rest and not opt.other_arm_still:
+            # The arm without a task (free with S = I: the weighted pseudo-inverse moves it to help the
+            # CoM) pulled back to where it started, in the redundancy the four tasks leave.
+            other = self.robot.arm_joints("right" if ik.hand == "left" else "left")
+            arm = PostureTask(m, q_start, other, gain=REST_GAIN, name="other_arm")
+            tasks["other_arm"] = arm
+            rest = (*rest, arm)
         levels.append(Level(rest, name="waist", weights=W))
         return levels, tasks
 
@@ -234,13 +245,14 @@ class ReachTracker:
         t0 = time.perf_counter()
         opt = self.options
         limits = opt.thresholds(self.robot)
+        criteria = opt.criteria_for(self.robot)
         n = spec.n_samples
         knots = list(range(0, n, opt.knot_stride))
         if knots[-1] != n - 1:
             knots.append(n - 1)
         ik = self.ik_model(hand, q_start)
         q = ik.reduce_q(q_start).copy()
-        levels, tasks = self._levels(ik, spec)
+        levels, tasks = self._levels(ik, spec, q)
         feet, com, hand_task, waist = tasks["feet"], tasks["com"], tasks["hand"], tasks["waist"]
         gaze = tasks.get("gaze")
         monitor = ik.monitor
@@ -280,6 +292,8 @@ class ReachTracker:
             # out once the hand has arrived, so that the motion ends at rest.
             waist_gain = REST_GAIN * float(1.0 - smoothstep5((t_k - spec.reach_end_s) / fade_s))
             waist.gain = max(waist_gain, 1e-9)
+            if "other_arm" in tasks:
+                tasks["other_arm"].gain = waist.gain
             q_knot = q
             # A hand still beyond the end-effector threshold after them gets ``recovery_iterations``
             # more (a joint reaching its limit, a foot landing: the IK redistributes the motion); a
@@ -297,7 +311,7 @@ class ReachTracker:
             Q[i] = q
             values.append(self._knot_values(ik, q_knot, q, spec, k, (k - knots[i - 1]) * DT_S))
             if violation is None:
-                violation = first_violation(opt.criteria, values[-1], limits)
+                violation = first_violation(criteria, values[-1], limits)
                 if violation is not None and stop_at_violation:
                     break
         monitors = MonitorSeries.from_knots(values)

@@ -21,7 +21,7 @@ PLAN_SERIES = "/plan/com_zmp_series"  # JSON: the planned CoM/ZMP as numbers, fo
 PLAN_REACH = "/plan/reach"  # SceneUpdate: reaching target and the hand's path
 PLAN_FOOTSTEP_PLANNER = "/plan/footstep_planner"  # SceneUpdate: footsteps/plan's result
 SNAPSHOT = "/snapshot"  # foxglove.CompressedImage (png)
-LOG = "/log"  # foxglove.Log: supervisor events, launcher events, error replies
+LOG = "/log"  # foxglove.Log: supervisor and launcher events, error replies, services' log lines
 
 
 def camera_image_topic(camera: str) -> str:

@@ -41,7 +41,7 @@ from services.bus.schemas import perception as per_msg
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
-from services.bus.schemas.common import ErrorInfo, LauncherEvent
+from services.bus.schemas.common import ErrorInfo, LauncherEvent, LogLine
 from services.bus.schemas.supervisor import SupervisorEvent
 from services.model import ground
 from services.viz import common as c
@@ -476,6 +476,25 @@ def launcher_log(stamp_ns: int, event: LauncherEvent) -> Out:
     text = f"{event.service}: {event.event}" + (f" ({event.message})" if event.message else "")
     level = LogLevel.Warning if bad else LogLevel.Info
     return [(c.LOG, Log(timestamp=stamp(stamp_ns), level=level, message=text, name="launcher"))]
+
+
+_PY_LEVELS = {
+    "DEBUG": LogLevel.Debug,
+    "INFO": LogLevel.Info,
+    "WARNING": LogLevel.Warning,
+    "ERROR": LogLevel.Error,
+    "CRITICAL": LogLevel.Fatal,
+}
+
+
+def service_log(stamp_ns: int, line: LogLine) -> Out:
+    """A service's Python log line (:mod:`services.bus.buslog`), stamped with the record's own time."""
+    when = int(line.wall_time_s * 1e9) if line.wall_time_s > 0 else stamp_ns
+    log = Log(
+        timestamp=stamp(when), level=_PY_LEVELS.get(line.level, LogLevel.Unknown), message=line.message,
+        name=f"{line.service} ({line.logger})", file=line.file, line=line.line,
+    )  # fmt: skip
+    return [(c.LOG, log)]
 
 
 def error_log(stamp_ns: int, service: str, endpoint: str, error: ErrorInfo) -> Out:

@@ -23,7 +23,7 @@ from services.bus.schemas import perception as per_msg
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
-from services.bus.schemas.common import ErrorInfo, LauncherEvent
+from services.bus.schemas.common import ErrorInfo, LauncherEvent, LogLine
 from services.bus.schemas.supervisor import SupervisorEvent
 from services.viz import common as c
 from services.viz import convert
@@ -51,7 +51,8 @@ HAND_PATH_POINTS = 100
 
 
 def route(key: str) -> str:
-    """``service/name[/mirror]`` of a bus key, ``service/*/error`` for error mirrors, "" if not converted."""
+    """``service/name[/mirror]`` of a bus key; ``error`` for error mirrors, ``log`` for a service's log
+    lines; "" if not converted."""
     try:
         _robot, service, rest = keys.parse(key)
     except ValueError:
@@ -61,7 +62,18 @@ def route(key: str) -> str:
         return tail
     if rest.endswith("/error"):
         return "error"
+    if rest == "log":
+        return "log"
     return ""
+
+
+def key_exprs(robot: str) -> list[str]:
+    """The keys the converters read, as zenoh key expressions (what :func:`route` accepts). The live
+    view subscribes to these only: ``hrp/**`` would also bring every 200 Hz state topic into Python
+    and turn on every endpoint's request/reply mirrors (the sim's execute requests: 9 MB a fetch)
+    that nothing here shows."""
+    base = f"{keys.PREFIX}/{robot}"
+    return [*(f"{base}/{tail}" for tail in _TYPES), f"{base}/*/*/error", f"{base}/*/log"]
 
 
 class Converter:
@@ -97,6 +109,8 @@ class Converter:
                 return convert.error_log(
                     log_time_ns, service, rest.rsplit("/", 1)[0], decode(frame, ErrorInfo)
                 )
+            if tail == "log":
+                return convert.service_log(log_time_ns, decode(frame, LogLine))
             if tail == "sim/joint_state" and log_time_ns - self._last_tf_ns < self.period_ns:
                 return []
             return self._convert(tail, decode(frame, _TYPES[tail]), log_time_ns)

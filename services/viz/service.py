@@ -4,7 +4,9 @@ Started by ``humanoid up --foxglove [PORT]`` (a service of the launcher, in its 
 converters never run in the sim's or a planner's) or ``humanoid view`` against a running stack.
 Open Foxglove, "Open connection", Foxglove WebSocket, ``ws://127.0.0.1:8765``.
 
-It subscribes to ``hrp/**`` and serves the topics of :mod:`services.viz.common` (the same as the
+It subscribes to what the converters read (:func:`services.viz.converter.key_exprs`: the joint
+state, the plans' requests and replies, events, error replies and log lines, not ``hrp/**``) and
+serves the topics of :mod:`services.viz.common` (the same as the
 recorder's views): the zenoh callback only decides whether a message is wanted (joint states are
 taken at ``transform_hz`` of wall time, and only while a viewer watches ``/tf``) and hands it to one
 worker thread through a bounded queue, holding at most one joint state (the converters' slowest
@@ -37,7 +39,7 @@ from services.bus.config import from_mapping
 from services.bus.service import Service, run_service
 from services.errors import InvalidRequestError
 from services.viz import common as c
-from services.viz.converter import Converter, encoded, route
+from services.viz.converter import Converter, encoded, key_exprs, route
 
 
 @dataclass(frozen=True)
@@ -141,7 +143,10 @@ class VizService(Service):
         self.port = self.server.port
         self._worker = threading.Thread(target=self._work, name="viz:convert", daemon=True)
         self._worker.start()
-        self._subscriber = self.session.declare_subscriber(keys.everything(self.bus.robot), self._on_sample)
+        self._subscribers = [
+            self.session.declare_subscriber(key_expr, self._on_sample)
+            for key_expr in key_exprs(self.bus.robot)
+        ]
         self._poller = None
         if cfg.world_poll_s > 0:
             self._poller = threading.Thread(target=self._poll_world, name="viz:world", daemon=True)
@@ -216,8 +221,9 @@ class VizService(Service):
 
     def stop(self) -> None:
         self._done.set()
-        with contextlib.suppress(zenoh.ZError):
-            self._subscriber.undeclare()
+        for subscriber in self._subscribers:
+            with contextlib.suppress(zenoh.ZError):
+                subscriber.undeclare()
         self._worker.join(timeout=1.0)
         if self._poller is not None:
             self._poller.join(timeout=2.5)

@@ -52,9 +52,9 @@ class WalkTiming:
 
     single_support_s: float = 0.8
     double_support_s: float = 0.3
-    initial_double_support_s: float = 1.0
-    final_double_support_s: float = 1.0
-    final_hold_s: float = 1.0
+    initial_double_support_s: float = 0.8
+    final_double_support_s: float = 0.7
+    final_hold_s: float = 0.4
     initial_hold_s: float = 0.8
     dt_s: float = 0.005
 

@@ -10,7 +10,8 @@ or steps goes through (walking, navigation's stage 2, reaching's support polygon
    preview controller (Kajita 2003, section IV-B), whose CoM output, brought to rest at the end, offsets
    the CoM reference of the next tracking pass.
 
-:func:`services.walking.wholebody.plan_walk` is both in one call.
+:func:`services.walking.wholebody.plan_walk` is both in one call; :func:`executable_walk` is the same
+with the pattern's CoM height and timing derived so that the joints stay within their speed limits.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from services.errors import InfeasibleError, InvalidRequestError
 from services.model.ground import SIDES, FootstepBounds, FootstepSequence
 from services.walking.multibody_zmp import MultibodyZmp, multibody_zmp
 from services.walking.pattern import PatternOptions, WalkPattern, plan_pattern
@@ -167,3 +169,82 @@ def correct_multibody_zmp(
         q = candidate
         corrections += 1
     return ZmpCorrection(q, mb, dist, offset, corrections, tuple(history))
+
+
+@dataclass(frozen=True)
+class WalkAdjustment:
+    """A change of the first stage that keeps the whole-body motion within the joints' speed limits:
+    the walk's CoM lowered by ``com_lowering_m`` [m] (a leg stretched to a step at the corner of the
+    footstep bounds has its knee near the singular straight configuration, where the IK flips it back
+    and forth: no slower timing helps there), and the single and double supports ``slowdown`` times
+    longer (fast swings)."""
+
+    com_lowering_m: float = 0.0
+    slowdown: float = 1.0
+
+    def timing(self, base: WalkTiming) -> WalkTiming:
+        """``base`` with its single and double supports ``slowdown`` times longer."""
+        if self.slowdown == 1.0:
+            return base
+        return dataclasses.replace(
+            base,
+            single_support_s=base.single_support_s * self.slowdown,
+            double_support_s=base.double_support_s * self.slowdown,
+        )
+
+
+#: Tried in order by :func:`executable_walk`: the CoM lowered by 0-6 cm first (the usual cause is a
+#: stretched knee), then the same with 1.5x longer supports.
+WALK_ADJUSTMENTS = tuple(
+    WalkAdjustment(lowering, slowdown) for slowdown in (1.0, 1.5) for lowering in (0.0, 0.02, 0.04, 0.06)
+)
+
+
+def executable_walk(
+    robot: Any,
+    footsteps: FootstepSequence,
+    q_start: np.ndarray,
+    timing: WalkTiming | None = None,
+    options: PatternOptions | None = None,
+    *,
+    planner: Any = None,
+    adjustments: tuple[WalkAdjustment, ...] = WALK_ADJUSTMENTS,
+) -> tuple[Any, WalkAdjustment]:
+    """``plan_walk`` of ``footsteps`` with the first :class:`WalkAdjustment` of ``adjustments`` whose
+    whole-body motion keeps every joint within its speed limit and has a ZMP (a joint flipping between
+    two IK knots has none): (``services.walking.wholebody.WholeBodyResult``, the adjustment used).
+    ``planner``: a ``WholeBodyPlanner`` to reuse.
+
+    Raises:
+        InfeasibleError: none does (the last error's message and details, ``adjustments_tried``); any
+            other error of the walking planner (footsteps outside the bounds, ...) at once.
+    """
+    # wholebody.py tracks the patterns of this module: imported here, at call time.
+    from services.walking.wholebody import WholeBodyPlanner
+
+    if not adjustments:
+        raise InvalidRequestError("executable_walk needs at least one adjustment")
+    planner = planner or WholeBodyPlanner(robot)
+    base = timing or WalkTiming()
+    last: InfeasibleError | None = None
+    for adjustment in adjustments:
+        pattern = robot_pattern(
+            robot,
+            footsteps,
+            q_start,
+            adjustment.timing(base),
+            options,
+            com_lowering_m=adjustment.com_lowering_m,
+        )
+        try:
+            return planner.solve(pattern, q_start), adjustment
+        except InfeasibleError as exc:
+            if "joint" not in exc.details and "vertical_force_n" not in exc.details:
+                raise
+            last = exc
+    assert last is not None
+    tried = [(a.com_lowering_m, a.slowdown) for a in adjustments]
+    raise InfeasibleError(
+        f"{last.message} (with every adjustment tried: CoM lowered by, supports slowed by {tried})",
+        {**last.details, "adjustments_tried": tried},
+    )

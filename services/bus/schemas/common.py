@@ -21,6 +21,20 @@ class Heartbeat(msgspec.Struct, kw_only=True, frozen=True):
     requests_failed: int
 
 
+class LogLine(msgspec.Struct, kw_only=True, frozen=True):
+    """A Python log record of a service, published on ``hrp/<robot>/<service>/log``
+    (:mod:`services.bus.buslog`; warnings and up by default)."""
+
+    service: str
+    pid: int
+    level: str  # DEBUG, INFO, WARNING, ERROR or CRITICAL
+    logger: str  # the Python logger's name, e.g. humanoid.walking
+    message: str  # the formatted message (with the traceback of an exception, if any)
+    file: str = ""
+    line: int = 0
+    wall_time_s: float = 0.0  # record's time.time() [s]
+
+
 class ErrorInfo(msgspec.Struct, kw_only=True, frozen=True):
     """An error reply: ``code`` is one of services.errors.ERROR_CODES; ``message`` says what to do."""
 

@@ -77,6 +77,39 @@ class PlanReply(msgspec.Struct, kw_only=True, frozen=True):
     interpolation_s: float  # interpolation wall time [s]
 
 
+ContactList = Annotated[list[ContactMsg], Meta(max_length=32)]
+
+
+class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    """One transition of a plan re-planned from the robot's measured configuration ``q_measured``
+    (executing set by set): the contacts of ``from_set`` are re-read where their spots are at
+    ``q_measured``, the witness of ``to_set`` (a son of ``from_set``: one contact more or less, §2.3) is
+    generated again for them near ``witness`` (its planned posture), and the motion to it interpolated
+    (§3.3). ``released``: the contacts removed at the previous transition, still touched at
+    ``q_measured`` (their bodies leave now)."""
+
+    scene: SceneName
+    q_measured: np.ndarray  # (nq,) float64
+    from_set: ContactList  # the planned contacts holding at q_measured
+    to_set: ContactList  # the next planned set
+    witness: np.ndarray  # (nq,) the planned witness of to_set
+    released: ContactList = msgspec.field(default_factory=list)
+    n_interpolation: Annotated[int, Meta(ge=2, le=100)] = 10  # bounded work: <= 7 tries of 2n postures
+
+
+class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
+    """The motion of one transition from the measured configuration (send ``q`` to ``sim/execute``)."""
+
+    dt_s: float
+    q: np.ndarray  # (N, nq) samples every dt_s, the first at q_measured
+    witness: np.ndarray  # (nq,) the regenerated witness (the last sample)
+    support_error_m: float  # largest distance between a held contact's measured and planned place
+    # played anyway: a segment still colliding after local re-planning, or the planned witness used
+    # because none was found for the supports where they slid ("" if nothing)
+    collision: str
+    replan_s: float  # wall time [s]
+
+
 class Progress(msgspec.Struct, kw_only=True, frozen=True):
     """A node selected for expansion during a search (published on ``contacts/progress``)."""
 
@@ -97,5 +130,12 @@ PLAN = EndpointSpec(
     PlanRequest,
     PlanReply,
     "contact-before-motion plan (best-first search over contact sets) and its statically stable motion",
+)
+TRANSITION = EndpointSpec(
+    "contacts",
+    "transition",
+    TransitionRequest,
+    TransitionReply,
+    "one transition of a plan re-planned from the measured configuration (executing set by set)",
 )
 PROGRESS = TopicSpec("contacts", "progress", Progress, "nodes expanded by a running contacts/plan")

@@ -28,12 +28,14 @@ from services.bus.limits import (
     MAX_TASKS,
     Budget,
     Coord,
+    Damping,
     Fraction,
     Gain,
     Iterations,
     Margin,
     Name,
     Point3,
+    PolishIterations,
     Size,
     StepCount,
     Tolerance,
@@ -69,7 +71,15 @@ class Disk(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True
 
 class Options(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Numerical settings of the planner (``services.footsteps.request.PlannerOptions``); None keeps
-    the planner's default."""
+    the planner's default.
+
+    Algorithm 1's numerics where they differ from eqs. (2)/(15) of the paper (the planner's README,
+    "paper vs here"), each with a switch back to the paper's form: ``saturation`` false (the desired
+    rates lambda F unsaturated: eq. 2), ``dq_cap`` false (no per-coordinate bound, the 0.25 default of
+    ``dq_max``), ``damping`` = ``error_damping`` = 0 (the undamped least squares of eq. 7),
+    ``epsilon_rule`` false (the stall test with epsilon_i as written in eq. 15, not
+    min(epsilon_i, relative_epsilon alpha lambda V_i)), ``polish_iterations`` = 0.
+    """
 
     gain: Gain | None = None  # lambda of eqs. (2), (4), (11), (13)
     alpha: Fraction | None = None  # integration step of q <- q + alpha dq, in (0, 1]
@@ -83,6 +93,13 @@ class Options(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=T
     step_region_scale: Fraction | None = None  # step bounds shrunk towards their middle, in (0, 1]
     max_rate_m: Gain | None = None  # saturation of the reach/gaze desired rate [m per IK time]
     max_rate_rad: Gain | None = None  # saturation of the posture desired rate [rad per IK time]
+    saturation: bool | None = None  # false: no saturation of the desired rates (eq. 2 as written)
+    dq_cap: bool | None = None  # false: no per-coordinate bound dq_max (the paper has none)
+    damping: Damping | None = None  # LM mu_0 of every level (0 with error_damping 0: eq. 7 undamped)
+    error_damping: Damping | None = None  # LM growth of mu with the level's squared residual
+    relative_epsilon: Gain | None = None  # eq. (15) stall test with min(eps_i, this alpha lambda V_i)
+    epsilon_rule: bool | None = None  # false: eq. (15) with epsilon_i as written (relative_epsilon off)
+    polish_iterations: PolishIterations | None = None  # iterations without new steps after a stall
 
 
 class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):

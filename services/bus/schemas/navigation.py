@@ -8,7 +8,7 @@ not the sim's ground truth) and the robot's current configuration come with ever
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 import msgspec
 import numpy as np
@@ -74,6 +74,10 @@ class GotoRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     seed: Seed = 1  # OMPL seed (same request, same plan)
     double_support_s: Annotated[float, Meta(gt=0.0, le=5.0)] = 0.3  # between two steps of the walk [s]
     straight_walks: bool = True  # a near goal whose path is a detour (or none found) may be walked straight
+    # smooth reshaping of a carried bar (Fig. 2): "sample" a random collision-free pose near the collision
+    # (the paper's), or "lift" its height only
+    reshape_mode: Literal["sample", "lift"] = "sample"
+    reshape_seed: Seed = 0  # seed of the reshaping's random sampling (same request, same plan)
 
 
 class LiftSegment(msgspec.Struct, kw_only=True, frozen=True):

@@ -1,0 +1,223 @@
+"""Executing a contact plan set by set, re-planning each transition from the measured state.
+
+A quasi-static plan played open loop by position control does not hold: the supports slide a few
+centimetres under the internal forces of the closed kinematic loops (hands on the table, soles on the
+floor, thighs on the seat), and a posture whose CoM is 2-4 cm inside its support then tips (the traces
+in ``services/contacts/README.md``). The feedback here works at the level of the plan: after each
+transition the measured configuration is read, every contact held is re-read where its spot now is,
+the next witness posture is generated again for those contacts (the same posture generator as the
+search, §2.2, with the planned witness as the reference posture), and the transition to it is
+interpolated from the measured configuration (§3.3) and played. Errors do not accumulate: each witness
+is statically stable on the supports as they are, not as they were planned.
+
+The executor is given as callables (the sim in one process, or ``sim/execute`` over the bus), so this
+module imports neither pybullet nor zenoh.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from services.contacts.interpolate import InterpolationConfig, interpolate_transition
+from services.contacts.posture import PostureGenerator
+from services.contacts.sets import ContactSet, contact_at
+from services.errors import InfeasibleError
+from services.ik import PostureTask
+
+# plays (N, nq) samples every dt [s]; returns (outcome, message): outcome "completed" goes on
+PlaySegment = Callable[[np.ndarray, float], tuple[str, str]]
+Measure = Callable[[], np.ndarray]  # the measured configuration q (pinocchio layout, world base)
+StepHook = Callable[["TransitionReport"], None]
+
+
+@dataclass(frozen=True)
+class TransitionReport:
+    """One transition played: ``index`` (to set ``index``), the executor's ``outcome`` and ``message``
+    ("infeasible": no witness from the measured supports, nothing played), whether the witness was
+    generated again from the measured supports (``replanned``), what went wrong (``reason``: the
+    posture generator's, or a segment still colliding after local re-planning), the largest distance
+    [m] between a held contact's measured and planned place (``support_error_m``), samples played and
+    the wall time of re-planning [s]."""
+
+    index: int
+    outcome: str
+    message: str
+    replanned: bool
+    reason: str
+    support_error_m: float
+    samples: int
+    replan_s: float
+
+
+@dataclass
+class ClosedLoopResult:
+    """The whole run: ``outcome`` of the last transition played ("completed" when all were), its
+    message, the per-transition reports, total samples and re-planning time [s]."""
+
+    outcome: str
+    message: str
+    transitions: list[TransitionReport] = field(default_factory=list)
+    samples: int = 0
+    replan_s: float = 0.0
+
+
+REREAD_M = 0.01  # a held contact is re-read where its spot is when it slid more than this [m]
+# a regenerated witness: contacts matched within 5 mm (the sim's contacts comply by that much), more
+# iterations (it starts from a measured posture a few cm off)
+REGENERATE_TOL_M = 5e-3
+REGENERATE_ITERS = 150
+
+
+def measured_contacts(
+    gen: PostureGenerator, planned: ContactSet, q: np.ndarray, min_slip_m: float = REREAD_M
+) -> ContactSet:
+    """The contacts of ``planned`` re-read where their spots are at ``q`` (projected on their surfaces)
+    when they slid more than ``min_slip_m`` [m]; the others as planned (a few mm are the contact's
+    compliance and the tracking error, and a posture generation from a spot a few mm off its surface,
+    tilted, can fail to match it)."""
+    out = []
+    for c in planned:
+        measured = contact_at(gen.spots[c.spot], c.surface, gen.env, gen.spot_pose(q, c.spot))
+        slip = np.linalg.norm(gen.contact_pose(measured).translation - gen.contact_pose(c).translation)
+        out.append(measured if slip > min_slip_m else c)
+    return tuple(out)
+
+
+def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) -> float:
+    """Largest distance [m] between a planned contact's place and where its spot is at ``q``."""
+    errors = [
+        float(np.linalg.norm(gen.spot_pose(q, c.spot).translation - gen.contact_pose(c).translation))
+        for c in planned
+    ]
+    return max(errors, default=0.0)
+
+
+def regenerate_witness(
+    gen: PostureGenerator,
+    s1_planned: ContactSet,
+    s2_planned: ContactSet,
+    q2_planned: np.ndarray,
+    q_measured: np.ndarray,
+) -> tuple[ContactSet, ContactSet, np.ndarray | None, str]:
+    """(s1 measured, s2 with its held contacts measured, the new witness or None, why not): the son's
+    rule of the search (§2.3): a removal keeps the removed contact as geometry with the stability on the
+    rest; an addition puts the new contact (at its planned place) out of the stability. The posture
+    generation starts from the measured posture, then (if it fails) from the planned witness; when
+    both fail, the planned sets and witness are returned with the reason (the transition then drags the
+    slid supports back, as the open-loop replay does)."""
+    s1 = measured_contacts(gen, s1_planned, q_measured)
+    by_pair = {c.pair: c for c in s1}
+    s2 = tuple(by_pair.get(c.pair, c) for c in s2_planned)
+    added = [c for c in s2 if c.pair not in by_pair]
+    geometric = s1 + tuple(added)
+    stable = s1 if added else s2
+    reference = PostureTask(gen.model, q2_planned)
+    reasons = []
+    relaxed = replace(gen.config, tol=REGENERATE_TOL_M, max_iters=REGENERATE_ITERS)
+    for start in (q_measured, q2_planned):
+        result = gen.generate(geometric, stable, start, reference, config=relaxed)
+        if result.ok:
+            return s1, s2, result.q, ""
+        reasons.append(result.reason)
+    if s1 != tuple(s1_planned):
+        reason = f"no witness for the supports where they slid ({'; '.join(reasons)}): the planned one"
+        return tuple(s1_planned), tuple(s2_planned), np.asarray(q2_planned, float), reason
+    return s1, s2, None, f"from the measured posture: {reasons[0]}; from the planned one: {reasons[1]}"
+
+
+@dataclass(frozen=True)
+class ReplannedTransition:
+    """A transition re-planned from the measured state: the samples (``q``, every ``dt_s``, the first
+    at the measured configuration), the new ``witness``, the largest distance [m] between a held
+    contact's measured and planned place, and a segment still colliding after local re-planning
+    or a fallback to the planned witness (``collision``: what was played anyway, "" if nothing)."""
+
+    q: np.ndarray
+    dt_s: float
+    witness: np.ndarray
+    support_error_m: float
+    collision: str
+
+
+def replan_transition(
+    gen: PostureGenerator,
+    s1_planned: ContactSet,
+    s2_planned: ContactSet,
+    q2_planned: np.ndarray,
+    q_measured: np.ndarray,
+    released_planned: ContactSet = (),
+    config: InterpolationConfig | None = None,
+) -> ReplannedTransition:
+    """The transition from set ``s1_planned`` (holding at ``q_measured``) to ``s2_planned`` (planned
+    witness ``q2_planned``) from the measured state (module docstring); ``released_planned``: the
+    contacts removed at the previous transition (their bodies leave them now). Raises InfeasibleError
+    when the measured supports admit no witness of the next set, or an interpolation step fails."""
+    config = config or InterpolationConfig()
+    q1 = np.asarray(q_measured, float)
+    s1, s2, q2, reason = regenerate_witness(gen, s1_planned, s2_planned, np.asarray(q2_planned, float), q1)
+    error = _support_error(gen, s1_planned, q1)
+    if q2 is None:
+        raise InfeasibleError(
+            f"no witness of the next set from the measured supports (off the plan by up to "
+            f"{error * 100:.1f} cm): {reason}",
+            {"support_error_m": error},
+        )
+    released = measured_contacts(gen, released_planned, q1)
+    v_max = np.asarray(gen.robot.v_max, float)
+    timed, _path, hit, _refined = interpolate_transition(gen, s1, q1, s2, q2, released, config, v_max)
+    collision = reason  # a fallback to the planned witness, if any
+    if hit is not None and hit[0] > config.collision_tol_m:
+        segment = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
+        collision = f"{collision}; {segment}" if collision else segment
+    return ReplannedTransition(timed, config.dt_s, q2, error, collision)
+
+
+def execute_set_by_set(
+    gen: PostureGenerator,
+    sets: Sequence[ContactSet],
+    witnesses: Sequence[np.ndarray],
+    play: PlaySegment,
+    measure: Measure,
+    config: InterpolationConfig | None = None,
+    on_transition: StepHook | None = None,
+) -> ClosedLoopResult:
+    """Play the plan (``sets`` and their ``witnesses``) transition by transition, each re-planned from
+    the measured state (module docstring). Stops at the first transition that cannot be re-planned
+    (outcome "infeasible", nothing played) or that the executor does not complete."""
+    config = config or InterpolationConfig()
+    out = ClosedLoopResult("completed", f"played {len(sets) - 1} transitions")
+    released: ContactSet = ()
+    for k in range(1, len(sets)):
+        t0 = time.perf_counter()
+        try:
+            step = replan_transition(gen, sets[k - 1], sets[k], witnesses[k], measure(), released, config)
+        except InfeasibleError as exc:
+            message = f"transition {k} of {len(sets) - 1}: {exc}"
+            error = float(exc.details.get("support_error_m", 0.0)) if exc.details else 0.0
+            report = TransitionReport(
+                k, "infeasible", message, False, str(exc), error, 0, time.perf_counter() - t0
+            )
+            out.transitions.append(report)
+            if on_transition is not None:
+                on_transition(report)
+            out.outcome, out.message = "infeasible", message
+            return out
+        replan_s = time.perf_counter() - t0
+        outcome, message = play(step.q, step.dt_s)
+        report = TransitionReport(
+            k, outcome, message, True, step.collision, step.support_error_m, len(step.q), replan_s
+        )
+        out.transitions.append(report)
+        out.samples += len(step.q)
+        out.replan_s += replan_s
+        if on_transition is not None:
+            on_transition(report)
+        released = tuple(c for c in sets[k - 1] if c not in sets[k])
+        if outcome != "completed":
+            out.outcome, out.message = outcome, f"transition {k} of {len(sets) - 1}: {message}"
+            return out
+    return out
