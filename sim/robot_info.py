@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from services.bus.limits import MAX_CONFIGURATIONS, MAX_FRAME_POSES
 from services.bus.schemas import sim as msg
 from services.errors import InvalidRequestError
 from services.model import RobotModel
@@ -55,6 +56,12 @@ def kinematics_reply(robot: RobotModel, request: msg.KinematicsRequest) -> msg.K
         raise InvalidRequestError(f"q must be (nq,) or (k, nq) with nq = {robot.nq}, got {Q.shape}")
     if not np.all(np.isfinite(Q)):
         raise InvalidRequestError("q has a non-finite value")
+    if Q.shape[0] > MAX_CONFIGURATIONS or Q.shape[0] * len(request.frames) > MAX_FRAME_POSES:
+        raise InvalidRequestError(
+            f"{Q.shape[0]} configurations x {len(request.frames)} frames: at most {MAX_CONFIGURATIONS} "
+            f"configurations and {MAX_FRAME_POSES} frame poses per sim/kinematics request; split it",
+            {"field": "q", "limit": MAX_CONFIGURATIONS},
+        )
     for name in request.frames:
         robot.frame_id(name)  # InvalidRequestError naming the role frames
     if request.place_at and len(request.place_at) != 3:

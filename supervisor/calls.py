@@ -12,6 +12,10 @@ from services.bus.spec import EndpointSpec
 from services.errors import HumanoidError, RequestTimeoutError, StoppedError, UnavailableError
 from supervisor.health import HealthMonitor
 
+#: The service whose process holds the world (scene, objects, robot): its restart loses them (issue 16).
+WORLD_SERVICE = "sim"
+WORLD_RESET = "sim/reset"
+
 
 class ServiceCaller:
     """``call(spec, request, timeout_s)`` for the actions.
@@ -28,6 +32,8 @@ class ServiceCaller:
         self.stop = stop or threading.Event()
         self.sim_time_s = 0.0
         self.calls: dict[str, int] = {}
+        #: The sim's (token comebacks, heartbeat pid) when its world was last set up.
+        self._world: tuple[int, int] | None = None
         #: Called with the spec before each call (tracing; tests use it to kill a service mid-request).
         self.on_call: Callable[[EndpointSpec], None] | None = None
 
@@ -40,6 +46,8 @@ class ServiceCaller:
         started = time.monotonic()
         try:
             self.health.check(spec.service)
+            if spec.service == WORLD_SERVICE:
+                self._check_world(spec)
             try:
                 reply = self.client.call(spec, request, timeout_s)
             except RequestTimeoutError:
@@ -55,10 +63,32 @@ class ServiceCaller:
             exc.details.setdefault("endpoint", spec.path)
             raise
         self.calls[spec.path] = self.calls.get(spec.path, 0) + 1
+        if spec.path == WORLD_RESET:
+            state = self.health.health(WORLD_SERVICE)
+            self._world = (state.comebacks, state.pid)
         sim_time = getattr(reply, "sim_time_s", None)
         if isinstance(sim_time, float) and sim_time > 0.0:
             self.sim_time_s = sim_time
         return reply
+
+    def _check_world(self, spec: EndpointSpec) -> None:
+        """UnavailableError (``details.reason`` "world_lost") when the sim restarted since its world was
+        set up (its last sim/reset, or the first call): the launcher brings a fresh sim back, but the
+        scene, the objects and the robot's place died with the old process."""
+        state = self.health.health(WORLD_SERVICE)
+        if self._world is None or (self._world[1] == 0 and state.comebacks == self._world[0]):
+            self._world = (state.comebacks, state.pid)  # (the pid, once the first heartbeat came)
+            return
+        comebacks, pid = self._world
+        # its token came back, from another process (or one not heard from yet): a new sim
+        restarted = state.comebacks != comebacks and (state.pid == 0 or state.pid != pid)
+        if restarted and spec.path != WORLD_RESET:
+            raise UnavailableError(
+                "the simulation is gone: the sim process died and was restarted, and the world it held "
+                "(the scene, its objects, the robot's place and what it carried) was lost with it; reset "
+                "the scene (sim/reset) and start again",
+                {"service": WORLD_SERVICE, "reason": "world_lost"},
+            )
 
     def _went_away(self, service: str, within_s: float = 1.0) -> bool:
         """Whether ``service``'s liveliness token disappears within ``within_s`` (a query that ended

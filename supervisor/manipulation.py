@@ -21,6 +21,7 @@ from services.errors import (
     InvalidRequestError,
     NotFoundError,
     NotGraspedError,
+    RequestTimeoutError,
     WorldOutcomeError,
 )
 from supervisor.body import Body, Progress
@@ -306,7 +307,7 @@ class ManipulationActions:
         self.body.straighten()
         try:
             decided = self.planners.last_steps(hand, target_m, gaze_m)
-        except InfeasibleError as exc:
+        except (InfeasibleError, RequestTimeoutError) as exc:  # none found, or none within its budget
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")
             return None
         if decided.walk is None:

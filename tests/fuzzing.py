@@ -77,6 +77,7 @@ MUTATIONS = ("valid", "leaf", "unknown", "bytes", "binary")
 #: themselves are tested by the leaf mutations.
 NARROWER = {
     "time_budget_s": st.floats(0.01, 2.0),
+    "total_budget_s": st.floats(0.01, 5.0),
     "count": st.integers(1, 20),
     "hold_s": st.floats(0.0, 1.0),
     "max_iterations": st.integers(0, 300),
@@ -178,6 +179,10 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
         {"steps": [{"pose": [0.2, -0.095, 0.0]}, {"pose": [0.2, 0.095, 0.0]}], "first_side": "right"},
         {"q_start": "$q", "steps": [{"pose": [0.15, -0.095, 0.1], "side": "right"}], "hands": []},
     ],
+    "walking/goal": [
+        {"q_start": "$q", "pose": [0.3, 0.1, 0.2]},
+        {"q_start": "$q", "kind": "turn", "angle_rad": 0.5, "obstacles": []},
+    ],
     "footsteps/plan": [
         {
             "tasks": [{"kind": "reach", "target": [1.0, -0.2, 0.8]}, {"kind": "posture"}],
@@ -199,6 +204,7 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
         {"hand": "left", "target": [0.6, 0.3, 0.4], "q_start": "$q", "allow_stepping": True},
     ],
     "sim/execute": [{"q": "$traj"}, {"q": "$traj", "dt_s": 0.01, "hold_s": 0.1}],
+    "sim/kinematics": [{"q": "$q", "place_at": [0.5, 0.2, 0.3]}, {"q": "$traj"}],
     "sim/render": [{"camera": "wide", "width_px": 160, "height_px": 120, "depth": True}],
     "sim/snapshot": [{"viewpoint": "top", "width_px": 160, "height_px": 120}],
     "sim/gripper": [{"side": "right", "action": "close"}, {"side": "left", "action": "open"}],
@@ -207,6 +213,7 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
         {"object": "orange_ball"},
         {"object": "green_box", "camera": "narrow", "width_px": 320, "height_px": 240},
     ],
+    "perception/look_around": [{"camera": "wide"}, {"model": "hrp2_like", "camera": "narrow"}],
     "diag/stream": [{"count": 3, "width": 64, "height": 48}],
     "diag/raise": [{"code": "bug", "message": "x"}, {"code": "infeasible", "message": "x"}],
 }

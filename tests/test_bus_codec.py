@@ -209,6 +209,43 @@ def test_request_limits_are_schema_constraints():
     assert np.isnan(decode(nan, EchoRequest).blob[0])
 
 
+def _structs(annotation, seen: set) -> None:
+    """Every msgspec Struct type reachable from ``annotation`` (its fields, lists, unions)."""
+    import typing
+
+    import msgspec
+
+    if isinstance(annotation, type) and issubclass(annotation, msgspec.Struct):
+        if annotation not in seen:
+            seen.add(annotation)
+            for f in msgspec.structs.fields(annotation):
+                _structs(f.type, seen)
+        return
+    for arg in typing.get_args(annotation):
+        _structs(arg, seen)
+
+
+def test_every_request_refuses_unknown_fields_and_bounds_its_budgets():
+    """The kind, not the instance: a request type (or one nested in it) added later without
+    ``forbid_unknown_fields`` would silently ignore a misspelt field; a budget field without the
+    limits' bound would let one request hold a service for as long as it asks."""
+    from services.bus.limits import MAX_BUDGET_S
+
+    for path, spec in sorted(endpoints().items()):
+        seen: set = set()
+        _structs(spec.request, seen)
+        lax = sorted(t.__name__ for t in seen if not t.__struct_config__.forbid_unknown_fields)
+        assert not lax, f"{path}: {lax} accept unknown fields"
+        schema = json_schema(spec.request)
+        props = schema.get("properties", {})
+        for name in ("time_budget_s", "total_budget_s"):
+            if name in props:
+                text = str(props[name])
+                # planners: MAX_BUDGET_S; a contact plan and a played motion: minutes (their own bounds)
+                bounds = (f"'maximum': {MAX_BUDGET_S}", "'maximum': 600.0")
+                assert any(b in text for b in bounds), f"{path}.{name} is not bounded: {text}"
+
+
 @pytest.mark.parametrize(
     ("section", "yaml_text", "message"),
     [

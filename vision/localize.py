@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from services import budget
 from services.bus.schemas.perception import (
     REASON_NO_DISPARITY,
     REASON_NOT_IN_RIGHT_VIEW,
@@ -325,6 +326,7 @@ def localize(
     missing: dict[str, str] = {}
     messages: list[str] = []
     for model in models:
+        budget.check(f"the localization of {model.name}", {"found": [f.name for f in found]})
         try:
             found.append(locate_in_frame(model, frame, config))
         except NotFoundError as e:

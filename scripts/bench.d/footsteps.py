@@ -49,7 +49,7 @@ if str(ROOT) not in sys.path:
 
 from dataclasses import replace  # noqa: E402
 
-from services.errors import InfeasibleError  # noqa: E402
+from services.errors import InfeasibleError, RequestTimeoutError  # noqa: E402
 from services.footsteps import scenarios  # noqa: E402
 from services.footsteps.demo import run_epsilon_study  # noqa: E402
 from services.footsteps.planner import plan_footsteps  # noqa: E402
@@ -64,7 +64,7 @@ def _timed(request, robot):
     try:
         result = plan_footsteps(request, robot)
         error = None
-    except InfeasibleError as exc:
+    except (InfeasibleError, RequestTimeoutError) as exc:
         result, error = None, exc
     return result, error, time.perf_counter() - t_wall, time.process_time() - t_cpu
 

@@ -1,7 +1,9 @@
 """Soak benchmark: many fetches in a row on one stack, and fetches with a service killed (issue 16).
 
 Starts every service of the fetch once (the launcher of ``humanoid up``, restarts included) and runs
-the fetch script ``--n`` times in a row (seeded layouts ``0..n-1`` of ``ball_fetch``), reading each
+the fetch script ``--n`` times in a row (``--layouts nominal``, the default: the nominal layout of
+``ball_fetch`` every time, so that a failure is the stack's, not a harder layout's - the layouts are
+``scripts/bench fetch``'s concern; ``--layouts seeded``: seeded layouts ``seed0..seed0+n-1``), reading each
 service's resident memory, threads and open files (``/proc``) after the first fetch and after the
 last. ``max_growth`` is the largest relative growth of any of them, for any service, between the two
 (goal <= 0.10); ``success_rate`` the share of fetches that put the ball on the table (goal >= 0.95).
@@ -14,7 +16,8 @@ so, never in a hang.
 
 Writes ``bench/out/soak.json`` (``--kill``: ``bench/out/soak_kill.json``).
 
-Usage: scripts/bench soak [--n 30] [--kill] [--victims perception,navigation,...] [--log-dir DIR]
+Usage: scripts/bench soak [--n 30] [--layouts nominal|seeded] [--seed0 S] [--log-dir DIR]
+       scripts/bench soak --kill [--victims perception,navigation,...]
 """
 
 from __future__ import annotations
@@ -117,11 +120,12 @@ def soak(args: argparse.Namespace, launcher: Any, sup: Any) -> dict[str, Any]:
     runs, after_first = [], {}
     start = snapshot(launcher)
     for i in range(args.n):
-        row, _ = _run(sup, fetch, args.seed0 + i)
+        row, _ = _run(sup, fetch, args.seed0 + i if args.layouts == "seeded" else None)
         if not row["hung"]:
             truth = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
             row["on_table"] = bool(ball_on_table(truth)[0])
             row["ok"] = row["ok"] and row["on_table"]
+        row["loadavg_1min"] = round(os.getloadavg()[0], 2)
         runs.append(row)
         if i == 0:
             after_first = snapshot(launcher)
@@ -129,10 +133,35 @@ def soak(args: argparse.Namespace, launcher: Any, sup: Any) -> dict[str, Any]:
               f"({row['wall_s']} s)", flush=True)  # fmt: skip
         if row["hung"]:
             break
-    end = snapshot(launcher)
+        if i + 1 < args.n:  # the figures so far, on disk after every fetch: a long soak stopped early
+            partial = _soak_result(args, launcher, runs, start, after_first, snapshot(launcher))
+            _write(Path(args.out or OUT), {**partial, "complete": False, "machine": _machine()})
+    return {**_soak_result(args, launcher, runs, start, after_first, snapshot(launcher)), "complete": True}
+
+
+def _machine() -> dict[str, Any]:
+    return {"platform": platform.platform(), "cpus": os.cpu_count(), "loadavg": os.getloadavg()}
+
+
+def _write(path: Path, result: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result, indent=1))
+
+
+def _soak_result(
+    args: argparse.Namespace,
+    launcher: Any,
+    runs: list[dict[str, Any]],
+    start: dict[str, dict[str, float]],
+    after_first: dict[str, dict[str, float]],
+    end: dict[str, dict[str, float]],
+) -> dict[str, Any]:
+    """The soak's figures over ``runs``: success rate, growth from after the first fetch to ``end``."""
     worst, where = growth(after_first, end)
     return {
         "n": len(runs),
+        "n_asked": args.n,
+        "layouts": args.layouts,
         "success_rate": sum(r["ok"] for r in runs) / max(1, len(runs)),
         "max_growth": round(worst, 4),
         "max_growth_at": where,
@@ -201,7 +230,10 @@ def kill_each(args: argparse.Namespace, launcher: Any, sup: Any) -> dict[str, An
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="scripts/bench soak", description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=30, help="fetches in a row (30)")
-    parser.add_argument("--seed0", type=int, default=0, help="first layout seed (0)")
+    parser.add_argument(
+        "--layouts", choices=("nominal", "seeded"), default="nominal", help="ball_fetch layouts (nominal)"
+    )
+    parser.add_argument("--seed0", type=int, default=0, help="first layout seed with --layouts seeded (0)")
     parser.add_argument("--kill", action="store_true", help="one fetch per victim, killed mid-fetch")
     parser.add_argument("--victims", default=",".join(VICTIMS), help="services to kill with --kill")
     parser.add_argument("--log-dir", default="bench/out/soak-logs", help="services' output")
@@ -215,7 +247,7 @@ def main(argv: list[str]) -> int:
     from supervisor.fetch import running_stack
 
     bus = BusConfig().with_hub_port(_free_port())
-    services = (*SERVICES, "footsteps") if args.kill else SERVICES
+    services = tuple(dict.fromkeys((*SERVICES, "footsteps")))  # the fetch calls footsteps/plan too
     started = time.monotonic()
     stack = running_stack(bus, services=services, log_dir=args.log_dir)
     with stack as launcher, Supervisor.connect(bus) as sup:
@@ -225,10 +257,9 @@ def main(argv: list[str]) -> int:
             return 1
         result = kill_each(args, launcher, sup) if args.kill else soak(args, launcher, sup)
     result["wall_s"] = round(time.monotonic() - started, 1)
-    result["machine"] = {"platform": platform.platform(), "cpus": os.cpu_count(), "loadavg": os.getloadavg()}
+    result["machine"] = _machine()
     out = Path(args.out or (OUT_KILL if args.kill else OUT))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=1))
+    _write(out, result)
     if args.kill:
         ok = all(r.get("ok") == (r.get("victim") != "sim") for r in result["kills"] if "skipped" not in r)
         print(f"wrote {out} (load average {os.getloadavg()[0]:.1f})")

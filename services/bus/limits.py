@@ -12,9 +12,12 @@ The numbers are wide: this robot lives in a room (coordinates within 100 m), wal
 
 from __future__ import annotations
 
+import math
 from typing import Annotated
 
 from msgspec import Meta
+
+from services.errors import InvalidRequestError
 
 #: Any world coordinate [m]; the scenes span a few metres.
 MAX_COORD_M = 100.0
@@ -45,6 +48,18 @@ MAX_DAMPING = 100.0
 MAX_POLISH_ITERATIONS = 1000
 #: Image sides [px] (renders and snapshots).
 MAX_IMAGE_PX = 2048
+#: Configurations of one forward-kinematics request (120 s of motion at 5 ms), and frame poses in its
+#: reply (configurations x frames): the reply's size is bounded before any work starts.
+MAX_CONFIGURATIONS = 24_000
+MAX_FRAME_POSES = 100_000
+
+
+def check_budget(value_s: float, name: str) -> None:
+    """InvalidRequestError naming ``name`` unless 0 < ``value_s`` <= :data:`MAX_BUDGET_S` (a configured
+    budget)."""
+    if not (math.isfinite(value_s) and 0.0 < value_s <= MAX_BUDGET_S):
+        raise InvalidRequestError(f"{name} must be within 0 and {MAX_BUDGET_S:.0f} s, got {value_s}")
+
 
 Coord = Annotated[float, Meta(ge=-MAX_COORD_M, le=MAX_COORD_M, description="world coordinate [m]")]
 Angle = Annotated[float, Meta(ge=-MAX_ANGLE_RAD, le=MAX_ANGLE_RAD, description="angle [rad]")]

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
-from services.errors import InfeasibleError, InvalidRequestError
+from services.errors import InfeasibleError, InvalidRequestError, RequestTimeoutError
 from services.footsteps.chain import Stance, VirtualChain
 from services.footsteps.geometry import same_pose
 from services.footsteps.problem import build_levels, joint_limits, robot_rest
@@ -369,9 +369,11 @@ def plan_footsteps(request: FootstepPlanRequest, robot: RobotModel | None = None
 
     Raises:
         InvalidRequestError: malformed request (the message names the field).
-        InfeasibleError: the tasks cannot be met (local minimum, step cap, iteration cap or time
-            budget); ``details`` has ``residuals`` {task: value}, ``tolerances``, ``reason``,
-            ``steps`` and ``iterations`` of the best attempt.
+        InfeasibleError: the tasks cannot be met (local minimum, step cap or iteration cap);
+            ``details`` has ``residuals`` {task: value}, ``tolerances``, ``reason``, ``steps``,
+            ``iterations`` and ``footsteps`` of the best attempt.
+        RequestTimeoutError: the time budget ran out first (``reason`` "time_budget"), with the same
+            ``details``: the best partial plan and its residuals.
     """
     result, error = plan_footsteps_best(request, robot)
     if error is not None:
@@ -381,7 +383,7 @@ def plan_footsteps(request: FootstepPlanRequest, robot: RobotModel | None = None
 
 def plan_footsteps_best(
     request: FootstepPlanRequest, robot: RobotModel | None = None
-) -> tuple[FootstepPlanResult, InfeasibleError | None]:
+) -> tuple[FootstepPlanResult, InfeasibleError | RequestTimeoutError | None]:
     """Like :func:`plan_footsteps`, but return the best attempt even when it fails, with the error
     that :func:`plan_footsteps` would raise (None on success): for figures of failures."""
     t0 = time.perf_counter()
@@ -438,8 +440,13 @@ def plan_footsteps_best(
     best = outcomes[best_i]
     residuals = {t.name: float(v) for t, v in zip(request.tasks, best.values, strict=True)}
     worst = max(zip(request.tasks, best.values, strict=True), key=lambda tv: tv[1] / tv[0].tol())
-    error = InfeasibleError(
-        f"the tasks cannot be met: {worst[0].name} stays at {worst[1]:.4f} (tolerance {worst[0].tol():.4f}) "
+    # The budget cut the search short (of either start foot): nobody knows the tasks cannot be met, so
+    # the answer is ``timeout`` with the best partial plan, not ``infeasible`` (issue 16).
+    timed_out = any(o.reason == "time_budget" for o in outcomes)
+    error_type = RequestTimeoutError if timed_out else InfeasibleError
+    verdict = "the time budget ran out before the tasks were met" if timed_out else "the tasks cannot be met"
+    error = error_type(
+        f"{verdict}: {worst[0].name} stays at {worst[1]:.4f} (tolerance {worst[0].tol():.4f}) "
         f"after {best.iterations} iterations and {best.chain.n_steps} steps ({_REASONS[best.reason]})",
         {
             "residuals": residuals,
@@ -449,6 +456,9 @@ def plan_footsteps_best(
             "steps": best.chain.n_steps,
             "iterations": best.iterations,
             "solve_time_s": elapsed,
+            "time_budget_s": request.time_budget_s,
+            # the partial plan: the footsteps of the best attempt [side, x [m], y [m], yaw [rad]]
+            "footsteps": [[f.side, f.x_m, f.y_m, f.yaw_rad] for f in results[best_i].footsteps],
         },
     )
     return replace(results[best_i], solve_time_s=elapsed, alternatives=alternatives), error

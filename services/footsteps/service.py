@@ -18,8 +18,9 @@ Failure codes: ``invalid_request`` (unknown model, task kind or hand, a reach/ga
 ``q_rest`` of the wrong size or ``q_start`` not standing flat on the ground, ``initial_steps`` outside
 0..``max_steps``, options out of range: the message names the field); ``infeasible`` (the tasks cannot
 be met: the message names the worst task, its value and why Algorithm 1 stopped - local minimum, step
-cap, iteration cap, time budget -, ``details`` has ``residuals``, ``tolerances``, ``reason``,
-``steps``, ``iterations``).
+cap, iteration cap -, ``details`` has ``residuals``, ``tolerances``, ``reason``, ``steps``,
+``iterations``, ``footsteps``); ``timeout`` (the time budget ran out first: the same message and
+``details``, ``reason`` "time_budget", ``footsteps`` the best partial plan).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from services import budget
 from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.navigation.body_extents import with_arms_of
@@ -138,10 +139,18 @@ def plan_goto(
     start = start_pose(robot, q_start)
     straight_options = options.straight if bar is None else None
     while True:
+        budget.check(
+            f"navigation's stage 1 (replans {replans}, slowed {slowed})",
+            {"replans": replans, "timings_s": dict(timings)},
+        )
         t1 = time.perf_counter()
         steps = None
         try:
-            path = plan_path(scene, body, start, goal, options.planner)
+            # the search gets what the whole goto's budget leaves, at most its own time_budget_s
+            planner = replace(
+                options.planner, time_budget_s=budget.remaining(options.planner.time_budget_s)
+            )
+            path = plan_path(scene, body, start, goal, planner)
             if straight_options is not None and straight_options.is_detour(start, path.goal, path.length_m):
                 straight = straight_walk(robot, scene, soles, start, path.goal, straight_options)
                 if straight is not None:
@@ -178,6 +187,11 @@ def plan_goto(
             )
         t3 = time.perf_counter()
         timings["path_s"] += t2 - t1
+        n_steps = len(steps.sequence.steps)
+        budget.check(
+            f"navigation's stage 2 (a path of {path.length_m:.2f} m and {n_steps} steps found)",
+            {"replans": replans, "path_length_m": path.length_m, "steps": n_steps},
+        )
         timings["footsteps_s"] += t3 - t2
         try:
             motion = plan_motion(robot, scene, steps.sequence, q_start, bar, options.stage2)

@@ -9,6 +9,8 @@ configuration, a goal pose or object and an optional carried bar in; the path, f
 trajectory and reshaping report out: the trajectory stage 2 checked for collisions and reshaped, to be
 executed as it is. A near goal whose car-like path is a detour is walked straight (``path_curve``
 "straight", services/navigation/straight.py). Stateless: the reply is a function of the request.
+``total_budget_s`` bounds the whole goto (each stage-1 search gets at most what is left of it); past it
+the reply is ``timeout`` with ``details.stage``.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from services import budget
+from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import navigation as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InvalidRequestError
@@ -48,13 +52,17 @@ class NavigationConfig:
         model: robot model the plans are for (``services.model.load_robot``): ``hrp2_like`` or ``talos``.
         max_time_budget_s: largest stage-1 search budget a request may ask for [s].
         max_iterations: largest reshaping iteration budget a request may ask for.
+        goto_budget_s: wall-clock budget of a whole goto whose request gives no ``total_budget_s`` [s]
+            (at most ``services.bus.limits.MAX_BUDGET_S``); past it the reply is ``timeout``.
     """
 
     model: str = "hrp2_like"
     max_time_budget_s: float = 10.0
     max_iterations: int = 10
+    goto_budget_s: float = MAX_BUDGET_S
 
     def __post_init__(self) -> None:
+        check_budget(self.goto_budget_s, "navigation.goto_budget_s")
         if not (math.isfinite(self.max_time_budget_s) and self.max_time_budget_s > 0):
             raise InvalidRequestError(
                 f"navigation max_time_budget_s must be > 0 s, got {self.max_time_budget_s}"
@@ -251,7 +259,8 @@ class NavigationService(Service):
             c = request.carried
             bar = CarriedBar(length_m=c.length_m, radius_m=c.radius_m, mass_kg=c.mass_kg)
         options = goto_options(request)
-        result = plan_goto(robot, scene, q_start, goal, bar, options)
+        with budget.within(request.total_budget_s or cfg.goto_budget_s):
+            result = plan_goto(robot, scene, q_start, goal, bar, options)
         return reply_from_result(robot.name, result)
 
 

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from services import budget
 from services.bus.schemas.navigation import (
     REASON_BAR_OUT_OF_REACH,
     REASON_BODY_COLLISION,
@@ -337,6 +338,10 @@ def plan_motion(
     last: tuple | None = None  # the last checked motion's (events, check, windows, centre, q)
     rejected: list[ReshapeWindow] = []
     for iteration in range(rs.max_iterations):
+        budget.check(
+            f"navigation's stage 2, reshaping iteration {iteration + 1} of {rs.max_iterations}",
+            {"iterations_done": iteration},
+        )
         t_it = time.perf_counter()
         trajectory: BarTrajectory | None = None
         if nominal_bar is not None:

@@ -15,6 +15,8 @@ Endpoints (services/bus/schemas/perception.py; README.md has the details and fai
 
 Stateless: models are loaded once at start-up (restart to pick up newly learned ones). Looking around
 for an object that is not in view is the supervisor's job (services/perception/look_around.py).
+``perception/locate``'s ``time_budget_s`` bounds the whole request (the sim's state and render get what
+is left of it): past it the reply is ``timeout`` with ``details.stage``.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from services import budget
 from services.bus.schemas import perception as msg
 from services.bus.schemas import sim
 from services.bus.service import Service, config_with, handles, run_service
@@ -44,7 +47,7 @@ from services.perception.locate import (
 from services.perception.look_around import head_joints, scan_angles, turn_offsets
 from vision.footprint import Footprint
 from vision.histogram import DEFAULT_MODELS_DIR, load_models
-from vision.localize import ObjectLocation
+from vision.localize import LocalizeConfig, ObjectLocation
 from vision.stereo import METHODS
 
 
@@ -166,6 +169,12 @@ class PerceptionService(Service):
         cfg: PerceptionConfig = self.config
         object_model(self.models, request.object)  # an unknown name fails before anything is rendered
         config = localize_config(self.localize_config, request.method)
+        with budget.within(request.time_budget_s or cfg.time_budget_s):
+            return self._locate(request, config)
+
+    def _locate(self, request: msg.LocateRequest, config: LocalizeConfig) -> msg.LocateReply:
+        """perception/locate within the budget opened by :meth:`locate`."""
+        cfg: PerceptionConfig = self.config
         robot, q = self._robot_and_q(request)
         if request.images is not None:
             left = rgb_to_bgr(request.images.left_rgb, "images.left_rgb")
@@ -181,12 +190,13 @@ class PerceptionService(Service):
             rendered, sim_time_s = False, 0.0
         else:
             stereo_pair(robot, request.camera)  # an unknown pair is this request's fault, not the sim's
+            budget.check("the render of the stereo pair (sim/render)")
             render = self.client.call(
                 sim.RENDER,
                 sim.RenderRequest(
                     camera=request.camera, width_px=request.width_px, height_px=request.height_px
                 ),
-                timeout_s=cfg.render_timeout_s,
+                timeout_s=budget.remaining(cfg.render_timeout_s),
             )
             image_left, image_right = render.images
             left = cv2.cvtColor(image_left.rgb, cv2.COLOR_RGB2BGR)
@@ -194,6 +204,7 @@ class PerceptionService(Service):
             head = head_stereo(robot, q, request.camera, image_left.width_px, image_left.height_px)
             self._check_render_pose(head, np.asarray(image_left.T_world_camera, dtype=float))
             rendered, sim_time_s = True, render.sim_time_s
+        budget.check("the stereo localization", {"rendered": rendered})
         try:
             loc = locate_object(self.models, request.object, head, left, right, config)
         except NotFoundError as e:
@@ -208,7 +219,9 @@ class PerceptionService(Service):
         """The robot model and configuration of the request; q = the sim's current state when omitted."""
         if request.q is not None:
             return load_robot(request.model or self.config.robot_model), np.asarray(request.q, dtype=float)
-        state = self.client.call(sim.STATE, sim.StateRequest(), timeout_s=self.config.render_timeout_s)
+        state = self.client.call(
+            sim.STATE, sim.StateRequest(), timeout_s=budget.remaining(self.config.render_timeout_s)
+        )
         if request.model and request.model != state.model:
             raise InvalidRequestError(
                 f"model {request.model!r} was asked without q, but the sim runs {state.model!r}: "

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from services import budget
 from services.errors import InfeasibleError, InternalError
 from services.model import load_robot
 from services.model.ground import sole_pose_at
@@ -137,6 +138,10 @@ class ReachPlanner:
             )
         last_violation = violation
         for plan in candidates:
+            budget.check(
+                f"the reshaping attempts, before {plan.kind} ({plan.n_steps} steps)",
+                {"attempts": [_attempt_details(a) for a in attempts]},
+            )
             pattern = self._pattern(req, plan, self.timing)
             extra_s = self._hand_overrun_s(req, pattern)
             if extra_s > 0.0:
@@ -395,6 +400,17 @@ class ReachPlanner:
                 **details,
             },
         )
+
+
+def _attempt_details(attempt: Attempt) -> dict[str, Any]:
+    """An attempt as JSON-able details (a ``timeout`` reply's partial result)."""
+    v = attempt.violation
+    return {
+        "kind": attempt.kind,
+        "steps": attempt.n_steps,
+        "violation": "" if v is None else v.criterion,
+        "wall_time_s": attempt.wall_time_s,
+    }
 
 
 def _in_body(point: np.ndarray, body_xy: np.ndarray, yaw: float) -> np.ndarray:

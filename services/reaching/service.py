@@ -7,7 +7,8 @@ of the config file (:class:`ReachingConfig`: the robot model and every :class:`R
 Endpoint ``reaching/reach`` (:mod:`services.bus.schemas.reaching`): a stateless planner, the reply is a
 deterministic function of the request. Failure codes: ``invalid_request`` (unknown hand, malformed
 target or orientation, ``q_start`` of the wrong size or not standing on flat ground), ``infeasible``
-(the message and ``details.criterion`` name the criterion that failed and why reshaping did not help).
+(the message and ``details.criterion`` name the criterion that failed and why reshaping did not help),
+``timeout`` (``time_budget_s`` ran out: ``details.stage`` and the ``attempts`` made).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small dense problems: thre
 
 import numpy as np
 
+from services import budget
+from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import reaching as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InvalidRequestError
@@ -37,10 +40,17 @@ from services.reaching.result import ReachResult
 @dataclass(frozen=True)
 class ReachingConfig(ReachingOptions):
     """Options of the service: the robot model (``hrp2_like`` or ``talos``), whether to measure the
-    reach envelopes at start-up (else at the first request of each hand), and the planner options."""
+    reach envelopes at start-up (else at the first request of each hand), the wall-clock budget of a
+    request that gives none (``time_budget_s`` [s], at most ``services.bus.limits.MAX_BUDGET_S``; past
+    it the reply is ``timeout``) and the planner options."""
 
     model: str = "hrp2_like"
     warm_up: bool = True
+    time_budget_s: float = MAX_BUDGET_S
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_budget(self.time_budget_s, "reaching.time_budget_s")
 
     def planner_options(self, **overrides: Any) -> ReachingOptions:
         """The :class:`ReachingOptions` part, with ``overrides`` (None values ignored)."""
@@ -94,16 +104,17 @@ class ReachingService(Service):
         options = self.config.planner_options(
             weighted=request.weighted, joint_limit_selection_rad=request.joint_limit_selection_rad
         )
-        result = self._planner(options).plan(
-            ReachRequest(
-                hand=request.hand,
-                target_world_m=np.asarray(request.target, dtype=float),
-                q_start=q_start,
-                R_world_hand=rotation,
-                gaze=request.gaze,
-                allow_stepping=request.allow_stepping,
+        with budget.within(request.time_budget_s or self.config.time_budget_s):
+            result = self._planner(options).plan(
+                ReachRequest(
+                    hand=request.hand,
+                    target_world_m=np.asarray(request.target, dtype=float),
+                    q_start=q_start,
+                    R_world_hand=rotation,
+                    gaze=request.gaze,
+                    allow_stepping=request.allow_stepping,
+                )
             )
-        )
         return to_reply(result, list(self.robot.joint_names))
 
 

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from services import budget
 from services.ik import (
     ComPositionTask,
     FrameOrientationTask,
@@ -266,6 +267,9 @@ class ReachTracker:
         Q[0] = q
         violation = None
         for i in range(1, len(knots)):
+            budget.check(
+                f"the reaching IK, knot {i} of {len(knots)}", {"knots_done": i, "knots": len(knots)}
+            )
             k = knots[i]
             t_k = float(spec.times_s[k])
             for side, soles in (("left", spec.left_sole), ("right", spec.right_sole)):

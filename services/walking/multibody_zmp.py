@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from services import budget
 from services.errors import InfeasibleError, InvalidRequestError
 
 GRAVITY_M_S2 = 9.81
@@ -72,6 +73,8 @@ def multibody_zmp(
     com = np.empty((n, 3))
     dh = np.empty((n, 6))
     for k in range(n):
+        if k % 1000 == 0:
+            budget.check(f"the multibody ZMP of the walk, sample {k} of {n}")
         pin.computeCentroidalMomentumTimeVariation(model, data, qs[k], v[k], a[k])
         com[k] = data.com[0]
         dh[k, :3] = data.dhg.linear

@@ -17,7 +17,8 @@ Failure codes: ``invalid_request`` (malformed request: unknown model, q of the w
 soles, a zero duration, a bad upper-body task, q_start and the starting soles more than 5 mm apart);
 ``infeasible`` (a step beyond the robot's bounds - the message and ``details.step_index`` name it -; a
 multibody ZMP still outside the support polygon after the corrections; a joint faster than its limit;
-an upper-body task missed by more than its tolerance).
+an upper-body task missed by more than its tolerance); ``timeout`` (the request's ``time_budget_s``, or
+the service's, ran out: ``details.stage``, ``knots_done``, ``knots``).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from services import budget
+from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InfeasibleError, InvalidRequestError
@@ -66,13 +69,17 @@ class WalkingConfig:
         knot_stride: samples between two IK knots of the whole-body stage (1: IK at every 5 ms).
         iterations_per_knot: Gauss-Newton steps of the IK hierarchy per knot.
         preload: robot models loaded at start-up (others are loaded on their first request).
+        time_budget_s: wall-clock budget of a request that gives none [s] (at most
+            ``services.bus.limits.MAX_BUDGET_S``); past it the reply is ``timeout``.
     """
 
     knot_stride: int = 8
     iterations_per_knot: int = 1
     preload: tuple[str, ...] = ("hrp2_like",)
+    time_budget_s: float = MAX_BUDGET_S
 
     def __post_init__(self) -> None:
+        check_budget(self.time_budget_s, "walking.time_budget_s")
         WholeBodyOptions(
             knot_stride=self.knot_stride, iterations_per_knot=self.iterations_per_knot
         ).validate()
@@ -385,7 +392,8 @@ class WalkingService(Service):
     def plan(self, request: msg.PlanRequest) -> msg.PlanReply:
         check_walk_length(request)
         started = time.perf_counter()
-        reply = plan_reply(request, self.config)
+        with budget.within(request.time_budget_s or self.config.time_budget_s):
+            reply = plan_reply(request, self.config)
         self.log.info(
             "%s: %d steps, %.2f s of walk planned in %.2f s (ZMP margin %.1f mm, %d second-stage passes)",
             reply.model,
@@ -400,7 +408,8 @@ class WalkingService(Service):
     @handles(msg.GOAL)
     def goal(self, request: msg.GoalRequest) -> msg.PlanReply:
         started = time.perf_counter()
-        reply = goal_reply(request, self.config)
+        with budget.within(request.time_budget_s or self.config.time_budget_s):
+            reply = goal_reply(request, self.config)
         self.log.info(
             "%s goal %s: %d steps, %.2f s of walk planned in %.2f s",
             request.kind,

@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
+from services import budget
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import (
     ComPositionTask,
@@ -358,6 +359,10 @@ class WholeBodyPlanner:
             if i == 0:
                 q_prev = q.copy()
                 continue
+            budget.check(
+                f"the whole-body IK of the walk, knot {i} of {len(knots)}",
+                {"knots_done": i, "knots": len(knots), "samples": n},
+            )
             for side in ("left", "right"):
                 feet[side].set_target(pin.SE3(pattern.sole_transform(side, k)))
             com.set_target(com_ref[k])
@@ -385,6 +390,8 @@ class WholeBodyPlanner:
         soles = {"left": pattern.left_sole, "right": pattern.right_sole}
         err = 0.0
         for k in range(qs.shape[0]):
+            if k % 500 == 0:
+                budget.check(f"the tracking errors of the walk, sample {k} of {qs.shape[0]}")
             pin.forwardKinematics(model, data, qs[k])
             for side, fid in ids.items():
                 p = pin.updateFramePlacement(model, data, fid).translation

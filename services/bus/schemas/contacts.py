@@ -14,19 +14,19 @@ import msgspec
 import numpy as np
 from msgspec import Meta
 
-from services.bus.limits import Coord, Gain, Name, NameLists, Names, SceneName
+from services.bus.limits import Angle, Coord, Gain, Name, NameLists, Names, SceneName
 from services.bus.spec import EndpointSpec, TopicSpec
 
 
-class ContactMsg(msgspec.Struct, kw_only=True, frozen=True):
+class ContactMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """A contact: the robot's ``spot`` (e.g. ``left_sole``) on the environment ``surface`` (e.g.
     ``chair.seat``) at (``x``, ``y`` [m], ``theta`` [rad]) in the surface's frame (origin at its centre)."""
 
-    spot: str
-    surface: str
-    x: float
-    y: float
-    theta: float
+    spot: Name
+    surface: Name
+    x: Coord
+    y: Coord
+    theta: Angle
 
 
 class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):

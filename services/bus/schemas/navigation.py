@@ -73,7 +73,10 @@ class GotoRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     carried: CarriedBarMsg | None = None  # a bar held in both hands; None: nothing carried
     carry_height_m: Size | None = None  # bar centre height while walking [m]; None: as held at the start
     turning_radius_m: Annotated[float, Meta(gt=0.0, le=5.0)] = 0.5  # minimum turning radius of the path [m]
-    time_budget_s: Budget = 1.0  # stage-1 search budget [s]
+    time_budget_s: Budget = 1.0  # stage-1 search budget [s] (each search; cut to what total_budget_s leaves)
+    # wall-clock budget of the whole goto [s] (<= 60): path searches, footsteps, stage 2 and replans;
+    # None: the service's goto_budget_s. Past it: ``timeout`` naming the stage reached (``details.stage``).
+    total_budget_s: Budget | None = None
     max_iterations: Annotated[int, Meta(ge=1, le=50)] = 5  # whole-body solutions of the reshaping loop
     seed: Seed = 1  # OMPL seed (same request, same plan)
     double_support_s: Annotated[float, Meta(gt=0.0, le=5.0)] = 0.3  # between two steps of the walk [s]

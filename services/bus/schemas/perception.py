@@ -11,7 +11,7 @@ from __future__ import annotations
 import msgspec
 import numpy as np
 
-from services.bus.limits import ImageSide, Name
+from services.bus.limits import Budget, ImageSide, Name
 from services.bus.spec import EndpointSpec
 
 # ---------------------------------------------------------------------------------------------- locate
@@ -36,6 +36,9 @@ class LocateRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fi
     height_px: ImageSide = 480
     images: StereoImages | None = None  # None: the service renders the pair through sim/render
     method: Name = ""  # stereo estimator: "" (service default), "centroid", "bm", "sgbm" or "edges"
+    # wall-clock budget [s] (<= 60); None: the service's time_budget_s. Past it: ``timeout`` naming the
+    # stage reached (``details.stage``: the state, the render or the stereo localization).
+    time_budget_s: Budget | None = None
 
 
 class PixelBox(msgspec.Struct, kw_only=True, frozen=True):
@@ -134,11 +137,11 @@ MODELS = EndpointSpec(
 )
 
 
-class LookAroundRequest(msgspec.Struct, kw_only=True, frozen=True):
+class LookAroundRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """The look-around plan of a robot model's stereo pair ``camera`` (services/perception/look_around.py)."""
 
-    model: str = ""  # "" = the service's robot model
-    camera: str = "wide"
+    model: Name = ""  # "" = the service's robot model
+    camera: Name = "wide"
 
 
 class LookAroundReply(msgspec.Struct, kw_only=True, frozen=True):

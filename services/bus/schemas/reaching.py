@@ -12,7 +12,7 @@ from __future__ import annotations
 import msgspec
 import numpy as np
 
-from services.bus.limits import Margin, Name, Point3, Quaternion
+from services.bus.limits import Budget, Margin, Name, Point3, Quaternion
 from services.bus.schemas.common import Footstep
 from services.bus.spec import EndpointSpec
 
@@ -34,6 +34,9 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     )
     # selection matrix S_l margin [rad]; None: service default
     joint_limit_selection_rad: Margin | None = None
+    # wall-clock planning budget [s] (<= 60); None: the service's time_budget_s. Past it: ``timeout``
+    # with the stage reached and the attempts made (``details.stage``, ``attempts``).
+    time_budget_s: Budget | None = None
 
 
 class Monitors(msgspec.Struct, kw_only=True, frozen=True):

@@ -14,7 +14,7 @@ import msgspec
 import numpy as np
 from msgspec import Meta
 
-from services.bus.limits import ImageSide, Name, Names, Phase, Point3, SceneName, Seed
+from services.bus.limits import Coord, ImageSide, Name, Names, Phase, Point3, SceneName, Seed
 from services.bus.spec import EndpointSpec, TopicSpec
 
 # ---------------------------------------------------------------------------------------------- topics
@@ -272,7 +272,7 @@ SNAPSHOT = EndpointSpec(
 # ------------------------------------------------------------------------------------- robot facts
 
 
-class RobotInfoRequest(msgspec.Struct, kw_only=True, frozen=True):
+class RobotInfoRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """No fields: the facts of the simulated robot model."""
 
 
@@ -303,7 +303,7 @@ ROBOT_INFO = EndpointSpec(
 )
 
 
-class KinematicsRequest(msgspec.Struct, kw_only=True, frozen=True):
+class KinematicsRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Forward kinematics of the robot model at configurations ``q`` ((k, nq) or (nq,)).
 
     ``frames``: frame names (``RobotInfoReply.frames`` values) whose world poses to return.
@@ -312,8 +312,8 @@ class KinematicsRequest(msgspec.Struct, kw_only=True, frozen=True):
     """
 
     q: np.ndarray
-    frames: list[str] = []
-    place_at: list[float] = []
+    frames: Names = []
+    place_at: Annotated[list[Coord], Meta(max_length=3)] = []
 
 
 class KinematicsReply(msgspec.Struct, kw_only=True, frozen=True):

@@ -27,6 +27,7 @@ from services.bus.limits import (
     MAX_OBSTACLES,
     MAX_STEPS,
     Angle,
+    Budget,
     Coord,
     Margin,
     Name,
@@ -107,6 +108,9 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     gaze: GazeTask | None = None
     hand_tolerance_m: Tolerance = 0.01  # a hand farther than this from its target: infeasible [m]
     gaze_tolerance_m: Tolerance = 0.02  # target point farther than this from the gaze axis: infeasible [m]
+    # wall-clock planning budget [s] (<= 60); None: the service's time_budget_s. Past it: ``timeout``
+    # with the stage reached (``details.stage``, ``knots_done``, ``knots``).
+    time_budget_s: Budget | None = None
 
 
 class StepTiming(msgspec.Struct, kw_only=True, frozen=True):
@@ -178,7 +182,7 @@ REASON_NO_ROOM_TO_TURN = "no_room_to_turn"  # a box nearer than turn_room_m to t
 REASON_OUT_OF_BOUNDS = "out_of_bounds"  # no count of steps fits the robot's stepping bounds
 
 
-class GoalRequest(msgspec.Struct, kw_only=True, frozen=True):
+class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Walk to a goal relative to the stance now; the walking planner makes the footsteps itself (each as
     long as the robot's stepping bounds allow), checks them against ``obstacles`` and plans the walk.
 
@@ -210,6 +214,7 @@ class GoalRequest(msgspec.Struct, kw_only=True, frozen=True):
     turn_room_m: Size = 0.3
     single_support_s: Phase = 0.8
     double_support_s: Phase = 0.3  # 0.1 tipped the simulated robot over in about half of the 60-90 deg turns
+    time_budget_s: Budget | None = None  # as PlanRequest.time_budget_s [s]
 
 
 GOAL = EndpointSpec(
