@@ -148,6 +148,35 @@ def test_without_stepping_a_far_target_is_infeasible(robot):
     assert info.value.details["criterion"] in CRITERIA
 
 
+def test_without_stepping_the_manipulability_trigger_does_not_veto_a_reachable_target():
+    """Paper 001, Fig. 4: a manipulability below its threshold triggers the reshaping of the support
+    polygon. With stepping not allowed there is nothing to reshape: a target the hand reaches with every
+    other criterion in range is planned on the current polygon (the trigger's violation kept in the
+    attempts), while with stepping allowed the same trigger still reshapes."""
+    robot = load_robot("hrp2_like")
+    target = (0.6, 0.3, 0.7)  # forward and low: the arm stretches on the way
+    free = plan_reach(robot, _request(robot, target))
+    w = free.monitors.manipulability
+    assert w.min() < 0.5 * w[0]
+    # A threshold between the manipulability at the start and the lowest of that motion: the trigger
+    # fires on the way, not at the start.
+    options = ReachingOptions(manipulability_threshold=float(np.sqrt(w.min() * w[0])))
+    kept = plan_reach(robot, _request(robot, target, allow_stepping=False), options)
+    assert not kept.stepped and np.all(kept.phase == DOUBLE)
+    assert [a.kind for a in kept.attempts] == ["no_step", "no_step"]
+    assert kept.attempts[0].violation.criterion == "manipulability"
+    assert kept.attempts[-1].violation is None
+    assert kept.monitors.manipulability.min() < kept.thresholds.manipulability
+    assert kept.monitors.ee_error_m.max() <= kept.thresholds.ee_error_m
+    assert kept.hand_error_m < 1e-4 and kept.min_zmp_margin_m > 0.0
+    try:  # with stepping allowed the trigger reshapes the support polygon (or the reshapings fail)
+        stepping = plan_reach(robot, _request(robot, target), options)
+    except InfeasibleError as exc:
+        assert "reshaping" in exc.message and exc.details["criterion"] in CRITERIA
+    else:
+        assert stepping.stepped and stepping.attempts[0].violation.criterion == "manipulability"
+
+
 def test_hand_orientation_is_reached_when_asked():
     robot = load_robot("hrp2_like")
     target = WITHIN_REACH[robot.name]

@@ -36,7 +36,7 @@ from services.model.ground import sole_pose_at
 from services.reaching.envelope import ReachEnvelope, measure_envelope
 from services.reaching.monitors import MonitorSeries, Violation
 from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
-from services.reaching.options import ReachingOptions
+from services.reaching.options import CRITERIA, ReachingOptions
 from services.reaching.references import body_frame_path, body_frame_rotations, minimum_jerk
 from services.reaching.request import ReachRequest
 from services.reaching.result import Attempt, ReachResult
@@ -55,6 +55,10 @@ from services.walking.zmp_reference import smoothstep5
 REACH_MARGIN_M = 0.05
 SINGLE_STEP_MAX_BEARING_RAD = 0.6
 WALK_MARGIN_M = 0.12
+# Criteria that only trigger the reshaping of the support polygon (paper 001, Fig. 4): with stepping
+# disallowed they do not veto a motion that meets every other criterion (``ReachPlanner._without_trigger``).
+TRIGGER_ONLY = ("manipulability",)
+NOT_TRIGGER_ONLY = tuple(c for c in CRITERIA if c not in TRIGGER_ONLY)
 # Fade-in of the second preview stage's ZMP error at the start of a motion without a standing lead-in [s].
 CORRECTION_FADE_IN_S = 0.4
 
@@ -123,6 +127,9 @@ class ReachPlanner:
                 violation = _no_zmp(exc, spec0)
         attempts.append(Attempt("no_step", 0, violation, track0.wall_time_s))
         if not req.allow_stepping:
+            kept = self._without_trigger(req, spec0, violation, attempts, t0)
+            if kept is not None:
+                return kept
             raise self._infeasible(req, violation, "stepping is not allowed (allow_stepping=false)")
 
         candidates = self._reshapings(req, left, right)
@@ -174,6 +181,40 @@ class ReachPlanner:
             + ", ".join(f"{p.kind}: {p.n_steps} steps" for p in candidates)
             + ")",
         )
+
+    def _without_trigger(
+        self,
+        req: ReachRequest,
+        spec0: MotionSpec,
+        violation: Violation,
+        attempts: list[Attempt],
+        t0: float,
+    ) -> ReachResult | None:
+        """The motion on the current support polygon when stepping is not allowed and only the arm's
+        manipulability left its range (``TRIGGER_ONLY``), or None.
+
+        In the paper (Fig. 4, "Task-driven Support Polygon Reshaping") a low manipulability is the
+        trigger that decides *when to reshape the support polygon*: the motion is discarded because a
+        step would make it better, not because the hand cannot follow it. With stepping disallowed there
+        is nothing to reshape, so the trigger must not veto a target the hand reaches: the motion is
+        computed again to its end without that trigger and kept when every other criterion of
+        :data:`CRITERIA` stays in its range (``NOT_TRIGGER_ONLY``, whether the robot's options monitor
+        it or not): the end-effector error (the hand follows its reference within ``ee_error_m`` at
+        every knot: the target is within reach), the arm's joint speeds (near a singular posture they
+        grow without bound), joint limits and static torques, and the multibody ZMP. The result's
+        ``attempts`` keep the trigger's violation on the first (discarded) computation.
+        """
+        if violation.criterion not in TRIGGER_ONLY:
+            return None
+        track = self.tracker.track(spec0, req.q_start, req.hand, criteria=NOT_TRIGGER_ONLY)
+        if track.violation is not None:
+            return None
+        kept = [*attempts, Attempt("no_step", 0, None, track.wall_time_s)]
+        try:
+            return self._finish(req, spec0, track, None, track, kept, t0, criteria=NOT_TRIGGER_ONLY)
+        except InfeasibleError as exc:
+            _no_zmp(exc, spec0)  # raised again unless it is the multibody ZMP's
+            return None
 
     def _pattern(self, req: ReachRequest, plan: StepPlan, timing: WalkTiming) -> WalkPattern:
         """The pattern generator's CoM, ZMP and soles for the steps of ``plan`` (first stage)."""
@@ -315,8 +356,11 @@ class ReachPlanner:
         track0: TrackResult,
         attempts: list[Attempt],
         t0: float,
+        *,
+        criteria: tuple[str, ...] | None = None,
     ) -> ReachResult:
-        """Multibody ZMP check (second preview stage where needed), foot slide, the result."""
+        """Multibody ZMP check (second preview stage where needed), foot slide, the result; ``criteria``:
+        those monitored when the motion is computed again (None: the options'; see ``_without_trigger``)."""
         robot, opt = self.robot, self.options
         q = track.q
         if q is None:
@@ -326,7 +370,9 @@ class ReachPlanner:
         kept = [track]
 
         def retrack(com_offset_xy_m: np.ndarray) -> np.ndarray | None:
-            candidate = self.tracker.track(spec, req.q_start, req.hand, com_offset_xy_m=com_offset_xy_m)
+            candidate = self.tracker.track(
+                spec, req.q_start, req.hand, com_offset_xy_m=com_offset_xy_m, criteria=criteria
+            )
             if candidate.violation is not None:
                 return None
             kept.append(candidate)

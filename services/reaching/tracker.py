@@ -235,17 +235,19 @@ class ReachTracker:
         *,
         stop_at_violation: bool = True,
         com_offset_xy_m: np.ndarray | None = None,
+        criteria: tuple[str, ...] | None = None,
     ) -> TrackResult:
         """Whole-body motion of ``spec`` from ``q_start`` (full model) reaching with ``hand``.
 
         ``com_offset_xy_m`` (n, 2) is added to the CoM reference (second preview stage corrections).
         With ``stop_at_violation`` the computation stops at the first criterion out of range (Fig. 4)
-        and returns no trajectory.
+        and returns no trajectory. ``criteria``: the criteria monitored (None: the options'); all
+        are recorded in ``monitors``.
         """
         t0 = time.perf_counter()
         opt = self.options
         limits = opt.thresholds(self.robot)
-        criteria = opt.criteria_for(self.robot)
+        criteria = opt.criteria_for(self.robot) if criteria is None else criteria
         n = spec.n_samples
         knots = list(range(0, n, opt.knot_stride))
         if knots[-1] != n - 1:
