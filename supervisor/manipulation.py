@@ -266,7 +266,20 @@ class ManipulationActions:
             return
         self.body.straighten()  # the walk is planned from the posture it starts in
         x, y, yaw = self.body.base_xy_yaw()
-        for turn in turns_clear_of(point, (x, y), near, c.felt_clear_deg, c.felt_turns_deg):
+        turns = turns_clear_of(point, (x, y), near, c.felt_clear_deg, c.felt_turns_deg)
+        if not turns:
+            bearing = math.atan2(point[1] - y, point[0] - x)
+            # Which side of the approach they lie (+ left), for the transcript: a point beside the hand's
+            # wrist (about +-90 deg) is touched whatever the turn (fetch seed 37).
+            off = [
+                math.remainder(math.atan2(f[1] - point[1], f[0] - point[0]) - bearing, math.tau) for f in near
+            ]
+            self.progress(
+                f"{what}: {len(near)} point(s) felt near it, "
+                + ", ".join(f"{math.degrees(a):+.0f}" for a in off)
+                + " deg off the approach (+ left): no turn clears them"
+            )
+        for turn in turns:
             # The stance rotated about the point by ``turn``: same distance, same offset to the side.
             cos_t, sin_t = math.cos(turn), math.sin(turn)
             dx, dy = x - point[0], y - point[1]
