@@ -130,7 +130,12 @@ class ReachPlanner:
             kept = self._without_trigger(req, spec0, violation, attempts, t0)
             if kept is not None:
                 return kept
-            raise self._infeasible(req, violation, "stepping is not allowed (allow_stepping=false)")
+            why = "stepping is not allowed (allow_stepping=false)"
+            if len(attempts) > 1:  # computed again without the trigger: what failed then
+                other = attempts[-1].violation
+                if other is not None:
+                    why += f"; without that trigger, '{other.criterion}' failed ({other.describe()})"
+            raise self._infeasible(req, violation, why)
 
         candidates = self._reshapings(req, left, right)
         if not candidates:
@@ -202,18 +207,20 @@ class ReachPlanner:
         it or not): the end-effector error (the hand follows its reference within ``ee_error_m`` at
         every knot: the target is within reach), the arm's joint speeds (near a singular posture they
         grow without bound), joint limits and static torques, and the multibody ZMP. The result's
-        ``attempts`` keep the trigger's violation on the first (discarded) computation.
+        ``attempts`` keep the trigger's violation on the first (discarded) computation; when the second
+        is discarded too, its violation is appended to ``attempts`` (the refusal names it).
         """
         if violation.criterion not in TRIGGER_ONLY:
             return None
         track = self.tracker.track(spec0, req.q_start, req.hand, criteria=NOT_TRIGGER_ONLY)
         if track.violation is not None:
+            attempts.append(Attempt("no_step", 0, track.violation, track.wall_time_s))
             return None
         kept = [*attempts, Attempt("no_step", 0, None, track.wall_time_s)]
         try:
             return self._finish(req, spec0, track, None, track, kept, t0, criteria=NOT_TRIGGER_ONLY)
         except InfeasibleError as exc:
-            _no_zmp(exc, spec0)  # raised again unless it is the multibody ZMP's
+            attempts.append(Attempt("no_step", 0, _no_zmp(exc, spec0), track.wall_time_s))
             return None
 
     def _pattern(self, req: ReachRequest, plan: StepPlan, timing: WalkTiming) -> WalkPattern:
