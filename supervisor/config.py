@@ -38,7 +38,10 @@ class SupervisorConfig:
             the end of the approach) for the last steps, within last_steps_max steps and
             last_steps_budget_s of planning, and walk them (reaching still steps if the object moved);
             last_steps_posture: reaching then brings the hand above the object turned as in the final
-            posture footsteps/plan planned with those steps (position only where reaching refuses it);
+            posture footsteps/plan planned with those steps (position only where reaching refuses it).
+            Off by default: with reaching's paper trigger (the arm's whole-Jacobian manipulability)
+            the reach above in that orientation walked 4 steps and the lowering that followed was
+            refused (tests/test_supervisor_fetch.py's console grasp and walking-kill fetch failed);
         back_off_m: after a collision, the touching hand moves this far back and up;
         put_height_m: the object is brought this high above the estimated top of the place, then
             lowered until it touches; put_highest_m, put_lowest_m: bounds of a place's top height (the
@@ -83,7 +86,7 @@ class SupervisorConfig:
     last_steps: bool = True
     last_steps_max: int = 6
     last_steps_budget_s: float = 5.0
-    last_steps_posture: bool = True
+    last_steps_posture: bool = False
     back_off_m: float = 0.08
     put_height_m: float = 0.12
     put_highest_m: float = 0.95
