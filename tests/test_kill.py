@@ -20,7 +20,7 @@ import signal
 import threading
 
 import pytest
-from conftest import free_port
+from conftest import free_port, run_in_thread
 
 from services.bus.config import BusConfig
 from supervisor.core import Supervisor
@@ -44,16 +44,6 @@ def stack(tmp_path_factory):
         yield launcher, sup
 
 
-def _in_thread(fn, timeout_s: float = HANG_S):
-    """``fn()`` on a thread; its result, or fail when it hangs past ``timeout_s``."""
-    out: list = []
-    thread = threading.Thread(target=lambda: out.append(fn()), daemon=True)
-    thread.start()
-    thread.join(timeout_s)
-    assert not thread.is_alive(), f"still running after {timeout_s:.0f} s: the supervisor hangs"
-    return out[0]
-
-
 def _run_killing(launcher, sup: Supervisor, victim: str, run, path: str = "") -> tuple[object, int]:
     """``run()`` while ``victim`` is SIGKILLed as the supervisor's first request to it (to its endpoint
     ``path`` if given) goes out: the kill lands before the request can be served. ``run``'s result and
@@ -69,7 +59,7 @@ def _run_killing(launcher, sup: Supervisor, victim: str, run, path: str = "") ->
 
     sup.bus.on_call = kill_on_first_call
     try:
-        result = _in_thread(run)
+        result = run_in_thread(run, HANG_S)
     finally:
         sup.bus.on_call = None
     assert killed.is_set(), f"the action never called {victim}"

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import free_port
+from conftest import free_port, run_in_thread
 
 from services.bus.config import BusConfig
 from services.bus.schemas import footsteps as fs_msg
@@ -48,16 +48,6 @@ def _ground_truth(sup: Supervisor) -> sim_msg.GroundTruthReply:
     return sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
 
 
-def _run_in_thread(fn, timeout_s: float):
-    """Run ``fn`` on a thread; its result, or fail if it hangs past ``timeout_s`` (a hang guard only)."""
-    out: list = []
-    thread = threading.Thread(target=lambda: out.append(fn()), daemon=True)
-    thread.start()
-    thread.join(timeout_s)
-    assert not thread.is_alive(), f"still running after {timeout_s:.0f} s: the supervisor hangs"
-    return out[0]
-
-
 def test_fetch_succeeds_when_walking_is_killed_during_the_turn(stack, tmp_path) -> None:
     """The fetch script in the demo scene puts the ball on the table, although the walking service is
     killed (SIGKILL) while it plans the turn: the launcher restarts it, the supervisor reports the
@@ -86,7 +76,7 @@ def test_fetch_succeeds_when_walking_is_killed_during_the_turn(stack, tmp_path) 
     sup.bus.on_call = kill_during_walking_plan
     start_ns = time.time_ns()
     try:
-        summary, report = _run_in_thread(lambda: fetch(sup, snapshot=tmp_path / "final.png"), 500)
+        summary, report = run_in_thread(lambda: fetch(sup, snapshot=tmp_path / "final.png"), 500)
     finally:
         sup.runner.on_event = original
         sup.bus.on_call = None
@@ -129,7 +119,7 @@ def test_console_takes_the_orange_ball(stack) -> None:
 
 def test_without_the_ball_the_robot_looks_around_and_reports_not_found(stack, tmp_path) -> None:
     _launcher, sup = stack
-    summary, report = _run_in_thread(lambda: fetch(sup, scene="ball_fetch_no_ball"), 400)
+    summary, report = run_in_thread(lambda: fetch(sup, scene="ball_fetch_no_ball"), 400)
     assert not summary.ok
     failure = report.failure
     assert failure.action == "localize" and failure.args == ("orange_ball",)
