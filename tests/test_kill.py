@@ -23,6 +23,7 @@ import pytest
 from conftest import free_port, run_in_thread
 
 from services.bus.config import BusConfig
+from services.bus.schemas.supervisor import REASON_WORLD_LOST
 from supervisor.core import Supervisor
 from supervisor.fetch import reset_scene, running_stack
 from supervisor.runner import RunReport
@@ -125,5 +126,6 @@ def test_sim_killed_mid_fetch_ends_it_saying_the_world_was_lost(stack) -> None:
     assert failure is not None and failure.action == "turn", [r.summary() for r in report.reports]
     # ...but the fetch did not go on in its empty world: it failed, saying why
     assert failure.reason == "unavailable" and "the simulation is gone" in failure.message, failure.summary()
-    assert failure.details.get("reason") == "world_lost"
+    assert failure.details.get("reason") == REASON_WORLD_LOST
+    assert failure.attempts == 1, failure.summary()  # final: not retried (each retry would fail at once)
     assert len(report.reports) == 1
