@@ -44,12 +44,18 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from services import budget
 from services.bus.schemas.perception import REASON_NO_DISPARITY, REASON_STEREO_MISMATCH
 from services.errors import InvalidRequestError, NotFoundError
 from vision.camera import StereoRig, transform_points
 from vision.camshift import Window
 
 METHODS = ("centroid", "bm", "sgbm", "edges")
+#: A dense-stereo crop of more cells (rows x columns x disparities) than this is matched in bands of rows,
+#: with the request's time budget checked between them (:func:`_compute_in_bands`).
+BAND_CELLS = 40_000_000
+#: Rows above a band that SGBM aggregates its paths from before the band's own rows.
+SGBM_CONTEXT_ROWS = 64
 
 
 @dataclass(frozen=True)
@@ -197,7 +203,10 @@ def dense_disparity_median(
     crop_l = cv2.copyMakeBorder(left_gray[r0:r1, c0:c1], 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)
     crop_r = cv2.copyMakeBorder(right_gray[r0:r1, c0:c1], 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)
     c0 -= pad
-    disp16 = _matcher(method, min_disp, num_disp, config).compute(crop_l, crop_r)
+    matcher = _matcher(method, min_disp, num_disp, config)
+    rows = (y - r0, y - r0 + h)  # the window's rows in the crop
+    context = (half + (SGBM_CONTEXT_ROWS if method == "sgbm" else 0), half)
+    disp16 = _compute_in_bands(matcher, crop_l, crop_r, rows, context, num_disp, method)
     disp = disp16[y - r0 : y - r0 + h, x - c0 : x - c0 + w].astype(np.float32) / 16.0
     valid = object_mask & (disp >= min_disp) & (disp > 0)
     n_valid = int(np.count_nonzero(valid))
@@ -209,6 +218,41 @@ def dense_disparity_median(
             {"reason": REASON_NO_DISPARITY},
         )
     return float(np.median(disp[valid])), n_valid
+
+
+def _compute_in_bands(
+    matcher: cv2.StereoMatcher,
+    crop_l: np.ndarray,
+    crop_r: np.ndarray,
+    rows: tuple[int, int],
+    context: tuple[int, int],
+    num_disp: int,
+    method: str,
+) -> np.ndarray:
+    """The matcher's 16x fixed-point disparities of the crop (valid on ``rows`` = [first, end) of it).
+
+    A crop of at most ``BAND_CELLS`` cells (rows x columns x disparities) is matched at once, as it
+    always was. A larger one (a 2048 px image: seconds of SGBM, which cannot be interrupted) is matched
+    in bands of rows, each with ``context`` = (rows above, rows below) of the crop around it, and the
+    request's time budget (:mod:`services.budget`) is checked before each band: a typed ``timeout``
+    within one band's time of the budget (issue 16). StereoBM is local (a block's rows: the same
+    disparities band by band); SGBM's single-pass paths come from above (left, right, and the three
+    from the rows above), so each band starts ``SGBM_CONTEXT_ROWS`` above its rows, where the costs
+    aggregated from further up no longer change the chosen disparities (``tests/test_vision_stereo.py``).
+    """
+    height, width = crop_l.shape[:2]
+    per_row = width * num_disp
+    if height * per_row <= BAND_CELLS:
+        return matcher.compute(crop_l, crop_r)
+    band = max(8, BAND_CELLS // per_row - context[0] - context[1])
+    out = np.zeros((height, width), dtype=np.int16)
+    first, end = rows
+    for start in range(first, end, band):
+        stop = min(end, start + band)
+        budget.check(f"the dense stereo ({method}), rows {start - first} to {stop - first} of {end - first}")
+        lo, hi = max(0, start - context[0]), min(height, stop + context[1])
+        out[start:stop] = matcher.compute(crop_l[lo:hi], crop_r[lo:hi])[start - lo : stop - lo]
+    return out
 
 
 def silhouette_rows(silhouette: np.ndarray, window: Window) -> dict[int, tuple[int, int]]:
