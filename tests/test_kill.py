@@ -127,5 +127,7 @@ def test_sim_killed_mid_fetch_ends_it_saying_the_world_was_lost(stack) -> None:
     # ...but the fetch did not go on in its empty world: it failed, saying why
     assert failure.reason == "unavailable" and "the simulation is gone" in failure.message, failure.summary()
     assert failure.details.get("reason") == REASON_WORLD_LOST
-    assert failure.attempts == 1, failure.summary()  # final: not retried (each retry would fail at once)
+    # the attempt the sim died under fails as any service's death does (retried: a planner comes back
+    # whole); the next finds the world lost, which is final (it used to be retried 3 times more)
+    assert failure.attempts <= 2, failure.summary()
     assert len(report.reports) == 1
