@@ -11,7 +11,7 @@ of the same endpoint must get a typed answer (the endpoint serves again).
 Writes ``bench/out/budgets.json``: one row per (case, budget), ``max_overrun_s``, ``within_1s`` (rows
 whose reply came within budget + 1 s) and the load averages.
 
-Usage: scripts/bench budgets [--budgets 0.1,3,20] [--services walking,...,contacts] [--log-dir DIR]
+Usage: scripts/bench budgets [--budgets 0.1,1,3,20] [--services walking,...,contacts] [--log-dir DIR]
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def _free_port() -> int:
 
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="scripts/bench budgets", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--budgets", default="0.1,3,20", help="budgets [s], comma-separated (0.1,3,20)")
+    parser.add_argument("--budgets", default="0.1,1,3,20", help="budgets [s], comma-separated (0.1,1,3,20)")
     parser.add_argument("--services", default="", help="comma-separated planners (default: all of them)")
     parser.add_argument("--log-dir", default="bench/out/budgets-logs", help="services' output")
     parser.add_argument("--out", default=str(OUT), help="JSON output file")
@@ -50,6 +50,7 @@ def main(argv: list[str]) -> int:
     from fuzzing import reference_q
 
     from services.bus.config import BusConfig
+    from services.bus.schemas import sim
     from services.bus.session import Client, open_session
     from services.errors import HumanoidError
     from supervisor.fetch import running_stack
@@ -68,6 +69,7 @@ def main(argv: list[str]) -> int:
         try:
             client = Client(session, bus.robot)
             client.wait_for(["sim", *planners], 120.0)
+            client.call(sim.RESET, sim.ResetRequest(scene="ball_fetch"), 120.0)  # green_box in view
             q = np.array(reference_q(session, bus.robot))
             print(f"{'case':34s} {'budget s':>9s} {'reply s':>8s} {'overrun s':>9s}  code       load")
             for service in planners:
