@@ -47,7 +47,8 @@ class ReachEnvelope:
         self._measure = measure
         self._measured: dict[int, tuple[float, float]] = {}
 
-    def _grid(self, i: int) -> tuple[float, float]:
+    def grid(self, i: int) -> tuple[float, float]:
+        """(reach [m], probe [m]) at the grid height ``heights_m[i]`` (measured at the first call)."""
         if i not in self._measured:
             self._measured[i] = self._measure(float(self.heights_m[i]))
         return self._measured[i]
@@ -57,17 +58,17 @@ class ReachEnvelope:
         h = self.heights_m
         i = int(np.clip(np.searchsorted(h, height_m), 1, len(h) - 1))
         a = float(np.clip((height_m - h[i - 1]) / (h[i] - h[i - 1]), 0.0, 1.0))
-        return (1.0 - a) * self._grid(i - 1)[0] + a * self._grid(i)[0]
+        return (1.0 - a) * self.grid(i - 1)[0] + a * self.grid(i)[0]
 
     @property
     def reach_m(self) -> np.ndarray:
         """The reach [m] at every grid height (measures those not measured yet)."""
-        return np.array([self._grid(i)[0] for i in range(len(self.heights_m))])
+        return np.array([self.grid(i)[0] for i in range(len(self.heights_m))])
 
     @property
     def probe_m(self) -> np.ndarray:
         """The probes' upper bounds [m] at every grid height (measures those not measured yet)."""
-        return np.array([self._grid(i)[1] for i in range(len(self.heights_m))])
+        return np.array([self.grid(i)[1] for i in range(len(self.heights_m))])
 
 
 def _probe(tracker: ReachTracker, hand: str, target: np.ndarray) -> float:
