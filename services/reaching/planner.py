@@ -59,6 +59,7 @@ SINGLE_STEP_WIDE_RAD = 1.0
 SINGLE_STEP_MAX_INWARD_RAD = 0.6
 SINGLE_STEP_GOOD_MARGIN_M = 0.05  # margins beyond this are equally good: the facing decides
 WALK_MARGIN_M = 0.12
+LOW_TARGET_REACH_RATIO = 0.8
 # Criteria that only trigger the reshaping of the support polygon (paper 001, Fig. 4): with stepping
 # disallowed they do not veto a motion that meets every other criterion (``ReachPlanner._without_trigger``).
 TRIGGER_ONLY = ("manipulability",)
@@ -266,7 +267,9 @@ class ReachPlanner:
         support, opt = self.support, self.options
         target = req.target_world_m
         reach = self.envelope(req.hand).at(float(target[2]))
-        comfort_m = support.comfort_reach_m[req.hand]
+        # The comfort stance, but no farther than LOW_TARGET_REACH_RATIO of the reach (low targets: the
+        # arm's comfort distance may be beyond the whole body's reach at that height).
+        comfort_m = min(support.comfort_reach_m[req.hand], LOW_TARGET_REACH_RATIO * reach)
         plans: list[StepPlan] = []
         near = support.comfort_stance(
             left, right, target, req.hand, reach_m=max(comfort_m, reach - WALK_MARGIN_M)
@@ -274,7 +277,7 @@ class ReachPlanner:
         single = self._single_step(req, left, right, reach)
         if single is not None:
             plans.append(single)
-        for goal in (near, support.comfort_stance(left, right, target, req.hand)):
+        for goal in (near, support.comfort_stance(left, right, target, req.hand, reach_m=comfort_m)):
             walk = support.walk(left, right, goal, req.hand, opt.max_steps)
             if walk is not None and all(walk.footsteps != p.footsteps for p in plans):
                 plans.append(walk)
