@@ -18,6 +18,7 @@ from services.model import load_robot
 from services.reaching import CRITERIA, ReachingOptions, ReachRequest, plan_reach
 from services.reaching.monitors import ArmMonitor
 from services.reaching.options import PAPER_CRITERIA
+from services.reaching.planner import planner_for
 from services.reaching.support_polygon import SupportPolygonPlanner
 from services.walking.footsteps import FootstepBounds, FootstepSequence, SolePose, validate_footsteps
 from services.walking.timing import DOUBLE, LEFT, RIGHT
@@ -242,6 +243,24 @@ def test_single_step_reshaping(name, target):
     assert len(result.footsteps) == 1 and result.footsteps[0].side == "left"
     assert result.footsteps[0].pose.yaw_rad > 0.1
     _check_plan(robot, result)
+
+
+def test_the_reach_envelope_is_what_the_no_step_motion_reaches_and_one_step_suffices_just_beyond():
+    """Fig. 5 needs to know where the task becomes feasible: the envelope straight ahead of the shoulder
+    is the farthest target the planner's own no-step motion reaches (a target 2 cm inside takes no step);
+    4 cm beyond it one step suffices and is the outcome (paper: one step towards the target)."""
+    robot = load_robot("hrp2_like")
+    planner = planner_for(robot.name, ReachingOptions())
+    sx, sy = planner.support.shoulder_in_mid["left"]
+    reach = planner.envelope("left").at(1.0)
+    assert planner.envelope("left").heights_m[3] == 1.0
+    assert 0.6 < reach < planner.envelope("left").grid(3)[1]  # the probe alone overestimates it
+    inside = plan_reach(robot, _request(robot, (sx + reach - 0.02, sy, 1.0)))
+    assert not inside.stepped
+    beyond = plan_reach(robot, _request(robot, (sx + reach + 0.04, sy, 1.0)))
+    assert [a.kind for a in beyond.attempts] == ["no_step", "single"]
+    assert beyond.attempts[0].violation.criterion in PAPER_CRITERIA
+    _check_plan(robot, beyond)
 
 
 def test_support_polygon_planner_faces_the_target_and_respects_the_bounds(robot):
