@@ -111,6 +111,23 @@ def test_the_approach_turns_clear_of_what_the_hand_felt():
     assert turns_clear_of(ball, robot, [np.array([3.0, 1.6, 0.75])], 60.0, (30.0,)) == []
 
 
+def test_a_lowered_ball_touching_only_an_edge_is_moved_toward_it():
+    """Fetch seed 5: the ball held 5 cm beyond the table's edge touched it on its side (70 deg off
+    straight below its centre): the top lies toward the contact; a contact under the ball is a ball
+    standing on the top (also with another contact on an edge beside it); no contact, no edge."""
+    from supervisor.manipulation import toward_edge
+
+    centre = np.array([2.48, -2.28, 0.737])
+    edge = np.array([2.467, -2.235, 0.72])  # 4.7 cm across, 1.7 cm below
+    inward = toward_edge(centre, [edge], 45.0)
+    assert inward is not None
+    assert inward == pytest.approx((edge[:2] - centre[:2]) / np.linalg.norm(edge[:2] - centre[:2]))
+    under = np.array([2.485, -2.28, 0.687])
+    assert toward_edge(centre, [under], 45.0) is None
+    assert toward_edge(centre, [edge, under], 45.0) is None
+    assert toward_edge(centre, [], 45.0) is None
+
+
 def test_requests_in_a_recorded_log_are_counted_per_window(tmp_path):
     """scripts/bench fetch counts footsteps/plan calls in the recorder's MCAP log, per fetch window:
     requests only (not replies, not other endpoints), by log time, also in a log still being written."""
