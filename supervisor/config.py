@@ -69,11 +69,17 @@ class SupervisorConfig:
             or end-effector criteria), position only; the other motions are position only. Off by
             default: in the fetch runs tried reaching refused it (an arm joint at 52-57 % of its
             velocity limit against 50 %; in two motions, its end-effector criterion).
+        turn_piece_deg: fingers down refused in one motion: in motions turning the hand by at most
+            this much [deg] each (at least two).
         felt_radius_m, felt_clear_deg, felt_turns_deg: a hand that touched something perception does
             not know (a ball beside the target: no model of it) within felt_radius_m of the next reach
             point makes the robot walk around that point by the smallest of felt_turns_deg [deg] that
             puts the touched points felt_clear_deg [deg] off its direction to the point (the fingers
-            point that way, past the object).
+            point that way, past the object); jaws_turns_deg: then (they can lie beside the wrist too:
+            fetch seed 37, where no walk around clears them) the hand goes down onto it fingers down (no
+            stepping), its yaw the heading turned by the one of jaws_turns_deg [deg] (either way)
+            that puts the touched points nearest the hand's x axis, clear of the jaws; where reaching
+            refuses that, as without it.
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
@@ -112,9 +118,11 @@ class SupervisorConfig:
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
     raise_ahead_m: float = 0.2
     upright_hand: bool = False
+    turn_piece_deg: float = 35.0
     felt_radius_m: float = 0.3
     felt_clear_deg: float = 60.0
     felt_turns_deg: tuple[float, ...] = (30.0, 45.0, 60.0)
+    jaws_turns_deg: tuple[float, ...] = (15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0

@@ -78,6 +78,26 @@ def toward_edge(centre: np.ndarray, contacts: list[np.ndarray], edge_deg: float)
     return sideways / norm if norm > 1e-9 else None
 
 
+def jaws_clear_of(
+    point: np.ndarray, felt: list[np.ndarray], heading_rad: float, turns_deg: tuple[float, ...]
+) -> float:
+    """The yaw [rad] (world) of a fingers-down hand at ``point`` [m] whose jaws stay clearest of the
+    ``felt`` points [m]: the jaws close along the hand's y axis, its fingers are thin plates across
+    it, so a neighbour along the hand's x axis (ahead of or behind the plates) is clear of them. Among
+    ``heading_rad`` turned by each of ``turns_deg`` [deg] (both ways; 0 included), the one whose
+    largest angle between a felt point's direction from ``point`` and the x axis line is smallest,
+    the least turned among equals."""
+    candidates = sorted({0.0, *(math.radians(d) * sign for d in turns_deg for sign in (1.0, -1.0))}, key=abs)
+
+    def worst(yaw: float) -> float:
+        return max(
+            abs(math.remainder(math.atan2(f[1] - point[1], f[0] - point[0]) - yaw, math.pi)) for f in felt
+        )
+
+    best = min(candidates, key=lambda turn: (round(worst(heading_rad + turn), 6), abs(turn)))
+    return math.remainder(heading_rad + best, math.tau)
+
+
 class ManipulationActions:
     """The manipulation actions (a part of :class:`supervisor.actions.Actions`)."""
 
@@ -147,34 +167,45 @@ class ManipulationActions:
         yaw_rad: float,
         refused: HumanoidError,
     ) -> int | None:
-        """Fingers down at ``point`` in two motions when one was refused (the wrist turning too fast
-        for reaching's joint-speed criterion in one motion's time): to half way, turned half way (a
-        slerp of the hand's orientation now and the upright one), then to ``point``, upright; no
-        stepping. None when reaching refuses either (the caller then goes on, position only, from
-        where the hand is)."""
+        """Fingers down at ``point`` in several motions when one was refused (the wrist turning too
+        fast for reaching's criteria in one motion's time): k - 1 motions along the straight line to
+        ``point``, each turning the hand by at most ``turn_piece_deg`` (a slerp of the hand's
+        orientation now and the upright one), then to ``point``, upright; no stepping. None when
+        reaching refuses one (the caller then goes on, position only, from where the hand is)."""
         robot = self.body.robot
         q = self.body.q()
         here = robot.frame_pose(q, robot.grasp_frame(hand))
         rotations = Rotation.from_matrix(
             np.stack([here.rotation, Rotation.from_euler("z", yaw_rad).as_matrix()])
         )
-        half = Slerp([0.0, 1.0], rotations)(0.5).as_quat().tolist()
-        middle = 0.5 * (np.asarray(here.translation) + point)
+        angle = float((rotations[0].inv() * rotations[1]).magnitude())
+        k = max(2, math.ceil(math.degrees(angle) / self.config.turn_piece_deg))
+        slerp = Slerp([0.0, 1.0], rotations)
+        start = np.asarray(here.translation, dtype=float)
+        for i in range(1, k):
+            f = i / k
+            try:
+                plan = self.planners.reach(
+                    hand,
+                    start + f * (point - start),
+                    orientation=slerp(f).as_quat().tolist(),
+                    allow_stepping=False,
+                )
+            except InfeasibleError as exc:
+                self.progress(
+                    f"{what}: fingers down refused ({refused.message}; in {k} motions of "
+                    f"{math.degrees(angle) / k:.0f} deg, motion {i}: {exc.message}); any orientation then"
+                )
+                return None
+            self._play(plan, f"{what}: turning the hand, {i} of {k}", allowed)
         try:
-            first = self.planners.reach(hand, middle, orientation=half, allow_stepping=False)
+            last = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
         except InfeasibleError as exc:
             self.progress(
-                f"{what}: fingers down refused ({refused.message}; in two motions: {exc.message}); "
-                "any orientation then"
+                f"{what}: fingers down refused in the last of {k} motions ({exc.message}); any orientation"
             )
             return None
-        self._play(first, f"{what}: turning the hand half way", allowed)
-        try:
-            second = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
-        except InfeasibleError as exc:
-            self.progress(f"{what}: fingers down refused after half way ({exc.message}); any orientation")
-            return None
-        return self._play(second, what, allowed)
+        return self._play(last, what, allowed)
 
     def _raise_hand(self, hand: str, height_m: float, what: str, *, allowed: list[str]) -> None:
         """Raise the hand in front of the body to ``height_m`` before moving it forward: the reaching
@@ -221,8 +252,12 @@ class ManipulationActions:
         yaw = self._heading()
         point = self._grasp_point(hand, target, yaw)
         allowed = [target, *self._support(target)] if parse_point(target, 3, "reach target") is None else []
+        # Walked around what the hand felt ahead of the fingers, then fingers down, the jaws' yaw clear
+        # of it (it can be beside the wrist too: fetch seed 37).
         self._clear_of_felt(point, f"step around {target}")
-        yaw = self._heading()
+        near = self._felt_near(point)
+        jaws = jaws_clear_of(point, near, self._heading(), self.config.jaws_turns_deg) if near else None
+        yaw = self._heading() if jaws is None else jaws
         point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
         # The paper's task: the hand on the object (its final posture is then the grasp posture, which
@@ -242,7 +277,7 @@ class ManipulationActions:
                 self.eyes.look_at(self.memory.get(target).position_m, f"look at {target}")
                 with contextlib.suppress(NotFoundError):
                     self.eyes.locate(target)
-            yaw = self._heading()
+            yaw = self._heading() if jaws is None else jaws
             point = self._grasp_point(hand, target, yaw)
             above = point + np.array([0.0, 0.0, self.config.approach_m])
         self._raise_hand(hand, float(above[2]), f"raise the {hand} hand", allowed=[])
@@ -251,15 +286,21 @@ class ManipulationActions:
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
         final = self._final_hand(decided)
-        steps = self._as_planned(hand, above, f"reach above {target}", [], final)
+        steps = None if jaws is None else self._fingers_down(hand, above, f"reach above {target}", jaws)
+        if steps is None:
+            steps = self._as_planned(hand, above, f"reach above {target}", [], final)
         if steps is None:
             steps = self._move_hand(
                 hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
             )
-        yaw = self._heading()  # the steps may have turned the robot
-        point = self._grasp_point(hand, target, yaw)
-        upright = Rotation.from_euler("z", yaw).as_quat().tolist() if self.config.upright_hand else None
+        upright = None
+        if jaws is not None or self.config.upright_hand:
+            upright = Rotation.from_euler("z", self._heading() if jaws is None else jaws).as_quat().tolist()
         keep = next((quat for quat in (final, upright) if quat and self._hand_at(hand, quat)), None)
+        yaw = (
+            jaws if jaws is not None and keep is upright else self._heading()
+        )  # the steps may have turned it
+        point = self._grasp_point(hand, target, yaw)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
@@ -277,17 +318,32 @@ class ManipulationActions:
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
 
-    def _clear_of_felt(self, point: np.ndarray, what: str) -> None:
+    def _felt_near(self, point: np.ndarray) -> list[np.ndarray]:
+        """Memory's felt points within ``felt_radius_m`` of ``point`` (horizontally) [m]."""
+        radius = self.config.felt_radius_m
+        return [f for f in self.memory.felt if float(np.linalg.norm(f[:2] - point[:2])) < radius]
+
+    def _fingers_down(self, hand: str, point: np.ndarray, what: str, yaw_rad: float) -> int | None:
+        """The ``hand`` above ``point`` fingers down, turned by ``yaw_rad`` (its jaws clear of what it
+        felt: :func:`jaws_clear_of`), without stepping (in two motions when one is refused); the steps
+        taken (0), or None when reaching refuses it (the caller reaches as usual)."""
+        try:
+            plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
+        except InfeasibleError as exc:
+            return self._turn_hand_on_the_way(hand, point, what, [], yaw_rad, exc)
+        return self._play(plan, f"{what} (fingers down, the jaws clear of what the hand felt)", [])
+
+    def _clear_of_felt(self, point: np.ndarray, what: str) -> bool:
         """When a hand touched something unseen near ``point`` (memory's felt points, within
         ``felt_radius_m``): the fingers, which point from the robot over the object and past it, came
         down on it. Walk around ``point`` (``walking/goal``, checked against the map) by the smallest of
         ``felt_turns_deg`` that puts every such point at least ``felt_clear_deg`` off the direction
-        from the robot to ``point``; the last steps are then planned from there. Nothing to do when
-        none was felt near, or none of the stances is free."""
+        from the robot to ``point``; the last steps are then planned from there. Whether it walked
+        (nothing to do when none was felt near, none is ahead of the fingers, or no stance is free)."""
         c = self.config
-        near = [f for f in self.memory.felt if float(np.linalg.norm(f[:2] - point[:2])) < c.felt_radius_m]
+        near = self._felt_near(point)
         if not near:
-            return
+            return False
         self.body.straighten()  # the walk is planned from the posture it starts in
         x, y, yaw = self.body.base_xy_yaw()
         turns = turns_clear_of(point, (x, y), near, c.felt_clear_deg, c.felt_turns_deg)
@@ -320,7 +376,8 @@ class ManipulationActions:
                 f"deg around it ({plan.describe()})"
             )
             self.body.execute(plan.q, what=what, progress=self.progress)
-            return
+            return True
+        return False
 
     def _final_hand(self, decided: LastSteps | None) -> list[float] | None:
         """The grasp frame's world orientation in footsteps/plan's final posture ([qx, qy, qz, qw]), when

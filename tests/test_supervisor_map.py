@@ -111,6 +111,23 @@ def test_the_approach_turns_clear_of_what_the_hand_felt():
     assert turns_clear_of(ball, robot, [np.array([3.0, 1.6, 0.75])], 60.0, (30.0,)) == []
 
 
+def test_fingers_down_the_jaws_turn_clear_of_what_the_wrist_felt():
+    """Fetch seed 37: the wrist touched the ball beside the target at points 80-140 deg to the right
+    of the approach (no walk around the ball moves them out of the wrist's way): the fingers-down hand
+    is turned by 75 deg, the touched points then near its x axis (beside the plates of its fingers,
+    not between its jaws); nothing felt off the x axis: no turn."""
+    from supervisor.manipulation import jaws_clear_of
+
+    ball = np.array([3.635, 0.525, 0.75])
+    felt = [
+        ball + 0.06 * np.array([math.cos(a), math.sin(a), 0.0]) for a in np.radians([-80.0, -100.0, -140.0])
+    ]
+    turns = (15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
+    yaw = jaws_clear_of(ball, felt, 0.0, turns)
+    assert math.degrees(yaw) == pytest.approx(75.0)  # the x axis line at -105 deg: 25, 5, 35 deg off
+    assert jaws_clear_of(ball, [ball + np.array([0.1, 0.0, 0.0])], 0.0, turns) == pytest.approx(0.0)
+
+
 def test_a_lowered_ball_touching_only_an_edge_is_moved_toward_it():
     """Fetch seed 5: the ball held 5 cm beyond the table's edge touched it on its side (70 deg off
     straight below its centre): the top lies toward the contact; a contact under the ball is a ball
