@@ -430,9 +430,11 @@ def test_a_dense_stereo_past_the_request_budget_is_abandoned_with_a_typed_timeou
     config = LocalizeConfig(stereo=StereoConfig(method="sgbm", dense_full_frame=True))
     big_l, big_r = (cv2.resize(im.image_bgr, (1280, 960)) for im in (left, right))  # about 1 s of SGBM
     big_rig = StereoRig(CameraIntrinsics.from_hfov(1280, 960, math.radians(60.0)), RIG.baseline_m)
-    with pytest.raises(RequestTimeoutError, match=r"dense stereo \(sgbm.*abandoned") as err:
-        with budget.within(0.2):
-            locate(models["orange_ball"], big_l, big_r, big_rig, T, config)
+    with (
+        pytest.raises(RequestTimeoutError, match=r"dense stereo \(sgbm.*abandoned") as err,
+        budget.within(0.2),
+    ):
+        locate(models["orange_ball"], big_l, big_r, big_rig, T, config)
     assert err.value.details["budget_s"] == 0.2
     free = locate(models["orange_ball"], left.image_bgr, right.image_bgr, RIG, T, config)
     with budget.within(60.0):
