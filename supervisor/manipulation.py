@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from services.bus.schemas import walking as walk_msg
 from services.errors import (
+    CollisionError,
     HumanoidError,
     InfeasibleError,
     InvalidRequestError,
@@ -285,10 +286,10 @@ class ManipulationActions:
         # planner decided the stance and the posture together; reaching executes that hand pose), or,
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
-        final = self._final_hand(decided)
+        final = self._final_hand(decided, target)
         steps = None if jaws is None else self._fingers_down(hand, above, f"reach above {target}", jaws)
         if steps is None:
-            steps = self._as_planned(hand, above, f"reach above {target}", [], final)
+            steps = self._as_planned(hand, above, f"reach above {target}", [], final, target)
         if steps is None:
             steps = self._move_hand(
                 hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
@@ -379,15 +380,27 @@ class ManipulationActions:
             return True
         return False
 
-    def _final_hand(self, decided: LastSteps | None) -> list[float] | None:
+    def _final_hand(self, decided: LastSteps | None, target: str) -> list[float] | None:
         """The grasp frame's world orientation in footsteps/plan's final posture ([qx, qy, qz, qw]), when
-        it decided the last steps and ``last_steps_posture`` is on; else None."""
+        it decided the last steps and ``last_steps_posture`` is on, unless an approach to ``target`` in
+        that orientation touched something before (``Memory.posture_touched``); else None."""
         if decided is None or not self.config.last_steps_posture or not decided.hand_quat:
+            return None
+        if target in self.memory.posture_touched:
+            self.progress(
+                f"{target}: the hand as in footsteps/plan's final posture touched before: position only"
+            )
             return None
         return decided.hand_quat
 
     def _as_planned(
-        self, hand: str, point: np.ndarray, what: str, allowed: list[str], quat: list[float] | None
+        self,
+        hand: str,
+        point: np.ndarray,
+        what: str,
+        allowed: list[str],
+        quat: list[float] | None,
+        target: str,
     ) -> int | None:
         """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
         stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
@@ -402,7 +415,11 @@ class ManipulationActions:
         except InfeasibleError as exc:
             self.progress(f"{what}: the hand as in footsteps/plan's final posture refused ({exc.message})")
             return None
-        return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
+        try:
+            return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
+        except CollisionError:
+            self.memory.posture_touched.add(target)  # the retry approaches it position only
+            raise
 
     def _hand_at(self, hand: str, quat: list[float], tolerance_rad: float = 0.1) -> bool:
         """Whether the ``hand``'s grasp frame is within ``tolerance_rad`` of the world orientation
@@ -566,8 +583,8 @@ class ManipulationActions:
                 decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
-            final = self._final_hand(decided)
-            if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final) is None:
+            final = self._final_hand(decided, place)
+            if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final, place) is None:
                 self._move_hand(
                     hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
                 )
