@@ -37,10 +37,14 @@ class SupervisorConfig:
         last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
             the end of the approach) for the last steps, within last_steps_max steps and
             last_steps_budget_s of planning, and walk them (reaching still steps if the object moved);
-            last_steps_posture: reaching then brings the hand above the object (the object above the
-            place) turned as in the final posture footsteps/plan planned with those steps, without
-            stepping (the footstep planner decided the stance), and lowers it keeping that
-            orientation; where reaching refuses that, position only (stepping if it must);
+            last_steps_posture: the approaches ("grasp", "put") in which reaching then brings the hand
+            above the object (the held object above the place) turned as in the final posture
+            footsteps/plan planned with those steps, without stepping (the footstep planner decided
+            the stance), and lowers it keeping that orientation (position only where reaching refuses
+            it, or where such an approach to the object touched something before). The put only by
+            default: in the grasp that orientation brought the wrist or forearm onto the neighbouring
+            ball (or the target ball) on the way above it in fetch seeds 6 and 12, three times each,
+            where the position-only approach grasps (perception does not see the other balls);
         nearer_beyond_m, nearer_m: when footsteps/plan finds no last steps to a point farther than
             nearer_beyond_m from the robot, navigation first walks to nearer_m short of it, facing it
             (when that pose is not free: goto_distance_m from the face of the place, or of the
@@ -100,7 +104,7 @@ class SupervisorConfig:
     last_steps: bool = True
     last_steps_max: int = 6
     last_steps_budget_s: float = 5.0
-    last_steps_posture: bool = True
+    last_steps_posture: tuple[str, ...] = ("put",)
     nearer_beyond_m: float = 1.0
     nearer_m: float = 0.6
     back_off_m: float = 0.08
@@ -135,6 +139,11 @@ class SupervisorConfig:
         if self.near_m >= self.far_m:
             raise InvalidRequestError(
                 f"supervisor config: near_m ({self.near_m} m) must be below far_m ({self.far_m} m)"
+            )
+        unknown = set(self.last_steps_posture) - {"grasp", "put"}
+        if unknown:
+            raise InvalidRequestError(
+                f"supervisor config: last_steps_posture takes 'grasp' and 'put', got {sorted(unknown)}"
             )
         if len(self.carry_m) != 3:
             raise InvalidRequestError("supervisor config: carry_m must be [forward, lateral, height] m")

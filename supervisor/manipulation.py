@@ -241,10 +241,11 @@ class ManipulationActions:
 
         First the last steps, which footsteps/plan decides with the final posture for the hand on the
         target (paper 000 §7), then two motions of ``reaching/reach``: to ``approach_m`` above the
-        target, the hand turned as in footsteps/plan's final posture and without stepping (the footstep
-        planner decided the stance; ``last_steps_posture``), or, where reaching refuses that, position
-        only with support polygon reshaping (steps) when needed; then straight down onto it with the
-        object as an allowed contact, the hand keeping its orientation.
+        target, the hand turned as in footsteps/plan's final posture and without stepping (the
+        footstep planner decided the stance; "grasp" in ``last_steps_posture``), or (by default, or
+        where reaching refuses that) position only with support polygon reshaping (steps) when
+        needed; then straight down onto it with the object as an allowed contact, the hand keeping
+        its orientation.
         """
         hand, target = step.args
         self.last_reach = (hand, target)  # the reach under way (a remedy backs this hand off its target)
@@ -286,7 +287,7 @@ class ManipulationActions:
         # planner decided the stance and the posture together; reaching executes that hand pose), or,
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
-        final = self._final_hand(decided, target)
+        final = self._final_hand(decided, target, "grasp")
         steps = None if jaws is None else self._fingers_down(hand, above, f"reach above {target}", jaws)
         if steps is None:
             steps = self._as_planned(hand, above, f"reach above {target}", [], final, target)
@@ -380,11 +381,12 @@ class ManipulationActions:
             return True
         return False
 
-    def _final_hand(self, decided: LastSteps | None, target: str) -> list[float] | None:
+    def _final_hand(self, decided: LastSteps | None, target: str, approach: str) -> list[float] | None:
         """The grasp frame's world orientation in footsteps/plan's final posture ([qx, qy, qz, qw]), when
-        it decided the last steps and ``last_steps_posture`` is on, unless an approach to ``target`` in
-        that orientation touched something before (``Memory.posture_touched``); else None."""
-        if decided is None or not self.config.last_steps_posture or not decided.hand_quat:
+        it decided the last steps and ``approach`` ("grasp" or "put") is in ``last_steps_posture``,
+        unless an approach to ``target`` in that orientation touched something before
+        (``Memory.posture_touched``); else None."""
+        if decided is None or approach not in self.config.last_steps_posture or not decided.hand_quat:
             return None
         if target in self.memory.posture_touched:
             self.progress(
@@ -583,7 +585,7 @@ class ManipulationActions:
                 decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
-            final = self._final_hand(decided, place)
+            final = self._final_hand(decided, place, "put")
             if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final, place) is None:
                 self._move_hand(
                     hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
