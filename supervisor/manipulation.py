@@ -133,15 +133,15 @@ class ManipulationActions:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
         reaching refuses that (or ``config.upright_hand`` is off); ``orientation``: the grasp frame at
-        that world quaternion [qx, qy, qz, qw] (the hand of footsteps/plan's final posture), position
-        only when reaching refuses it; else position only."""
+        that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
+        posture, or fingers down), position only when reaching refuses it; else position only."""
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
                 plan = self.planners.reach(hand, point, orientation=orientation, allow_stepping=stepping)
             except InfeasibleError as exc:
-                self.progress(f"{what}: the hand as in the planned final posture refused ({exc.message})")
+                self.progress(f"{what}: keeping the hand's orientation refused ({exc.message})")
             else:
-                return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
+                return self._play(plan, what + " (keeping the hand's orientation)", allowed)
         if upright and self.config.upright_hand and yaw_rad is not None:
             try:
                 plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=stepping)
@@ -258,17 +258,20 @@ class ManipulationActions:
         # of it (it can be beside the wrist too: fetch seed 37).
         self._clear_of_felt(point, f"step around {target}")
         near = self._felt_near(point)
-        jaws = jaws_clear_of(point, near, self._heading(), self.config.jaws_turns_deg) if near else None
+        turns = self.config.jaws_turns_deg
+        jaws = jaws_clear_of(point, near, self._heading(), turns) if near and turns else None
         yaw = self._heading() if jaws is None else jaws
         point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
-        # The paper's task: the hand on the object (its final posture is then the grasp posture, which
-        # the lowering ends in; planned for the point above, the lowering was 12 cm farther from the
-        # shoulder than anything the footstep planner checked).
-        decided = self._last_steps(hand, point, point, f"step up to {target}")
+        # The hand on the object (the paper's task) with the grasp's posture in ``last_steps_posture``:
+        # its final posture is then the one the lowering ends in. Else above it: planned for the
+        # object itself, the stance moved and the position-only lowering brought the wrist onto the
+        # neighbouring ball in fetch seed 12, which it grasps without a retry when planned above.
+        hand_at = point if "grasp" in self.config.last_steps_posture else above
+        decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
         support = self._support(target)
         if decided is None and support and self._walk_nearer(support[0], point, f"step up to {target}"):
-            decided = self._last_steps(hand, point, point, f"step up to {target}")
+            decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
             walked = True
         else:
             walked = decided is not None and decided.walk is not None
