@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
-from services.contacts.posture import PostureGenerator
+from services.contacts.posture import PostureConfig, PostureGenerator
 from services.contacts.sets import ContactSet, contact_at
 from services.errors import InfeasibleError
 from services.ik import PostureTask
@@ -96,6 +96,12 @@ def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) ->
     return max(errors, default=0.0)
 
 
+def _relaxed(gen: PostureGenerator) -> PostureConfig:
+    """The generator's settings with contacts matched within ``REGENERATE_TOL_M`` in at most
+    ``REGENERATE_ITERS`` iterations (postures generated from a measured state)."""
+    return replace(gen.config, tol=REGENERATE_TOL_M, max_iters=REGENERATE_ITERS)
+
+
 def regenerate_witness(
     gen: PostureGenerator,
     s1_planned: ContactSet,
@@ -117,7 +123,7 @@ def regenerate_witness(
     stable = s1 if added else s2
     reference = PostureTask(gen.model, q2_planned)
     reasons = []
-    relaxed = replace(gen.config, tol=REGENERATE_TOL_M, max_iters=REGENERATE_ITERS)
+    relaxed = _relaxed(gen)
     for start in (q_measured, q2_planned):
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
         if result.ok:
@@ -157,6 +163,8 @@ def replan_transition(
     contacts removed at the previous transition (their bodies leave them now). Raises InfeasibleError
     when the measured supports admit no witness of the next set, or an interpolation step fails."""
     config = config or InterpolationConfig()
+    # from a measured posture the held contacts are matched within the sim's compliance, as the witness
+    config = replace(config, posture=config.posture or _relaxed(gen))
     q1 = np.asarray(q_measured, float)
     s1, s2, q2, reason = regenerate_witness(gen, s1_planned, s2_planned, np.asarray(q2_planned, float), q1)
     error = _support_error(gen, s1_planned, q1)
