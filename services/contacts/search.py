@@ -57,6 +57,9 @@ class SearchConfig:
     close_m: float = 0.08
     close_rad: float = 0.4
     max_sons_per_pair: int = 8
+    # (left spot, right spot): a new one lands at least stance_width_m to its own side of the other
+    stance_pairs: tuple[tuple[str, str], ...] = (("left_sole", "right_sole"),)
+    stance_width_m: float = 0.10
 
 
 @dataclass(frozen=True)
@@ -204,9 +207,36 @@ class ContactPlanner:
         )
         if xy is None:
             return None
+        xy = self._stance_side(node, spot, surface_name, xy)
+        if xy is None:
+            return None
         return SearchVolume(
             (xy.lower[0], xy.lower[1], reach.lower[2]), (xy.upper[0], xy.upper[1], reach.upper[2])
         )
+
+    def _stance_side(
+        self, node: Node, spot: str, surface_name: str, volume: SearchVolume
+    ) -> SearchVolume | None:
+        """``volume`` cut to the side of the spot's partner (``stance_pairs``) when the partner is on the
+        same surface: a left sole at least ``stance_width_m`` at +y (the surface's frame) of the right
+        one, a right sole as much at -y of the left one (a convex restriction of C, §2.6). Without it
+        the search crossed the feet (a right sole ahead of the left one and 1 cm to its left): the
+        weight transfer onto it was a tandem stance, and the next step had no way out between the
+        stance leg and the chair's leg (services/contacts/README.md)."""
+        width = self.config.stance_width_m
+        for left, right in self.config.stance_pairs:
+            if spot not in (left, right):
+                continue
+            partner = right if spot == left else left
+            other = next((c for c in node.contacts if c.spot == partner and c.surface == surface_name), None)
+            if other is None:
+                continue
+            if spot == left:
+                side = SearchVolume((-math.inf, other.y + width, -math.inf), (math.inf, math.inf, math.inf))
+            else:
+                side = SearchVolume((-math.inf, -math.inf, -math.inf), (math.inf, other.y - width, math.inf))
+            return volume.intersect(side)
+        return volume
 
     # -------------------------------------------------------------------------------- sons
     def _removal_sons(self, node: Node) -> None:
