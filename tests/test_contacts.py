@@ -387,7 +387,7 @@ def test_a_patch_bears_only_on_its_surface(chair):
 
 
 def test_a_new_sole_lands_on_its_own_side_of_the_other(chair):
-    robot, _env, gen, q0, start = chair
+    robot, env, gen, q0, start = chair
     planner = ContactPlanner(
         gen,
         RoughTrajectory(gen.model, [q0, robot.half_sitting_at(0.3, 0.0, 0.0)]),
@@ -403,4 +403,7 @@ def test_a_new_sole_lands_on_its_own_side_of_the_other(chair):
     standing_on_right = planner._add(None, (right,), q0, "start")
     volume = planner._volume(standing_on_right, "left_sole", "floor")
     assert volume is not None and volume.lower[1] == pytest.approx(right.y + 0.1)
-    assert planner._volume(standing_on_right, "left_hand", "table.top") is not None  # hands: any side
+    hand = planner._volume(standing_on_right, "left_hand", "table.top")  # hands: any side
+    hx, hy = env.surface("table.top").half_size_m  # but never at the very edge of a surface
+    assert hand is not None and hand.lower[0] >= -hx + 0.05 - 1e-9 and hand.upper[0] <= hx - 0.05 + 1e-9
+    assert hand.lower[1] >= -hy + 0.05 - 1e-9 and hand.upper[1] <= hy - 0.05 + 1e-9

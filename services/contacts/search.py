@@ -21,7 +21,8 @@ New leaves too close to an existing node or leaf (same pairs, every contact with
 Deviation from the paper, for speed on this machine: the search volume of a pair is C = E x ]-pi, pi]
 intersected with a box of half size ``reach_m`` around the spot's current position and
 ``reach_theta_rad`` around its current heading (still convex, §2.6), and surfaces more than
-``reach_z_m`` above or below the spot are not tried.
+``reach_z_m`` above or below the spot are not tried. C also keeps the spot ``edge_margin_m`` inside the
+surface's edges, and a sole ``stance_width_m`` to its own side of the other one (``stance_pairs``).
 """
 
 from __future__ import annotations
@@ -60,6 +61,9 @@ class SearchConfig:
     # (left spot, right spot): a new one lands at least stance_width_m to its own side of the other
     stance_pairs: tuple[tuple[str, str], ...] = (("left_sole", "right_sole"),)
     stance_width_m: float = 0.10
+    # a new contact's spot at least this far inside its surface's edges [m] (a hand planned 4 mm from
+    # a table's corner bore nothing in the sim: its clipped patch was a sliver)
+    edge_margin_m: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -195,7 +199,7 @@ class ContactPlanner:
             return None
         x, y = float(local.translation[0]), float(local.translation[1])
         heading = math.atan2(float(local.rotation[1, 0]), float(local.rotation[0, 0]))
-        full = full_volume(*surface.half_size_m)
+        full = full_volume(*(max(h - cfg.edge_margin_m, 0.0) for h in surface.half_size_m))
         reach = SearchVolume(
             (x - cfg.reach_m, y - cfg.reach_m, heading - cfg.reach_theta_rad),
             (x + cfg.reach_m, y + cfg.reach_m, heading + cfg.reach_theta_rad),
