@@ -12,11 +12,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from services.bus.schemas.reaching import REASON_STEPPING_NOT_ALLOWED, REASON_TOO_MANY_STEPS
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.reaching import CRITERIA, ReachingOptions, ReachRequest, plan_reach
 from services.reaching.monitors import ArmMonitor
 from services.reaching.options import PAPER_CRITERIA
+from services.reaching.planner import planner_for
 from services.reaching.support_polygon import SupportPolygonPlanner
 from services.walking.footsteps import FootstepBounds, FootstepSequence, SolePose, validate_footsteps
 from services.walking.timing import DOUBLE, LEFT, RIGHT
@@ -140,12 +142,14 @@ def test_impossible_target_is_infeasible_naming_the_criterion(robot):
     assert details["criterion"] in CRITERIA
     assert f"criterion '{details['criterion']}' failed" in info.value.message
     assert details["steps_needed"] > ReachingOptions().max_steps
+    assert details["reason"] == REASON_TOO_MANY_STEPS
 
 
 def test_without_stepping_a_far_target_is_infeasible(robot):
     with pytest.raises(InfeasibleError, match="stepping is not allowed") as info:
         plan_reach(robot, _request(robot, FORWARD_BEYOND[robot.name], allow_stepping=False))
     assert info.value.details["criterion"] in CRITERIA
+    assert info.value.details["reason"] == REASON_STEPPING_NOT_ALLOWED
 
 
 def test_without_stepping_the_manipulability_trigger_does_not_veto_a_reachable_target():
@@ -239,6 +243,24 @@ def test_single_step_reshaping(name, target):
     assert len(result.footsteps) == 1 and result.footsteps[0].side == "left"
     assert result.footsteps[0].pose.yaw_rad > 0.1
     _check_plan(robot, result)
+
+
+def test_the_reach_envelope_is_what_the_no_step_motion_reaches_and_one_step_suffices_just_beyond():
+    """Fig. 5 needs to know where the task becomes feasible: the envelope straight ahead of the shoulder
+    is the farthest target the planner's own no-step motion reaches (a target 2 cm inside takes no step);
+    4 cm beyond it one step suffices and is the outcome (paper: one step towards the target)."""
+    robot = load_robot("hrp2_like")
+    planner = planner_for(robot.name, ReachingOptions())
+    sx, sy = planner.support.shoulder_in_mid["left"]
+    reach = planner.envelope("left").at(1.0)
+    assert planner.envelope("left").heights_m[3] == 1.0
+    assert 0.6 < reach < planner.envelope("left").grid(3)[1]  # the probe alone overestimates it
+    inside = plan_reach(robot, _request(robot, (sx + reach - 0.02, sy, 1.0)))
+    assert not inside.stepped
+    beyond = plan_reach(robot, _request(robot, (sx + reach + 0.04, sy, 1.0)))
+    assert [a.kind for a in beyond.attempts] == ["no_step", "single"]
+    assert beyond.attempts[0].violation.criterion in PAPER_CRITERIA
+    _check_plan(robot, beyond)
 
 
 def test_support_polygon_planner_faces_the_target_and_respects_the_bounds(robot):

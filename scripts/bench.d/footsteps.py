@@ -8,11 +8,11 @@ at 0.1-1.2 m height, 0-2 disk obstacles). Both start feet are solved (section 5.
 The scenarios run with the paper's task sets (section 4: the reach alone with its disks; gaze >
 posture) and ``scenarios.PAPER_OPTIONS``; ``paper_tasks`` lists them beside the paper's steps and
 times and beside the stack's variant (``posture_objective``: the rest posture as lowest objective, the
-stack's default numerics). ``executed`` plays the reach and the pick-up (paper task sets, the CoM kept
-6 cm inside the support polygon instead of 3; both start at half-sitting, as the sim does) in the
-sim: the footsteps walked with ``services.walking.two_stage.executable_walk`` (the CoM lowered, then
-slower supports, until every joint stays within its speed limit), then the final reach (outcome,
-fall, foot slip, hand error).
+stack's default numerics). ``executed`` plays the reach and the pick-up (paper task sets and
+settings, the CoM kept 3 cm inside the support polygon; both start at half-sitting, as the sim
+does) in the sim: the footsteps walked with ``services.walking.two_stage.executable_walk`` (the CoM
+lowered, then slower supports, until every joint stays within its speed limit), then the final reach
+(outcome, fall, foot slip, hand error; the pick-up stops when the gripper reaches the floor).
 ``epsilon_study`` is Fig. 10's threshold study (reach > gaze > posture,
 every epsilon_i x0.1 / x1 / x5: steps, step additions, time). ``numerics`` runs the three paper
 scenarios with each of Algorithm 1's numerics that differ from eqs. 2/15 switched to the paper's
@@ -143,12 +143,6 @@ def bench_paper_tasks(robot) -> list[dict]:
     return rows
 
 
-# The scenarios' CoM margin (d of eq. 11) for execution in the sim: at the default 3 cm the reach's
-# final posture, folded 32 deg over with the hand 0.9 m ahead of the feet, tips forward in the
-# open-loop sim as it arrives (the joints sag under gravity); 6 cm holds.
-EXECUTION_COM_MARGIN_M = 0.06
-
-
 def bench_executed(robot) -> list[dict]:
     """The reach and the pick-up with the paper's task sets executed (the posture scenario starts from
     a configuration the sim does not start in): the footsteps walked
@@ -162,10 +156,13 @@ def bench_executed(robot) -> list[dict]:
     rows = []
     for name in ("reach", "pickup"):
         scenario = scenarios.SCENARIOS[name](robot.name)
-        options = replace(scenario.request.options, com_margin_m=EXECUTION_COM_MARGIN_M)
-        request = replace(scenario.request, options=options)
+        request = scenario.request  # the paper's task set and settings (CoM margin d of eq. 11: 3 cm)
         result = plan_footsteps(request, robot)
-        row: dict = {"name": name, "steps": len(result.footsteps), "com_margin_m": EXECUTION_COM_MARGIN_M}
+        row: dict = {
+            "name": name,
+            "steps": len(result.footsteps),
+            "com_margin_m": request.options.com_margin_m,
+        }
         try:
             motion = execute_plan(robot, request, result)
         except InfeasibleError as exc:
@@ -190,6 +187,7 @@ def bench_executed(robot) -> list[dict]:
                     errors[task.name] = float(np.linalg.norm(hand - np.asarray(task.target_m)))
             row.update(
                 outcome=execution.outcome,
+                message=execution.message,
                 fallen=world.fallen(),
                 foot_slip_m=execution.foot_slip_m,
                 hand_error_m=errors,
@@ -290,6 +288,7 @@ def main(argv: list[str] | None = None) -> int:
             f"limits, {r['duration_s']:.1f} s: {r['outcome']}, fallen {r['fallen']}, foot slip "
             f"{1e3 * r['foot_slip_m']:.1f} mm, hand "
             + ", ".join(f"{k} {1e3 * v:.1f} mm" for k, v in r["hand_error_m"].items())
+            + ("" if r["outcome"] == "completed" else f" ({r['message']})")
         )
     numerics = bench_numerics(robot)
     print("numerics (paper scenarios; each device switched to eqs. 2/15's form)")

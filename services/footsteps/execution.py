@@ -8,7 +8,7 @@ The reaching motion tracks a smooth (quintic in time) joint-space interpolation 
 walk to the planned configuration with the prioritized IK, under both soles held on their footprints,
 the CoM over the support polygon (eq. 11) and the self-collision constraints (eqs. 12-13: Fig. 8's
 "the whole body is driven by a reaching task while observing self-collision avoidance constraints");
-the 5 ms samples between IK knots are interpolated.
+the 5 ms samples between IK knots are a C2 spline of the knots.
 Execution in the simulator is the caller's (the sim service plays ``q``).
 """
 
@@ -31,6 +31,7 @@ from services.ik.tasks.posture import PostureTask
 from services.ik.tasks.self_collision import SelfCollisionTask
 from services.model import RobotModel
 from services.model.ground import signed_distance, smoothstep5
+from services.reaching.spline import spline_configurations
 from services.walking.timing import WalkTiming
 from services.walking.two_stage import WalkAdjustment, executable_walk
 from services.walking.wholebody import WholeBodyResult
@@ -71,19 +72,32 @@ class FootstepExecution:
         return float(self.times_s[-1])
 
 
-def self_collision(robot: RobotModel, margin_m: float) -> SelfCollisionTask | None:
-    """Eqs. (12)-(13) on the robot's capsules and checked pairs (None: the robot has none)."""
+# lambda of eqs. (11) and (13) [1/s]: the CoM and the capsules approach their bounds at most lambda times
+# their distance to them per second, so that the approach slows down smoothly. A gain of 1 per
+# Gauss-Newton step (lambda = 1/step) stops the approach within one knot: a velocity jump whose multibody
+# ZMP leaves the support polygon (the section 4.2 pick-up tipped over in the sim when the right arm
+# reached the 1 cm margin to the right leg: 7 m/s^2 of CoM acceleration in one sample).
+CONSTRAINT_RATE_PER_S = 5.0
+
+
+def self_collision(robot: RobotModel, margin_m: float, gain: float = 1.0) -> SelfCollisionTask | None:
+    """Eqs. (12)-(13) on the robot's capsules and checked pairs (None: the robot has none); ``gain``:
+    lambda of eq. (13) per solver step."""
     if not robot.collision_pairs:
         return None
     pairs = list(robot.collision_pairs)
-    return SelfCollisionTask(robot.model, list(robot.capsules), pairs, margin_m=margin_m)
+    return SelfCollisionTask(robot.model, list(robot.capsules), pairs, margin_m=margin_m, gain=gain)
 
 
 def _support_level(
-    robot: RobotModel, q_stance: np.ndarray, com_margin_m: float, collision: SelfCollisionTask | None
+    robot: RobotModel,
+    q_stance: np.ndarray,
+    com_margin_m: float,
+    collision: SelfCollisionTask | None,
+    gain: float = 1.0,
 ) -> Level:
-    """Both soles held where they are at ``q_stance``, the CoM over the support polygon (eq. 11), the
-    self-collision constraints (eqs. 12-13) when given."""
+    """Both soles held where they are at ``q_stance``, the CoM over the support polygon (eq. 11, lambda
+    ``gain`` per solver step), the self-collision constraints (eqs. 12-13) when given."""
     model = robot.model
     data = robot.new_data()
     tasks = [
@@ -96,6 +110,7 @@ def _support_level(
             com_margin_m,
             sole_frames=(robot.frames.left_sole, robot.frames.right_sole),
             sole_size_m=robot.sole_size_m,
+            gain=gain,
         )
     )
     if collision is not None:
@@ -138,6 +153,7 @@ def reaching_motion(
     hand_paths: dict[str, np.ndarray] | None = None,
     hand_speed_m_s: float = 0.15,
     self_collision_margin_m: float | None = 0.01,
+    iterations_per_knot: int = 2,
 ) -> tuple[np.ndarray, float, float, float]:
     """Motion from ``q_from`` to ``q_to`` (both standing on the same footprints): (q (n, nq), largest
     sole drift [m], smallest CoM margin [m], smallest self-collision distance [m], nan without
@@ -154,8 +170,12 @@ def reaching_motion(
     posture = PostureTask(model, q_to, joint_names=list(robot.joint_names))
     paths = {f: np.asarray(path, dtype=float) for f, path in (hand_paths or {}).items()}
     hands = [FramePositionTask(model, f, path[0]) for f, path in paths.items()]
-    collision = None if self_collision_margin_m is None else self_collision(robot, self_collision_margin_m)
-    levels = [_support_level(robot, q_to, com_margin_m, collision)]
+    # Eqs. (11) and (13) with lambda = CONSTRAINT_RATE_PER_S over the knots' solver steps (two per knot).
+    gain = min(1.0, CONSTRAINT_RATE_PER_S * knot_stride * dt_s / iterations_per_knot)
+    collision = (
+        None if self_collision_margin_m is None else self_collision(robot, self_collision_margin_m, gain)
+    )
+    levels = [_support_level(robot, q_to, com_margin_m, collision, gain)]
     if hands:
         levels.append(Level(tuple(hands), name="hands"))
     levels.append(Level((posture,), name="posture"))
@@ -176,18 +196,15 @@ def reaching_motion(
         posture.set_rest(pin.interpolate(model, q_from, q_to, s))
         for task, path in zip(hands, paths.values(), strict=True):
             task.set_target(_along(path, s))
-        for _ in range(2):
+        for _ in range(iterations_per_knot):
             q = pin.integrate(model, q, solver.solve(levels, q))
         q_knots.append(q.copy())
     for _ in range(20):  # settle on the planned configuration
         q = pin.integrate(model, q, solver.solve(levels, q))
     q_knots[-1] = q
-    out = np.empty((n, robot.nq))
-    for (k0, qa), (k1, qb) in zip(
-        zip(knots[:-1], q_knots[:-1], strict=True), zip(knots[1:], q_knots[1:], strict=True), strict=True
-    ):
-        for k in range(k0, k1 + 1):
-            out[k] = pin.interpolate(model, qa, qb, (k - k0) / (k1 - k0))
+    # C2 spline through the knots (a piecewise-linear path jumps in velocity at every knot, and the
+    # multibody ZMP with it).
+    out = spline_configurations(dt_s * np.asarray(knots, dtype=float), np.array(q_knots), dt_s * np.arange(n))
     drift, margin = 0.0, math.inf
     checker = collision or self_collision(robot, 0.0)
     self_distance = math.inf if checker is not None else math.nan

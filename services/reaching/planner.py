@@ -30,6 +30,13 @@ import numpy as np
 import pinocchio as pin
 
 from services import budget
+from services.bus.schemas.reaching import (
+    CRITERION_MANIPULABILITY,
+    CRITERION_MULTIBODY_ZMP,
+    REASON_FAILED_AFTER_RESHAPING,
+    REASON_STEPPING_NOT_ALLOWED,
+    REASON_TOO_MANY_STEPS,
+)
 from services.errors import InfeasibleError, InternalError
 from services.model import load_robot
 from services.model.ground import sole_pose_at
@@ -49,15 +56,20 @@ from services.walking.timing import DOUBLE, LEFT, RIGHT, WalkTiming
 from services.walking.two_stage import SupportSamples, correct_multibody_zmp, robot_pattern
 from services.walking.zmp_reference import smoothstep5
 
-# One reshaping step is tried when it brings the target this much [m] inside the reach envelope, at most
-# SINGLE_STEP_MAX_BEARING_RAD away from straight ahead of the shoulder (the chest and waist turn the
-# upper body towards the target: Fig. 5); a walk aims WALK_MARGIN_M inside.
-REACH_MARGIN_M = 0.05
-SINGLE_STEP_MAX_BEARING_RAD = 0.6
+# One reshaping step (Fig. 5) is tried when it brings the target REACH_MARGIN_M [m] inside the reach
+# envelope (measured straight ahead of the shoulder), preferably at most SINGLE_STEP_MAX_BEARING_RAD
+# outwards from straight ahead (the upper body facing the target), else up to SINGLE_STEP_WIDE_RAD
+# outwards (SINGLE_STEP_MAX_INWARD_RAD across the body); a walk aims WALK_MARGIN_M inside.
+REACH_MARGIN_M = 0.0
+SINGLE_STEP_MAX_BEARING_RAD = 0.2
+SINGLE_STEP_WIDE_RAD = 1.0
+SINGLE_STEP_MAX_INWARD_RAD = 0.6
+SINGLE_STEP_GOOD_MARGIN_M = 0.05  # margins beyond this are equally good: the facing decides
 WALK_MARGIN_M = 0.12
+LOW_TARGET_REACH_RATIO = 0.8
 # Criteria that only trigger the reshaping of the support polygon (paper 001, Fig. 4): with stepping
 # disallowed they do not veto a motion that meets every other criterion (``ReachPlanner._without_trigger``).
-TRIGGER_ONLY = ("manipulability",)
+TRIGGER_ONLY = (CRITERION_MANIPULABILITY,)
 NOT_TRIGGER_ONLY = tuple(c for c in CRITERIA if c not in TRIGGER_ONLY)
 # Fade-in of the second preview stage's ZMP error at the start of a motion without a standing lead-in [s].
 CORRECTION_FADE_IN_S = 0.4
@@ -71,9 +83,9 @@ def _no_zmp(exc: InfeasibleError, spec: MotionSpec) -> Violation:
     if "sample" not in exc.details:
         raise exc
     k = min(int(exc.details["sample"]), spec.n_samples - 1)
-    if "zmp_outside_m" in exc.details:
-        return Violation("multibody_zmp", float(spec.times_s[k]), float(exc.details["zmp_outside_m"]), 0.0)
-    return Violation("multibody_zmp", float(spec.times_s[k]), float(exc.details["vertical_force_n"]), 0.0)
+    details = exc.details
+    value = details["zmp_outside_m"] if "zmp_outside_m" in details else details["vertical_force_n"]
+    return Violation(CRITERION_MULTIBODY_ZMP, float(spec.times_s[k]), float(value), 0.0)
 
 
 class ReachPlanner:
@@ -135,7 +147,7 @@ class ReachPlanner:
                 other = attempts[-1].violation
                 if other is not None:
                     why += f"; without that trigger, '{other.criterion}' failed ({other.describe()})"
-            raise self._infeasible(req, violation, why)
+            raise self._infeasible(req, violation, why, reason=REASON_STEPPING_NOT_ALLOWED)
 
         candidates = self._reshapings(req, left, right)
         if not candidates:
@@ -146,6 +158,7 @@ class ReachPlanner:
                 violation,
                 f"reshaping the support polygon towards it would take at least {needed} steps "
                 f"(max_steps={opt.max_steps})",
+                reason=REASON_TOO_MANY_STEPS,
                 steps_needed=needed,
             )
         last_violation = violation
@@ -185,6 +198,7 @@ class ReachPlanner:
             "even after reshaping the support polygon ("
             + ", ".join(f"{p.kind}: {p.n_steps} steps" for p in candidates)
             + ")",
+            reason=REASON_FAILED_AFTER_RESHAPING,
         )
 
     def _without_trigger(
@@ -239,9 +253,19 @@ class ReachPlanner:
         return track.q, track.monitors
 
     def envelope(self, hand: str) -> ReachEnvelope:
-        """The reach envelope of ``hand`` (measured at the first call, then cached)."""
+        """The reach envelope of ``hand`` (each grid height measured when first needed, then cached)."""
         if hand not in self._envelopes:
-            self._envelopes[hand] = measure_envelope(self.tracker, hand, self.support.shoulder_in_mid[hand])
+            robot = self.robot
+            q0 = robot.q_half_sitting
+            data = robot.new_data()
+            left, right = (sole_pose_at(robot, q0, side, data) for side in ("left", "right"))
+
+            def standing_spec(target: np.ndarray) -> MotionSpec:
+                return self._standing_spec(ReachRequest(hand, target, q0).validated(robot), left, right)
+
+            self._envelopes[hand] = measure_envelope(
+                self.tracker, hand, self.support.shoulder_in_mid[hand], standing_spec
+            )
         return self._envelopes[hand]
 
     def _reshapings(self, req: ReachRequest, left: SolePose, right: SolePose) -> list[StepPlan]:
@@ -252,28 +276,57 @@ class ReachPlanner:
         support, opt = self.support, self.options
         target = req.target_world_m
         reach = self.envelope(req.hand).at(float(target[2]))
-        comfort_m = support.comfort_reach_m[req.hand]
+        # The comfort stance, but no farther than LOW_TARGET_REACH_RATIO of the reach (low targets: the
+        # arm's comfort distance may be beyond the whole body's reach at that height).
+        comfort_m = min(support.comfort_reach_m[req.hand], LOW_TARGET_REACH_RATIO * reach)
         plans: list[StepPlan] = []
         near = support.comfort_stance(
             left, right, target, req.hand, reach_m=max(comfort_m, reach - WALK_MARGIN_M)
         )
-        # Fig. 5: one step of the foot on the target's side, turned towards the stance facing the
-        # target; else straight towards the target without turning (a side step: the chest and waist
-        # turn the upper body to it), if it brings the target within the envelope.
-        yaw0 = mid_pose(left, right)[2]
-        for goal in (near, (float(target[0]), float(target[1]), yaw0)):
-            single = support.single_step(left, right, goal, req.hand)
-            if single is None:
-                continue
-            distance, bearing = support.from_shoulder(single.final_mid, target, req.hand)
-            if distance <= reach - REACH_MARGIN_M and abs(bearing) <= SINGLE_STEP_MAX_BEARING_RAD:
-                plans.append(single)
-                break
-        for goal in (near, support.comfort_stance(left, right, target, req.hand)):
+        single = self._single_step(req, left, right, reach)
+        if single is not None:
+            plans.append(single)
+        for goal in (near, support.comfort_stance(left, right, target, req.hand, reach_m=comfort_m)):
             walk = support.walk(left, right, goal, req.hand, opt.max_steps)
             if walk is not None and all(walk.footsteps != p.footsteps for p in plans):
                 plans.append(walk)
         return plans
+
+    def _single_step(
+        self, req: ReachRequest, left: SolePose, right: SolePose, reach_m: float
+    ) -> StepPlan | None:
+        """Fig. 5's one step, when one suffices: among the single steps of either foot within the
+        stepping bounds (:meth:`SupportPolygonPlanner.single_steps`), those whose final stance has the
+        target at least ``REACH_MARGIN_M`` inside the reach envelope ``reach_m`` (measured straight
+        ahead of the shoulder) and at most ``SINGLE_STEP_WIDE_RAD`` away from straight ahead (outwards,
+        ``SINGLE_STEP_MAX_INWARD_RAD`` across the body). Preferred: the target within
+        ``SINGLE_STEP_MAX_BEARING_RAD`` outwards (the upper body facing it: on hrp2_like the reach
+        shrinks by ~0.2 m/rad away from the body, while TALOS' shoulder torque does not depend on it),
+        then the largest margin up to ``SINGLE_STEP_GOOD_MARGIN_M`` ("keeping a large margin of
+        accessible area for the task"), then the body facing the target most ("by facing the upper body
+        to the target direction"), then the shortest step; None if no single step brings the target in
+        reach."""
+        support, target, hand = self.support, req.target_world_m, req.hand
+        best: StepPlan | None = None
+        best_key: tuple[bool, float, float, float] | None = None
+        for plan in support.single_steps(left, right):
+            distance, bearing = support.from_shoulder(plan.final_mid, target, hand)
+            margin = reach_m - distance
+            outward = bearing if hand == "left" else -bearing  # > 0: away from the body
+            if margin < REACH_MARGIN_M or not -SINGLE_STEP_MAX_INWARD_RAD <= outward <= SINGLE_STEP_WIDE_RAD:
+                continue
+            step = plan.footsteps.steps[0]
+            moving = left if step.side == "left" else right
+            length = math.hypot(step.pose.x_m - moving.x_m, step.pose.y_m - moving.y_m)
+            key = (
+                outward <= SINGLE_STEP_MAX_BEARING_RAD,
+                round(min(margin, SINGLE_STEP_GOOD_MARGIN_M), 2),
+                -round(abs(bearing), 1),
+                -length,
+            )
+            if best_key is None or key > best_key:
+                best, best_key = plan, key
+        return best
 
     # ------------------------------------------------------------------------------------ references
     def _reach_duration(self, distance_m: float) -> float:
@@ -439,13 +492,14 @@ class ReachPlanner:
         )
 
     def _infeasible(
-        self, req: ReachRequest, violation: Violation, why: str, **details: Any
+        self, req: ReachRequest, violation: Violation, why: str, reason: str, **details: Any
     ) -> InfeasibleError:
         t = req.target_world_m
         return InfeasibleError(
             f"the {req.hand} hand cannot reach the target ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) m: criterion "
             f"'{violation.criterion}' failed ({violation.describe()}) and {why}",
             {
+                "reason": reason,
                 "criterion": violation.criterion,
                 "time_s": violation.time_s,
                 "value": violation.value,

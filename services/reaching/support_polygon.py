@@ -22,6 +22,7 @@ in the right sole frame, mirrored) shrunk by ``step_bound_ratio``, and for overl
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -42,6 +43,8 @@ from services.walking.footsteps import (
 
 # Outward offsets [m] tried for the opening foot of a turning step (its heel must clear the other sole).
 TURN_OUTWARD_M = (0.0, 0.02, 0.04)
+# Samples of dx, dy and dyaw across the stepping bounds of the candidate single steps.
+SINGLE_STEP_GRID = (11, 5, 9)
 
 
 @dataclass(frozen=True)
@@ -123,6 +126,7 @@ class SupportPolygonPlanner:
             shoulder = data.oMi[robot.model.getJointId(arm[0])].translation
             self.shoulder_in_mid[side] = np.array([shoulder[0] - mid_x, shoulder[1] - mid_y])
             self.arm_length_m[side] = arm_length(robot, side)
+        self._single_cache: dict[tuple[float, ...], list[tuple[str, float, float, float]]] = {}
 
     # ---------------------------------------------------------------------------------- geometry
     def comfort_stance(
@@ -166,48 +170,42 @@ class SupportPolygonPlanner:
         return math.hypot(dx, dy), wrap_angle(math.atan2(dy, dx) - mid[2])
 
     # ---------------------------------------------------------------------------------- one step
-    def single_step(
-        self, left: SolePose, right: SolePose, goal_mid: tuple[float, float, float], hand: str
-    ) -> StepPlan | None:
-        """One step of the foot on the goal's side (the ``hand`` side when straight ahead) towards
-        ``goal_mid``, turned towards its yaw, clipped to the bounds; None if no valid step moves."""
-        x0, y0, yaw0 = mid_pose(left, right)
-        lateral = -math.sin(yaw0) * (goal_mid[0] - x0) + math.cos(yaw0) * (goal_mid[1] - y0)
-        if abs(lateral) < 0.02:
-            sides = [hand, other_side(hand)]
-        else:
-            sides = ["left", "right"] if lateral > 0 else ["right", "left"]
-        best: StepPlan | None = None
-        best_distance = math.inf
-        for side in sides:
+    def single_steps(self, left: SolePose, right: SolePose) -> list[StepPlan]:
+        """Every single step of either foot on a grid over the (shrunk) stepping bounds
+        (``SINGLE_STEP_GRID`` samples of dx, dy, dyaw relative to the other sole) that lands within
+        them without overlapping the other sole: the candidates of Fig. 5's one step (the planner
+        chooses among them with the reach envelope)."""
+        rel = left.relative_to(right)
+        key = tuple(round(v, 4) for v in rel)
+        if key not in self._single_cache:
+            if len(self._single_cache) >= 16:
+                self._single_cache.pop(next(iter(self._single_cache)))
+            self._single_cache[key] = self._valid_single_steps(SolePose(*rel), SolePose(0.0, 0.0, 0.0))
+        plans: list[StepPlan] = []
+        for side, dx, dy, dyaw in self._single_cache[key]:
             stance = right if side == "left" else left
-            # The step that puts the mid-feet frame on the goal, expressed in the stance sole frame ...
-            wanted = SolePose(
-                2.0 * goal_mid[0] - stance.x_m,
-                2.0 * goal_mid[1] - stance.y_m,
-                stance.yaw_rad + wrap_angle(2.0 * goal_mid[2] - 2.0 * stance.yaw_rad),
-            )
-            dx, dy, dyaw = wanted.relative_to(stance)
-            # ... clipped to the (shrunk) bounds, shortened until the soles do not overlap.
-            lim = self.limits.limits_for(side)
-            dx, dy, dyaw = (float(np.clip(v, *lim[k])) for v, k in ((dx, "dx"), (dy, "dy"), (dyaw, "dyaw")))
-            moving = left if side == "left" else right
-            mx, my, myaw = moving.relative_to(stance)
-            for shrink in np.linspace(1.0, 0.0, 11)[:-1]:
-                pose = stance.compose(mx + shrink * (dx - mx), my + shrink * (dy - my), 0.0)
-                pose = SolePose(pose.x_m, pose.y_m, stance.yaw_rad + myaw + shrink * (dyaw - myaw))
-                seq = FootstepSequence(left, right, (Footstep(side, pose),))
-                if _is_valid(seq, self.limits):
-                    break
-            else:
-                continue
+            pose = stance.compose(dx, dy, dyaw)
+            seq = FootstepSequence(left, right, (Footstep(side, pose),))
             new_left, new_right = (pose, right) if side == "left" else (left, pose)
             final = mid_pose(new_left, new_right)
-            distance = math.hypot(final[0] - goal_mid[0], final[1] - goal_mid[1])
-            if distance < best_distance - 1e-9:
-                best_distance = distance
-                best = StepPlan("single", seq, final, goal_mid)
-        return best
+            plans.append(StepPlan("single", seq, final, final))
+        return plans
+
+    def _valid_single_steps(self, left: SolePose, right: SolePose) -> list[tuple[str, float, float, float]]:
+        """(side, dx, dy, dyaw) of the grid's valid single steps from the stance ``left``, ``right``
+        (relative to the other sole; they depend only on the relative placement of the soles)."""
+        out = []
+        for side in ("left", "right"):
+            stance = right if side == "left" else left
+            lim = self.limits.limits_for(side)
+            grids = [
+                np.linspace(*lim[k], n) for k, n in zip(("dx", "dy", "dyaw"), SINGLE_STEP_GRID, strict=True)
+            ]
+            for dx, dy, dyaw in itertools.product(*grids):
+                pose = stance.compose(float(dx), float(dy), float(dyaw))
+                if _is_valid(FootstepSequence(left, right, (Footstep(side, pose),)), self.limits):
+                    out.append((side, float(dx), float(dy), float(dyaw)))
+        return out
 
     # ---------------------------------------------------------------------------------- walk
     def walk(
