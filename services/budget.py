@@ -74,6 +74,13 @@ def current() -> Deadline | None:
     return _CURRENT.get()
 
 
+def expired() -> bool:
+    """Whether the budget open in this thread ran out (False when none is open): for loops that stop
+    on their own and report what they have, rather than raise (:func:`check` raises)."""
+    deadline = _CURRENT.get()
+    return deadline is not None and deadline.expired()
+
+
 def remaining(default_s: float) -> float:
     """Seconds left of the open budget, at most ``default_s`` (``default_s`` when none is open): the
     timeout to give a call made on the request's behalf (at least 1 ms)."""

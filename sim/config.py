@@ -24,7 +24,7 @@ class SimConfig:
         physics_dt_s: physics step [s] (1 kHz).
         control_dt_s: trajectory sample period and state publishing period [s] (5 ms = 200 Hz).
         solver_iterations: pybullet constraint solver iterations per step (None: the robot's
-            ``pybullet_solver_iterations``, 20 for hrp2_like, 50 for talos).
+            ``pybullet_solver_iterations``, 12 for hrp2_like, 50 for talos).
         position_gain, velocity_gain: pybullet position-control gains of every joint (the motor is a
             constraint: ``kp (q* - q) / dt + kd (v* - v)``, forces capped at the URDF effort limits).
         execute_budget_s: wall-clock budget of a ``sim/execute`` that gives none [s]: past it the

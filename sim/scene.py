@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from services.bus.schemas.rectangle import Rectangle
 from services.errors import InvalidRequestError, NotFoundError
 
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
@@ -501,14 +502,9 @@ def _fits(obj: PlacedObject, placed: dict[str, PlacedObject], robot_xy: tuple[fl
         distance = math.hypot(obj.position[0] - robot_xy[0], obj.position[1] - robot_xy[1])
         return distance > obj.spec.footprint_radius_m + ROBOT_CLEARANCE_M
     support = placed[obj.spec.on]
-    c, s = math.cos(support.yaw_rad), math.sin(support.yaw_rad)
-    dx, dy = obj.position[0] - support.position[0], obj.position[1] - support.position[1]
-    local_x, local_y = c * dx + s * dy, -s * dx + c * dy
-    margin = obj.spec.footprint_radius_m
-    return (
-        abs(local_x) <= 0.5 * support.spec.size_m[0] - margin
-        and abs(local_y) <= 0.5 * support.spec.size_m[1] - margin
-    )
+    size = (support.spec.size_m[0], support.spec.size_m[1])
+    top = Rectangle((support.position[0], support.position[1]), size, support.yaw_rad)
+    return top.grown(-obj.spec.footprint_radius_m).contains(obj.position[:2])
 
 
 def _wrap(angle: float) -> float:

@@ -193,12 +193,17 @@ class World:
 
     # ---------------------------------------------------------------------------------- low level
     def _command_body(self, q: np.ndarray, v: np.ndarray) -> None:
+        self._command_joints(q[self._body_iq].tolist(), v[self._body_iv].tolist())
+
+    def _command_joints(self, q_body: list[float], v_body: list[float]) -> None:
+        """Position targets [rad or m] and feed-forward velocities of the body joints (the order of
+        ``_body_ids``)."""
         p.setJointMotorControlArray(
             self.robot_id,
             self._body_ids,
             p.POSITION_CONTROL,
-            targetPositions=q[self._body_iq].tolist(),
-            targetVelocities=v[self._body_iv].tolist(),
+            targetPositions=q_body,
+            targetVelocities=v_body,
             positionGains=self._kp,
             velocityGains=self._kd,
             forces=self._body_force,
@@ -393,15 +398,17 @@ class World:
         executed = 1
         collided: dict[tuple[str, str], Contact] = {}
         fall = (0.0, 0.0)
+        # The body joints' targets at every physics step of every control period, computed at once:
+        # linear interpolation from one sample to the next (sample k at the end of period k).
+        body = q_traj[:, self._body_iq]
+        a = (np.arange(1, substeps + 1) / substeps)[:, None]  # (substeps, 1)
         for k in range(1, len(q_traj) + n_hold):
-            q_prev, q_next = q_traj[min(k - 1, len(q_traj) - 1)], q_traj[min(k, len(q_traj) - 1)]
-            v_ff = np.zeros(self.robot.nv)
-            v_ff[self._body_iv] = (q_next[self._body_iq] - q_prev[self._body_iq]) / dt
-            for i in range(1, substeps + 1):
-                q_cmd = q_prev.copy()
-                a = i / substeps
-                q_cmd[self._body_iq] = (1.0 - a) * q_prev[self._body_iq] + a * q_next[self._body_iq]
-                self._command_body(q_cmd, v_ff)
+            k_prev, k_next = min(k - 1, len(q_traj) - 1), min(k, len(q_traj) - 1)
+            q_next = q_traj[k_next]
+            b_prev, b_next = body[k_prev], body[k_next]
+            v_ff = ((b_next - b_prev) / dt).tolist()
+            for target in ((1.0 - a) * b_prev + a * b_next).tolist():
+                self._command_joints(target, v_ff)
                 self.step(1)
             self.q_cmd = q_next.copy()
             self.q_planned = q_next.copy()
@@ -606,29 +613,35 @@ class _Monitor:
         self.worst = ""
         self.base_error_m = 0.0
         self.foot_slip_m = 0.0
-        self._anchor: dict[str, np.ndarray | None] = {"left": None, "right": None}
+        self._anchor: dict[str, tuple[float, float] | None] = {"left": None, "right": None}
 
     def update(self, q_cmd: np.ndarray) -> pin.SE3:
+        """Account the state after a control period commanded at ``q_cmd``; the base pose (world)."""
         w = self.world
-        q = w.pyrobot.read_q()
+        q = w.robot.check_q(w.pyrobot.read_q())
         err = np.abs(q[w._body_iq] - q_cmd[w._body_iq])
-        j = int(np.argmax(err))
+        j = int(err.argmax())
         if err[j] > self.err_max:
             self.err_max, self.worst = float(err[j]), w._body_joint_names[j]
         self.err_sq += float(np.mean(err**2))
         self.count += 1
-        data = w.robot.forward(q, w._data)
-        T_base = pin.SE3(data.oMf[w._base_fid])
-        self.base_error_m = max(self.base_error_m, float(np.linalg.norm(q[:3] - q_cmd[:3])))
+        # Joint placements, then only the three frames used here (not every frame of the model).
+        model, data = w.robot.model, w._data
+        pin.forwardKinematics(model, data, q)
+        T_base = pin.SE3(pin.updateFramePlacement(model, data, w._base_fid))
+        dx, dy, dz = (q[:3] - q_cmd[:3]).tolist()
+        self.base_error_m = max(self.base_error_m, math.sqrt(dx * dx + dy * dy + dz * dz))
         forces = floor_force(w.client, w.robot_id, w.floor_id, w.foot_links.values())
         for side, link in w.foot_links.items():
-            xy = np.array(data.oMf[w._sole_fids[side]].translation[:2])
             if forces[link] < w.config.loaded_foot_force_n:
                 self._anchor[side] = None
-            elif self._anchor[side] is None:
-                self._anchor[side] = xy
+                continue
+            x, y = pin.updateFramePlacement(model, data, w._sole_fids[side]).translation[:2].tolist()
+            anchor = self._anchor[side]
+            if anchor is None:
+                self._anchor[side] = (x, y)
             else:
-                self.foot_slip_m = max(self.foot_slip_m, float(np.linalg.norm(xy - self._anchor[side])))
+                self.foot_slip_m = max(self.foot_slip_m, math.hypot(x - anchor[0], y - anchor[1]))
         return T_base
 
     def tracking(self) -> tuple[float, float, str]:

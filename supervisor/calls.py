@@ -7,6 +7,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from services.bus.schemas.supervisor import REASON_WORLD_LOST
 from services.bus.session import Client
 from services.bus.spec import EndpointSpec
 from services.errors import HumanoidError, RequestTimeoutError, StoppedError, UnavailableError
@@ -72,9 +73,9 @@ class ServiceCaller:
         return reply
 
     def _check_world(self, spec: EndpointSpec) -> None:
-        """UnavailableError (``details.reason`` "world_lost") when the sim restarted since its world was
-        set up (its last sim/reset, or the first call): the launcher brings a fresh sim back, but the
-        scene, the objects and the robot's place died with the old process."""
+        """UnavailableError (``details.reason`` ``REASON_WORLD_LOST``, final: not retried) when the sim
+        restarted since its world was set up (its last sim/reset, or the first call): the launcher brings
+        a fresh sim back, but the scene, the objects and the robot's place died with the old process."""
         state = self.health.health(WORLD_SERVICE)
         if self._world is None or (self._world[1] == 0 and state.comebacks == self._world[0]):
             self._world = (state.comebacks, state.pid)  # (the pid, once the first heartbeat came)
@@ -87,7 +88,7 @@ class ServiceCaller:
                 "the simulation is gone: the sim process died and was restarted, and the world it held "
                 "(the scene, its objects, the robot's place and what it carried) was lost with it; reset "
                 "the scene (sim/reset) and start again",
-                {"service": WORLD_SERVICE, "reason": "world_lost"},
+                {"service": WORLD_SERVICE, "reason": REASON_WORLD_LOST},
             )
 
     def _went_away(self, service: str, within_s: float = 1.0) -> bool:

@@ -37,11 +37,15 @@ class SupervisorConfig:
         last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
             the end of the approach) for the last steps, within last_steps_max steps and
             last_steps_budget_s of planning, and walk them (reaching still steps if the object moved);
-            last_steps_posture: reaching then brings the hand above the object turned as in the final
-            posture footsteps/plan planned with those steps (position only where reaching refuses it).
-            Off by default: with reaching's paper trigger (the arm's whole-Jacobian manipulability)
-            the reach above in that orientation walked 4 steps and the lowering that followed was
-            refused (tests/test_supervisor_fetch.py's console grasp and walking-kill fetch failed);
+            last_steps_posture: reaching then brings the hand above the object (the object above the
+            place) turned as in the final posture footsteps/plan planned with those steps, without
+            stepping (the footstep planner decided the stance), and lowers it keeping that
+            orientation; where reaching refuses that, position only (stepping if it must);
+        nearer_beyond_m, nearer_m: when footsteps/plan finds no last steps to a point farther than
+            nearer_beyond_m from the robot, navigation first walks to nearer_m short of it, facing it
+            (when that pose is not free: goto_distance_m from the face of the place, or of the
+            object's support), checked against the map (reaching's stepping does not know the map),
+            and the last steps are planned again from there;
         back_off_m: after a collision, the touching hand moves this far back and up;
         put_height_m: the object is brought this high above the estimated top of the place, then
             lowered until it touches; put_highest_m, put_lowest_m: bounds of a place's top height (the
@@ -49,6 +53,10 @@ class SupervisorConfig:
             put_depth_m: and at most this far; put_inside_m: the release point is this far inside the
             place's near face; put_retry_shift_m: after a put that touched nothing, the next release
             point is this far at most from the first, toward the middle of the place's silhouette;
+            put_edge_deg, put_edge_shift_m, put_edge_tries: a lowered object whose every contact with
+            the place is more than put_edge_deg [deg] off straight below the hand's grasp frame
+            touched an edge on its side (it hangs over the edge and would fall off): it is raised,
+            moved put_edge_shift_m toward the contacts and lowered again, at most put_edge_tries times;
         approach_m: the hand first goes this far above a reach or put point, then down;
         lift_m: a grasped object (or an emptied hand) is raised by this first;
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
@@ -61,11 +69,17 @@ class SupervisorConfig:
             or end-effector criteria), position only; the other motions are position only. Off by
             default: in the fetch runs tried reaching refused it (an arm joint at 52-57 % of its
             velocity limit against 50 %; in two motions, its end-effector criterion).
+        turn_piece_deg: fingers down refused in one motion: in motions turning the hand by at most
+            this much [deg] each (at least two).
         felt_radius_m, felt_clear_deg, felt_turns_deg: a hand that touched something perception does
             not know (a ball beside the target: no model of it) within felt_radius_m of the next reach
             point makes the robot walk around that point by the smallest of felt_turns_deg [deg] that
             puts the touched points felt_clear_deg [deg] off its direction to the point (the fingers
-            point that way, past the object).
+            point that way, past the object); jaws_turns_deg: then (they can lie beside the wrist too:
+            fetch seed 37, where no walk around clears them) the hand goes down onto it fingers down (no
+            stepping), its yaw the heading turned by the one of jaws_turns_deg [deg] (either way)
+            that puts the touched points nearest the hand's x axis, clear of the jaws; where reaching
+            refuses that, as without it.
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
@@ -86,7 +100,9 @@ class SupervisorConfig:
     last_steps: bool = True
     last_steps_max: int = 6
     last_steps_budget_s: float = 5.0
-    last_steps_posture: bool = False
+    last_steps_posture: bool = True
+    nearer_beyond_m: float = 1.0
+    nearer_m: float = 0.6
     back_off_m: float = 0.08
     put_height_m: float = 0.12
     put_highest_m: float = 0.95
@@ -94,14 +110,19 @@ class SupervisorConfig:
     put_depth_m: float = 0.35
     put_inside_m: float = 0.15
     put_retry_shift_m: float = 0.35
+    put_edge_deg: float = 45.0
+    put_edge_shift_m: float = 0.12
+    put_edge_tries: int = 2
     approach_m: float = 0.12
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
     raise_ahead_m: float = 0.2
     upright_hand: bool = False
+    turn_piece_deg: float = 35.0
     felt_radius_m: float = 0.3
     felt_clear_deg: float = 60.0
     felt_turns_deg: tuple[float, ...] = (30.0, 45.0, 60.0)
+    jaws_turns_deg: tuple[float, ...] = (15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0

@@ -24,7 +24,7 @@ from services.errors import (
     RequestTimeoutError,
     WorldOutcomeError,
 )
-from supervisor.body import Body, Progress
+from supervisor.body import Body, Executed, Progress
 from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
@@ -61,6 +61,43 @@ def turns_clear_of(
     return [t for t in turns if clear(bearing + t)]
 
 
+def toward_edge(centre: np.ndarray, contacts: list[np.ndarray], edge_deg: float) -> np.ndarray | None:
+    """Whether a lowered object touched a surface only on its side: every contact point [m] (world)
+    more than ``edge_deg`` off straight below ``centre`` (the object's, or the grasp frame's) [m] (its
+    side on an edge, the object hanging over it: released there it falls off). The horizontal unit
+    vector from ``centre`` toward those contacts (where the surface is), or None when a contact lies
+    under it (it stands on the top) or there is none."""
+    sideways = np.zeros(2)
+    for contact in contacts:
+        offset = np.asarray(contact, dtype=float) - np.asarray(centre, dtype=float)
+        across = float(np.linalg.norm(offset[:2]))
+        if math.degrees(math.atan2(across, -offset[2])) <= edge_deg:
+            return None
+        sideways += offset[:2] / max(across, 1e-9)
+    norm = float(np.linalg.norm(sideways))
+    return sideways / norm if norm > 1e-9 else None
+
+
+def jaws_clear_of(
+    point: np.ndarray, felt: list[np.ndarray], heading_rad: float, turns_deg: tuple[float, ...]
+) -> float:
+    """The yaw [rad] (world) of a fingers-down hand at ``point`` [m] whose jaws stay clearest of the
+    ``felt`` points [m]: the jaws close along the hand's y axis, its fingers are thin plates across
+    it, so a neighbour along the hand's x axis (ahead of or behind the plates) is clear of them. Among
+    ``heading_rad`` turned by each of ``turns_deg`` [deg] (both ways; 0 included), the one whose
+    largest angle between a felt point's direction from ``point`` and the x axis line is smallest,
+    the least turned among equals."""
+    candidates = sorted({0.0, *(math.radians(d) * sign for d in turns_deg for sign in (1.0, -1.0))}, key=abs)
+
+    def worst(yaw: float) -> float:
+        return max(
+            abs(math.remainder(math.atan2(f[1] - point[1], f[0] - point[0]) - yaw, math.pi)) for f in felt
+        )
+
+    best = min(candidates, key=lambda turn: (round(worst(heading_rad + turn), 6), abs(turn)))
+    return math.remainder(heading_rad + best, math.tau)
+
+
 class ManipulationActions:
     """The manipulation actions (a part of :class:`supervisor.actions.Actions`)."""
 
@@ -74,6 +111,8 @@ class ManipulationActions:
     last_reach: tuple[str, str] | None
     do_look_at: Callable[[Step], ActionReport]
     _back_off: Callable[[str, list[str]], None]
+    _goto_object: Callable[[str, float], Plan]
+    _make_room: Callable[[str], None]
 
     def _heading(self) -> float:
         return self.body.base_xy_yaw()[2]
@@ -128,34 +167,45 @@ class ManipulationActions:
         yaw_rad: float,
         refused: HumanoidError,
     ) -> int | None:
-        """Fingers down at ``point`` in two motions when one was refused (the wrist turning too fast
-        for reaching's joint-speed criterion in one motion's time): to half way, turned half way (a
-        slerp of the hand's orientation now and the upright one), then to ``point``, upright; no
-        stepping. None when reaching refuses either (the caller then goes on, position only, from
-        where the hand is)."""
+        """Fingers down at ``point`` in several motions when one was refused (the wrist turning too
+        fast for reaching's criteria in one motion's time): k - 1 motions along the straight line to
+        ``point``, each turning the hand by at most ``turn_piece_deg`` (a slerp of the hand's
+        orientation now and the upright one), then to ``point``, upright; no stepping. None when
+        reaching refuses one (the caller then goes on, position only, from where the hand is)."""
         robot = self.body.robot
         q = self.body.q()
         here = robot.frame_pose(q, robot.grasp_frame(hand))
         rotations = Rotation.from_matrix(
             np.stack([here.rotation, Rotation.from_euler("z", yaw_rad).as_matrix()])
         )
-        half = Slerp([0.0, 1.0], rotations)(0.5).as_quat().tolist()
-        middle = 0.5 * (np.asarray(here.translation) + point)
+        angle = float((rotations[0].inv() * rotations[1]).magnitude())
+        k = max(2, math.ceil(math.degrees(angle) / self.config.turn_piece_deg))
+        slerp = Slerp([0.0, 1.0], rotations)
+        start = np.asarray(here.translation, dtype=float)
+        for i in range(1, k):
+            f = i / k
+            try:
+                plan = self.planners.reach(
+                    hand,
+                    start + f * (point - start),
+                    orientation=slerp(f).as_quat().tolist(),
+                    allow_stepping=False,
+                )
+            except InfeasibleError as exc:
+                self.progress(
+                    f"{what}: fingers down refused ({refused.message}; in {k} motions of "
+                    f"{math.degrees(angle) / k:.0f} deg, motion {i}: {exc.message}); any orientation then"
+                )
+                return None
+            self._play(plan, f"{what}: turning the hand, {i} of {k}", allowed)
         try:
-            first = self.planners.reach(hand, middle, orientation=half, allow_stepping=False)
+            last = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
         except InfeasibleError as exc:
             self.progress(
-                f"{what}: fingers down refused ({refused.message}; in two motions: {exc.message}); "
-                "any orientation then"
+                f"{what}: fingers down refused in the last of {k} motions ({exc.message}); any orientation"
             )
             return None
-        self._play(first, f"{what}: turning the hand half way", allowed)
-        try:
-            second = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
-        except InfeasibleError as exc:
-            self.progress(f"{what}: fingers down refused after half way ({exc.message}); any orientation")
-            return None
-        return self._play(second, what, allowed)
+        return self._play(last, what, allowed)
 
     def _raise_hand(self, hand: str, height_m: float, what: str, *, allowed: list[str]) -> None:
         """Raise the hand in front of the body to ``height_m`` before moving it forward: the reaching
@@ -188,11 +238,12 @@ class ManipulationActions:
     def do_reach(self, step: Step) -> ActionReport:
         """Reach a hand to an object or 'x,y,z' from above (stepping when out of reach), gripper open.
 
-        First the last steps, which footsteps/plan decides with the final posture (paper 000 §7), then
-        two motions of ``reaching/reach``: to ``approach_m`` above the target (the support polygon may
-        be reshaped: steps), the hand turned as in footsteps/plan's final posture
-        (``last_steps_posture``; position only where reaching refuses it), then straight down onto it
-        with the object as an allowed contact, the hand keeping its orientation.
+        First the last steps, which footsteps/plan decides with the final posture for the hand on the
+        target (paper 000 §7), then two motions of ``reaching/reach``: to ``approach_m`` above the
+        target, the hand turned as in footsteps/plan's final posture and without stepping (the footstep
+        planner decided the stance; ``last_steps_posture``), or, where reaching refuses that, position
+        only with support polygon reshaping (steps) when needed; then straight down onto it with the
+        object as an allowed contact, the hand keeping its orientation.
         """
         hand, target = step.args
         self.last_reach = (hand, target)  # the reach under way (a remedy backs this hand off its target)
@@ -201,19 +252,32 @@ class ManipulationActions:
         yaw = self._heading()
         point = self._grasp_point(hand, target, yaw)
         allowed = [target, *self._support(target)] if parse_point(target, 3, "reach target") is None else []
+        # Walked around what the hand felt ahead of the fingers, then fingers down, the jaws' yaw clear
+        # of it (it can be beside the wrist too: fetch seed 37).
         self._clear_of_felt(point, f"step around {target}")
-        yaw = self._heading()
+        near = self._felt_near(point)
+        jaws = jaws_clear_of(point, near, self._heading(), self.config.jaws_turns_deg) if near else None
+        yaw = self._heading() if jaws is None else jaws
         point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
-        decided = self._last_steps(hand, above, point, f"step up to {target}")
-        if decided is not None and decided.walk is not None:
+        # The paper's task: the hand on the object (its final posture is then the grasp posture, which
+        # the lowering ends in; planned for the point above, the lowering was 12 cm farther from the
+        # shoulder than anything the footstep planner checked).
+        decided = self._last_steps(hand, point, point, f"step up to {target}")
+        support = self._support(target)
+        if decided is None and support and self._walk_nearer(support[0], point, f"step up to {target}"):
+            decided = self._last_steps(hand, point, point, f"step up to {target}")
+            walked = True
+        else:
+            walked = decided is not None and decided.walk is not None
+        if walked:
             if parse_point(target, 3, "reach target") is None:
                 # Nearer now: localize it again before the hand comes down (a grasp closed on nothing
                 # when the ball had been localized a few centimetres off from farther away).
                 self.eyes.look_at(self.memory.get(target).position_m, f"look at {target}")
                 with contextlib.suppress(NotFoundError):
                     self.eyes.locate(target)
-            yaw = self._heading()
+            yaw = self._heading() if jaws is None else jaws
             point = self._grasp_point(hand, target, yaw)
             above = point + np.array([0.0, 0.0, self.config.approach_m])
         self._raise_hand(hand, float(above[2]), f"raise the {hand} hand", allowed=[])
@@ -221,21 +285,22 @@ class ManipulationActions:
         # planner decided the stance and the posture together; reaching executes that hand pose), or,
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
-        final = decided.hand_quat if decided is not None and self.config.last_steps_posture else None
-        steps = self._move_hand(
-            hand,
-            above,
-            f"reach above {target}",
-            allowed=[],
-            stepping=True,
-            yaw_rad=yaw,
-            upright=True,
-            orientation=final,
-        )
-        yaw = self._heading()  # the steps may have turned the robot
-        point = self._grasp_point(hand, target, yaw)
-        upright = Rotation.from_euler("z", yaw).as_quat().tolist() if self.config.upright_hand else None
+        final = self._final_hand(decided)
+        steps = None if jaws is None else self._fingers_down(hand, above, f"reach above {target}", jaws)
+        if steps is None:
+            steps = self._as_planned(hand, above, f"reach above {target}", [], final)
+        if steps is None:
+            steps = self._move_hand(
+                hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
+            )
+        upright = None
+        if jaws is not None or self.config.upright_hand:
+            upright = Rotation.from_euler("z", self._heading() if jaws is None else jaws).as_quat().tolist()
         keep = next((quat for quat in (final, upright) if quat and self._hand_at(hand, quat)), None)
+        yaw = (
+            jaws if jaws is not None and keep is upright else self._heading()
+        )  # the steps may have turned it
+        point = self._grasp_point(hand, target, yaw)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
@@ -253,17 +318,32 @@ class ManipulationActions:
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
 
-    def _clear_of_felt(self, point: np.ndarray, what: str) -> None:
+    def _felt_near(self, point: np.ndarray) -> list[np.ndarray]:
+        """Memory's felt points within ``felt_radius_m`` of ``point`` (horizontally) [m]."""
+        radius = self.config.felt_radius_m
+        return [f for f in self.memory.felt if float(np.linalg.norm(f[:2] - point[:2])) < radius]
+
+    def _fingers_down(self, hand: str, point: np.ndarray, what: str, yaw_rad: float) -> int | None:
+        """The ``hand`` above ``point`` fingers down, turned by ``yaw_rad`` (its jaws clear of what it
+        felt: :func:`jaws_clear_of`), without stepping (in two motions when one is refused); the steps
+        taken (0), or None when reaching refuses it (the caller reaches as usual)."""
+        try:
+            plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
+        except InfeasibleError as exc:
+            return self._turn_hand_on_the_way(hand, point, what, [], yaw_rad, exc)
+        return self._play(plan, f"{what} (fingers down, the jaws clear of what the hand felt)", [])
+
+    def _clear_of_felt(self, point: np.ndarray, what: str) -> bool:
         """When a hand touched something unseen near ``point`` (memory's felt points, within
         ``felt_radius_m``): the fingers, which point from the robot over the object and past it, came
         down on it. Walk around ``point`` (``walking/goal``, checked against the map) by the smallest of
         ``felt_turns_deg`` that puts every such point at least ``felt_clear_deg`` off the direction
-        from the robot to ``point``; the last steps are then planned from there. Nothing to do when
-        none was felt near, or none of the stances is free."""
+        from the robot to ``point``; the last steps are then planned from there. Whether it walked
+        (nothing to do when none was felt near, none is ahead of the fingers, or no stance is free)."""
         c = self.config
-        near = [f for f in self.memory.felt if float(np.linalg.norm(f[:2] - point[:2])) < c.felt_radius_m]
+        near = self._felt_near(point)
         if not near:
-            return
+            return False
         self.body.straighten()  # the walk is planned from the posture it starts in
         x, y, yaw = self.body.base_xy_yaw()
         turns = turns_clear_of(point, (x, y), near, c.felt_clear_deg, c.felt_turns_deg)
@@ -296,7 +376,33 @@ class ManipulationActions:
                 f"deg around it ({plan.describe()})"
             )
             self.body.execute(plan.q, what=what, progress=self.progress)
-            return
+            return True
+        return False
+
+    def _final_hand(self, decided: LastSteps | None) -> list[float] | None:
+        """The grasp frame's world orientation in footsteps/plan's final posture ([qx, qy, qz, qw]), when
+        it decided the last steps and ``last_steps_posture`` is on; else None."""
+        if decided is None or not self.config.last_steps_posture or not decided.hand_quat:
+            return None
+        return decided.hand_quat
+
+    def _as_planned(
+        self, hand: str, point: np.ndarray, what: str, allowed: list[str], quat: list[float] | None
+    ) -> int | None:
+        """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
+        stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
+        where the feet go for this posture; reaching's stepping would walk away from that stance when
+        its manipulability trigger fires on the way, paper 001 Fig. 4). The steps taken (0), or None
+        when ``quat`` is None or reaching refuses it (the caller then reaches position only, stepping
+        if it must: the object moved)."""
+        if quat is None:
+            return None
+        try:
+            plan = self.planners.reach(hand, point, orientation=quat, allow_stepping=False)
+        except InfeasibleError as exc:
+            self.progress(f"{what}: the hand as in footsteps/plan's final posture refused ({exc.message})")
+            return None
+        return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
 
     def _hand_at(self, hand: str, quat: list[float], tolerance_rad: float = 0.1) -> bool:
         """Whether the ``hand``'s grasp frame is within ``tolerance_rad`` of the world orientation
@@ -329,6 +435,39 @@ class ManipulationActions:
         self.progress(f"{what}: {decided.found}; {decided.walk.describe()}")
         self.body.execute(decided.walk.q, what=what, allowed_contacts=allowed or [], progress=self.progress)
         return decided
+
+    def _walk_nearer(self, name: str, point: np.ndarray, what: str) -> bool:
+        """When footsteps/plan found no last steps to ``point`` [m] (world) and it lies farther than
+        ``nearer_beyond_m`` from the mid-feet point: walk with navigation (checked against the map) to
+        ``nearer_m`` short of it, facing it (or, when no such pose is free, in front of ``name``'s map
+        box), rather than letting reaching, which does not know the map, walk there (fetch seed 13:
+        a table seen 0.8 m nearer from 2 m than it was; footsteps/plan's 6 steps were refused by
+        walking, reaching then walked 18 steps into the chair). True when it walked; the caller plans
+        the last steps again from there."""
+        x, y, _yaw = self.body.base_xy_yaw()
+        to = np.asarray(point[:2], dtype=float) - (x, y)
+        far = float(np.linalg.norm(to))
+        if far <= self.config.nearer_beyond_m:
+            return False
+        self.body.straighten()
+        self._make_room(f"room to walk nearer to {name}")
+        u = to / far
+        stop = np.asarray(point[:2], dtype=float) - u * self.config.nearer_m
+        try:
+            plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
+        except InfeasibleError as exc:
+            self.progress(
+                f"{what}: {far:.2f} m away; no walk to {self.config.nearer_m:.2f} m short of it "
+                f"({exc.message})"
+            )
+            try:
+                plan = self._goto_object(name, self.config.goto_distance_m)
+            except InfeasibleError as again:
+                self.progress(f"{what}: no walk nearer to {name} either ({again.message})")
+                return False
+        self.progress(f"{what}: {far:.2f} m away: walking nearer to {name} ({plan.describe()})")
+        self.body.execute(plan.q, what=f"walk nearer to {name}", progress=self.progress)
+        return True
 
     def _support(self, name: str) -> list[str]:
         """The object ``name`` rests on, among those seen (the big one under it), if any: the hand may
@@ -420,21 +559,29 @@ class ManipulationActions:
             # Look at the place (again, on the second attempt: from nearer, with the object above it).
             self.do_look_at(Step(step.line, "look_at", (place,)))
             point = self._put_point(place, missed=missed)
-            self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
+            decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
+            if decided is None and self._walk_nearer(place, point, f"step up to {place}"):
+                self.do_look_at(Step(step.line, "look_at", (place,)))
+                point = self._put_point(place, missed=missed)
+                decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
-            self._move_hand(
-                hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
-            )
+            final = self._final_hand(decided)
+            if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final) is None:
+                self._move_hand(
+                    hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
+                )
             low = point.copy()
             low[2] = max(self.config.put_lowest_m, point[2] - self.config.put_depth_m)
-            plan = self.planners.reach(hand, low, yaw_rad=None, allow_stepping=False)
+            plan = self._lowering(hand, low, final)
             what = f"lower {obj} onto {place}"
             self.progress(f"{what}: {plan.describe()}, until it touches")
             executed = self.body.execute(
                 plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
             )
             if executed.touched:
+                self.progress(f"{what}: touched by {self._contacts(executed)}")
+                executed = self._onto_the_top(hand, obj, place, executed, allowed, final)
                 break
             if attempt == 2:
                 raise NotFoundError(
@@ -477,6 +624,79 @@ class ManipulationActions:
             message=f"{obj} put on {place} at ({at[0]:.2f}, {at[1]:.2f}, {at[2]:.2f}) m{note}",
             details={"point": at.tolist(), "on": place, "hand": hand},
         )
+
+    @staticmethod
+    def _contacts(executed: Executed) -> str:
+        """The contacts that stopped ``executed``, for the transcript: link (x, y, z) m, ..."""
+        return ", ".join(
+            f"{k.robot_link} at ({k.position[0]:.2f}, {k.position[1]:.2f}, {k.position[2]:.2f})"
+            for k in executed.reply.collisions
+        )
+
+    def _beside_edge(self, hand: str, obj: str, executed: Executed) -> np.ndarray | None:
+        """:func:`toward_edge` of the contacts of the held ``obj`` that stopped ``executed``, seen from
+        the ``hand``'s grasp frame; None when only the hand touched (the hand can reach below the
+        object: the put goes on as before)."""
+        held = [c.position for c in executed.reply.collisions if c.robot_link == f"held:{obj}"]
+        if not held:
+            return None
+        centre = self.body.robot.grasp_position(executed.q, hand)
+        return toward_edge(centre, [np.asarray(p, dtype=float) for p in held], self.config.put_edge_deg)
+
+    def _onto_the_top(
+        self,
+        hand: str,
+        obj: str,
+        place: str,
+        executed: Executed,
+        allowed: list[str],
+        final: list[float] | None,
+    ) -> Executed:
+        """After a lowering stopped on touching ``place``: while the object touched it only on its side
+        (:meth:`_beside_edge`: hanging over an edge; released there it falls off, fetch seed 5), raise it
+        by ``put_height_m``, move it ``put_edge_shift_m`` toward the contacts (onto the top) and lower it
+        again until it touches, at most ``put_edge_tries`` times. The last lowering's execution."""
+        c = self.config
+        for _ in range(c.put_edge_tries):
+            inward = self._beside_edge(hand, obj, executed)
+            if inward is None:
+                return executed
+            here = self.body.robot.grasp_position(executed.q, hand)
+            self.progress(
+                f"{obj} touched {place} on its side (over an edge): moving it "
+                f"{c.put_edge_shift_m:.2f} m onto the top and lowering it again"
+            )
+            up = here + np.array([0.0, 0.0, c.put_height_m])
+            off = [*allowed, place]  # it starts on the edge
+            self._move_hand(hand, up, f"lift {obj} off the edge", allowed=off, stepping=False, yaw_rad=None)
+            over = up + np.array([inward[0], inward[1], 0.0]) * c.put_edge_shift_m
+            self._move_hand(hand, over, f"{obj} over the top", allowed=allowed, stepping=False, yaw_rad=None)
+            low = over.copy()
+            low[2] = max(c.put_lowest_m, over[2] - c.put_depth_m)
+            plan = self._lowering(hand, low, final)
+            what = f"lower {obj} onto {place} again"
+            self.progress(f"{what}: {plan.describe()}, until it touches")
+            executed = self.body.execute(
+                plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
+            )
+            if executed.touched:
+                self.progress(f"{what}: touched by {self._contacts(executed)}")
+            else:
+                raise NotFoundError(
+                    f"moved {obj} {c.put_edge_shift_m:.2f} m from an edge of {place} onto its top and "
+                    f"lowered it to {low[2]:.2f} m without touching it",
+                    {"object": place, "reason": "no_surface"},
+                )
+        return executed
+
+    def _lowering(self, hand: str, low: np.ndarray, final: list[float] | None) -> Plan:
+        """The guarded lowering of a held object to ``low`` (no stepping): the hand keeping the
+        orientation of footsteps/plan's final posture when it is in it (``final``), else position only
+        (also when reaching refuses the former)."""
+        if final is not None and self._hand_at(hand, final):
+            with contextlib.suppress(InfeasibleError):
+                return self.planners.reach(hand, low, orientation=final, allow_stepping=False)
+        return self.planners.reach(hand, low, yaw_rad=None, allow_stepping=False)
 
     def _put_point(self, place: str, *, missed: np.ndarray | None = None) -> np.ndarray:
         """Where the object goes before being lowered: inside the place's near face (as the map

@@ -7,7 +7,6 @@ reply, with the sim time it was made at. The robot's own pose comes from its pro
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -17,14 +16,6 @@ from services.errors import NotFoundError
 
 #: A sighting without a footprint inherits the last one when it lies this close to it [m].
 KEEP_FOOTPRINT_MARGIN_M = 0.25
-
-
-def _inside(footprint: FootprintMsg, xy: np.ndarray, margin_m: float) -> bool:
-    """Whether the point ``xy`` [m] lies in the footprint rectangle grown by ``margin_m`` [m]."""
-    c, s = math.cos(footprint.yaw), math.sin(footprint.yaw)
-    dx, dy = float(xy[0]) - footprint.center[0], float(xy[1]) - footprint.center[1]
-    along, across = c * dx + s * dy, -s * dx + c * dy
-    return abs(along) <= footprint.size[0] / 2 + margin_m and abs(across) <= footprint.size[1] / 2 + margin_m
 
 
 @dataclass(frozen=True)
@@ -78,7 +69,7 @@ class Memory:
             sighting.footprint is None
             and last is not None
             and last.footprint is not None
-            and _inside(last.footprint, sighting.position_m[:2], KEEP_FOOTPRINT_MARGIN_M)
+            and last.footprint.rectangle.grown(KEEP_FOOTPRINT_MARGIN_M).contains(sighting.position_m[:2])
         ):
             sighting = replace(sighting, footprint=last.footprint)
         self.sightings[sighting.name] = sighting

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from services.bus.schemas.supervisor import REASON_WORLD_LOST
 from supervisor.report import REASONS
 
 REMEDIES = ("none", "relocalize", "replan", "wait_service")
@@ -31,11 +32,15 @@ class RetryRule:
 
 @dataclass(frozen=True)
 class RetryPolicy:
-    """A rule per failure reason; reasons without a rule are not retried."""
+    """A rule per failure reason; reasons without a rule are not retried, nor are the failures whose
+    sub-reason (``details["reason"]``) is ``final`` (no retry can help: the world they acted in is gone)."""
 
     rules: tuple[tuple[str, RetryRule], ...]
+    final: tuple[str, ...] = (REASON_WORLD_LOST,)
 
-    def rule(self, reason: str) -> RetryRule:
+    def rule(self, reason: str, sub_reason: str = "") -> RetryRule:
+        if sub_reason and sub_reason in self.final:
+            return RetryRule(0)
         for name, rule in self.rules:
             if name == reason:
                 return rule
@@ -55,7 +60,8 @@ DEFAULT_POLICY = RetryPolicy(
         ("collision", RetryRule(2, "replan")),
         # A planner found no solution: a fresh localization may move the goal into reach.
         ("infeasible", RetryRule(1, "relocalize")),
-        # A service died or is restarting: wait for its liveliness token, then retry.
+        # A service died or is restarting: wait for its liveliness token, then retry (not the sim: its
+        # restart lost the world, REASON_WORLD_LOST is final).
         ("unavailable", RetryRule(3, "wait_service", backoff_s=0.5)),
         ("timeout", RetryRule(2, "wait_service", backoff_s=0.5)),
         ("internal", RetryRule(1, "none", backoff_s=0.5)),

@@ -128,7 +128,7 @@ class Runner:
                 self._emit("stopped", step, attempt, "stopped", report.message)
                 return report
             self._emit("failed", step, attempt, report.reason, report.message)
-            rule = self.policy.rule(report.reason)
+            rule = self.policy.rule(report.reason, str(report.details.get("reason", "")))
             if attempt > rule.retries or self.stop.is_set():
                 return report
             self._emit("retried", step, attempt + 1, report.reason, f"remedy: {rule.remedy}")

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from services.bus.schemas import navigation as nav_msg
+from services.bus.schemas.rectangle import Rectangle
 from supervisor.memory import Memory, Sighting
 
 #: Objects whose seen width and height are both below this are not obstacles (balls on a box) [m].
@@ -41,6 +42,11 @@ class BoxEstimate:
     @property
     def top_z_m(self) -> float:
         return self.size_m[2]
+
+    @property
+    def footprint(self) -> Rectangle:
+        """Its floor rectangle (the stack's one rectangle maths)."""
+        return Rectangle((self.center_m[0], self.center_m[1]), (self.size_m[0], self.size_m[1]), self.yaw_rad)
 
     def to_msg(self) -> nav_msg.ObstacleMsg:
         return nav_msg.ObstacleMsg(
@@ -71,14 +77,14 @@ def box_estimate(sighting: Sighting) -> BoxEstimate:
 def _from_footprint(sighting: Sighting) -> BoxEstimate:
     fp = sighting.footprint
     assert fp is not None
-    length, width = fp.size
-    centre = np.asarray(fp.center, dtype=float)
+    rect = fp.rectangle
+    length, width = rect.size_m
+    centre = np.asarray(rect.center_xy_m, dtype=float)
     depth = max(width, min(length, DEPTH_RANGE_M[1]))
-    if width < MIN_DEPTH_FRACTION * length:  # extend away from the camera that saw it
-        across = np.array([-math.sin(fp.yaw), math.cos(fp.yaw)])
-        if float(np.dot(across, centre - np.asarray(sighting.camera_m, dtype=float)[:2])) < 0.0:
-            across = -across
-        centre = centre + across * (depth - width) / 2.0
+    if width < MIN_DEPTH_FRACTION * length:  # extend across it, away from the camera that saw it
+        camera_across = float(rect.to_local(np.asarray(sighting.camera_m, dtype=float)[:2])[0, 1])
+        shift = (depth - width) / 2.0
+        centre = rect.to_world([0.0, -shift if camera_across > 0.0 else shift])[0]
         width = depth
     top = max(0.05, fp.top_z)
     return BoxEstimate(
@@ -106,29 +112,11 @@ def obstacles(memory: Memory) -> list[nav_msg.ObstacleMsg]:
 
 def ray_entry(box: BoxEstimate, origin_xy: np.ndarray, direction_xy: np.ndarray) -> float:
     """Distance [m] along the unit ``direction_xy`` from ``origin_xy`` to where the ray enters the box's
-    footprint rectangle (0 if the origin is inside; inf if the ray misses it) — slab method."""
-    c, s = math.cos(box.yaw_rad), math.sin(box.yaw_rad)
-    rotate = np.array([[c, s], [-s, c]])  # world -> box frame
-    o = rotate @ (np.asarray(origin_xy, dtype=float) - np.asarray(box.center_m[:2]))
-    d = rotate @ np.asarray(direction_xy, dtype=float)
-    half = np.asarray(box.size_m[:2]) / 2.0
-    enter, leave = -math.inf, math.inf
-    for k in range(2):
-        if abs(d[k]) < 1e-12:
-            if abs(o[k]) > half[k]:
-                return math.inf
-            continue
-        t0, t1 = sorted(((-half[k] - o[k]) / d[k], (half[k] - o[k]) / d[k]))
-        enter, leave = max(enter, t0), min(leave, t1)
-    if enter > leave or leave < 0.0:
-        return math.inf
-    return max(0.0, enter)
+    footprint rectangle (0 inside; inf if the ray misses it): :meth:`Rectangle.ray_entry`."""
+    return box.footprint.ray_entry(origin_xy, direction_xy)
 
 
 def distance_to_box(box: BoxEstimate, x_m: float, y_m: float) -> float:
-    """Horizontal distance from (x, y) to the box's footprint rectangle [m] (0 inside)."""
-    c, s = math.cos(box.yaw_rad), math.sin(box.yaw_rad)
-    dx, dy = x_m - box.center_m[0], y_m - box.center_m[1]
-    local = np.array([c * dx + s * dy, -s * dx + c * dy])
-    excess = np.maximum(np.abs(local) - np.array(box.size_m[:2]) / 2.0, 0.0)
-    return float(np.linalg.norm(excess))
+    """Horizontal distance from (x, y) to the box's footprint rectangle [m] (0 inside):
+    :meth:`Rectangle.distance`."""
+    return box.footprint.distance((x_m, y_m))

@@ -12,6 +12,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from services.bus.schemas.reaching import REASON_STEPPING_NOT_ALLOWED, REASON_TOO_MANY_STEPS
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.reaching import CRITERIA, ReachingOptions, ReachRequest, plan_reach
@@ -141,12 +142,14 @@ def test_impossible_target_is_infeasible_naming_the_criterion(robot):
     assert details["criterion"] in CRITERIA
     assert f"criterion '{details['criterion']}' failed" in info.value.message
     assert details["steps_needed"] > ReachingOptions().max_steps
+    assert details["reason"] == REASON_TOO_MANY_STEPS
 
 
 def test_without_stepping_a_far_target_is_infeasible(robot):
     with pytest.raises(InfeasibleError, match="stepping is not allowed") as info:
         plan_reach(robot, _request(robot, FORWARD_BEYOND[robot.name], allow_stepping=False))
     assert info.value.details["criterion"] in CRITERIA
+    assert info.value.details["reason"] == REASON_STEPPING_NOT_ALLOWED
 
 
 def test_without_stepping_the_manipulability_trigger_does_not_veto_a_reachable_target():

@@ -180,7 +180,7 @@ def test_solver_iterations_are_the_robots_unless_configured():
     import pybullet as p
 
     assert SimConfig().solver_iterations is None
-    for model, expected in (("hrp2_like", 20), ("talos", 50)):
+    for model, expected in (("hrp2_like", 12), ("talos", 50)):
         with World(model, "empty") as world:
             assert world.solver_iterations == expected == world.robot.pybullet_solver_iterations
             params = p.getPhysicsEngineParameters(physicsClientId=world.client)

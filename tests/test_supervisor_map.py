@@ -111,6 +111,40 @@ def test_the_approach_turns_clear_of_what_the_hand_felt():
     assert turns_clear_of(ball, robot, [np.array([3.0, 1.6, 0.75])], 60.0, (30.0,)) == []
 
 
+def test_fingers_down_the_jaws_turn_clear_of_what_the_wrist_felt():
+    """Fetch seed 37: the wrist touched the ball beside the target at points 80-140 deg to the right
+    of the approach (no walk around the ball moves them out of the wrist's way): the fingers-down hand
+    is turned by 75 deg, the touched points then near its x axis (beside the plates of its fingers,
+    not between its jaws); nothing felt off the x axis: no turn."""
+    from supervisor.manipulation import jaws_clear_of
+
+    ball = np.array([3.635, 0.525, 0.75])
+    felt = [
+        ball + 0.06 * np.array([math.cos(a), math.sin(a), 0.0]) for a in np.radians([-80.0, -100.0, -140.0])
+    ]
+    turns = (15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
+    yaw = jaws_clear_of(ball, felt, 0.0, turns)
+    assert math.degrees(yaw) == pytest.approx(75.0)  # the x axis line at -105 deg: 25, 5, 35 deg off
+    assert jaws_clear_of(ball, [ball + np.array([0.1, 0.0, 0.0])], 0.0, turns) == pytest.approx(0.0)
+
+
+def test_a_lowered_ball_touching_only_an_edge_is_moved_toward_it():
+    """Fetch seed 5: the ball held 5 cm beyond the table's edge touched it on its side (70 deg off
+    straight below its centre): the top lies toward the contact; a contact under the ball is a ball
+    standing on the top (also with another contact on an edge beside it); no contact, no edge."""
+    from supervisor.manipulation import toward_edge
+
+    centre = np.array([2.48, -2.28, 0.737])
+    edge = np.array([2.467, -2.235, 0.72])  # 4.7 cm across, 1.7 cm below
+    inward = toward_edge(centre, [edge], 45.0)
+    assert inward is not None
+    assert inward == pytest.approx((edge[:2] - centre[:2]) / np.linalg.norm(edge[:2] - centre[:2]))
+    under = np.array([2.485, -2.28, 0.687])
+    assert toward_edge(centre, [under], 45.0) is None
+    assert toward_edge(centre, [edge, under], 45.0) is None
+    assert toward_edge(centre, [], 45.0) is None
+
+
 def test_requests_in_a_recorded_log_are_counted_per_window(tmp_path):
     """scripts/bench fetch counts footsteps/plan calls in the recorder's MCAP log, per fetch window:
     requests only (not replies, not other endpoints), by log time, also in a log still being written."""

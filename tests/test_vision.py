@@ -417,3 +417,26 @@ def test_cli_learn_writes_a_model_that_detects(tmp_path, demo_pair):
     with pytest.raises(SystemExit) as e:
         main(["perception", "learn", "--help"])
     assert e.value.code == 0
+
+
+def test_a_dense_stereo_past_the_request_budget_is_abandoned_with_a_typed_timeout(models, demo_pair):
+    """Issue 16: one OpenCV stereo call cannot be interrupted; within a request's budget it runs where it
+    can be abandoned: the typed timeout comes when the budget ends, and the next request still gets the
+    same disparities as without a budget (the abandoned computation holds the one stereo slot meanwhile)."""
+    from services import budget
+    from services.errors import RequestTimeoutError
+
+    left, right, T = demo_pair
+    config = LocalizeConfig(stereo=StereoConfig(method="sgbm", dense_full_frame=True))
+    big_l, big_r = (cv2.resize(im.image_bgr, (1280, 960)) for im in (left, right))  # about 1 s of SGBM
+    big_rig = StereoRig(CameraIntrinsics.from_hfov(1280, 960, math.radians(60.0)), RIG.baseline_m)
+    with (
+        pytest.raises(RequestTimeoutError, match=r"dense stereo \(sgbm.*abandoned") as err,
+        budget.within(0.2),
+    ):
+        locate(models["orange_ball"], big_l, big_r, big_rig, T, config)
+    assert err.value.details["budget_s"] == 0.2
+    free = locate(models["orange_ball"], left.image_bgr, right.image_bgr, RIG, T, config)
+    with budget.within(60.0):
+        bounded = locate(models["orange_ball"], left.image_bgr, right.image_bgr, RIG, T, config)
+    assert bounded.disparity_px == free.disparity_px

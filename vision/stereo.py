@@ -39,17 +39,23 @@ Frames: positions are in the left camera optical frame (x right, y down, z forwa
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
 
+from services import budget
 from services.bus.schemas.perception import REASON_NO_DISPARITY, REASON_STEREO_MISMATCH
-from services.errors import InvalidRequestError, NotFoundError
+from services.errors import InvalidRequestError, NotFoundError, RequestTimeoutError
 from vision.camera import StereoRig, transform_points
 from vision.camshift import Window
 
 METHODS = ("centroid", "bm", "sgbm", "edges")
+#: Held by the dense stereo computation that runs while a request's budget is open (one at a time; an
+#: abandoned one keeps it until it ends: :func:`_compute_within_budget`).
+_STEREO_SLOT = threading.Semaphore(1)
 
 
 @dataclass(frozen=True)
@@ -197,7 +203,7 @@ def dense_disparity_median(
     crop_l = cv2.copyMakeBorder(left_gray[r0:r1, c0:c1], 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)
     crop_r = cv2.copyMakeBorder(right_gray[r0:r1, c0:c1], 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)
     c0 -= pad
-    disp16 = _matcher(method, min_disp, num_disp, config).compute(crop_l, crop_r)
+    disp16 = _compute_within_budget(_matcher(method, min_disp, num_disp, config), crop_l, crop_r, method)
     disp = disp16[y - r0 : y - r0 + h, x - c0 : x - c0 + w].astype(np.float32) / 16.0
     valid = object_mask & (disp >= min_disp) & (disp > 0)
     n_valid = int(np.count_nonzero(valid))
@@ -209,6 +215,54 @@ def dense_disparity_median(
             {"reason": REASON_NO_DISPARITY},
         )
     return float(np.median(disp[valid])), n_valid
+
+
+def _compute_within_budget(
+    matcher: cv2.StereoMatcher, crop_l: np.ndarray, crop_r: np.ndarray, method: str
+) -> np.ndarray:
+    """The matcher's 16x fixed-point disparities of the crop, abandoned when the request's time budget
+    (:mod:`services.budget`) runs out first (issue 16: a 2048 px SGBM takes seconds in one OpenCV call,
+    which cannot be interrupted).
+
+    Without an open budget (scripts, tests of this package) the matcher runs here. With one, it runs on
+    a daemon thread (OpenCV releases the GIL) while this one waits at most what is left of the budget;
+    past it, RequestTimeoutError: the reply goes out at once, and the computation, whose result nobody
+    wants any more, ends on its own (its length is bounded by the largest image). One computation at a
+    time (:data:`_STEREO_SLOT`): a request finding an abandoned one still running waits for it within
+    its own budget, so abandoned work never piles up.
+    """
+    deadline = budget.current()
+    if deadline is None:
+        return matcher.compute(crop_l, crop_r)
+    what = f"the dense stereo ({method}, a {crop_l.shape[1]} x {crop_l.shape[0]} px crop)"
+    if not _STEREO_SLOT.acquire(timeout=max(deadline.remaining(), 0.0)):
+        raise _abandoned(deadline, f"{what}, waiting for an abandoned one to end")
+    result: dict[str, Any] = {}
+    done = threading.Event()
+
+    def run() -> None:
+        try:
+            result["disparity"] = matcher.compute(crop_l, crop_r)
+        except Exception as exc:  # raised again by the waiting thread
+            result["error"] = exc
+        finally:
+            _STEREO_SLOT.release()
+            done.set()
+
+    threading.Thread(target=run, name="stereo", daemon=True).start()
+    if not done.wait(timeout=max(deadline.remaining(), 0.0)):
+        raise _abandoned(deadline, f"{what}, abandoned")
+    if "error" in result:
+        raise result["error"]
+    return result["disparity"]
+
+
+def _abandoned(deadline: budget.Deadline, where: str) -> RequestTimeoutError:
+    return RequestTimeoutError(
+        f"the time budget of {deadline.budget_s:.3g} s ran out after {deadline.elapsed():.2f} s, at {where}: "
+        "give a larger time_budget_s or smaller images",
+        {"budget_s": deadline.budget_s, "elapsed_s": deadline.elapsed(), "stage": where},
+    )
 
 
 def silhouette_rows(silhouette: np.ndarray, window: Window) -> dict[int, tuple[int, int]]:

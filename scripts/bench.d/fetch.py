@@ -98,7 +98,7 @@ def main(argv: list[str]) -> int:
     from services.bus.schemas import footsteps as fs_msg
     from services.bus.schemas import sim as sim_msg
     from supervisor.core import Supervisor
-    from supervisor.evaluate import ball_on_table, record_config, requests_in_log
+    from supervisor.evaluate import ball_on_table
     from supervisor.fetch import fetch, running_stack
 
     bus = BusConfig().with_hub_port(_free_port())
@@ -106,12 +106,15 @@ def main(argv: list[str]) -> int:
     windows: list[tuple[int, int]] = []
     # The footstep planner's messages are recorded (not in a side-by-side worker: no subscriber there).
     record = None if args.worker else str(Path(args.out).with_suffix(".mcap"))
-    config_path = None
+    # Imported only when recording: a side-by-side worker runs this file in an older tree too.
+    stack_options: dict[str, Any] = {}
     if record:
+        from supervisor.evaluate import record_config
+
         Path(args.log_dir).mkdir(parents=True, exist_ok=True)
-        config_path = record_config(Path(args.log_dir) / "record.yaml")
+        stack_options = {"record": record, "config_path": record_config(Path(args.log_dir) / "record.yaml")}
     with (
-        running_stack(bus, log_dir=args.log_dir, record=record, config_path=config_path),
+        running_stack(bus, log_dir=args.log_dir, **stack_options),
         Supervisor.connect(bus) as sup,
     ):
         missing = sup.wait_for_services(30.0)
@@ -151,6 +154,8 @@ def main(argv: list[str]) -> int:
     if args.worker:
         return 0
     if record:  # the recorder has closed the log: count there
+        from supervisor.evaluate import requests_in_log
+
         for run, count in zip(runs, requests_in_log(record, fs_msg.PLAN, windows), strict=True):
             run["footsteps_plan_calls"] = count
     result = summarize(runs)

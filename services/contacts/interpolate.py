@@ -37,11 +37,15 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
+from services import budget
 from services.contacts.posture import PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
 from services.errors import InfeasibleError, RequestTimeoutError
 from services.ik import FramePoseTask, PostureTask
 from services.ik.tasks.capsule_box import CapsuleBoxTask
+
+#: The collision check of a timed segment looks at the request's time budget every this many samples.
+BUDGET_CHECK_SAMPLES = 50
 
 
 @dataclass(frozen=True)
@@ -50,8 +54,10 @@ class InterpolationConfig:
     quasi-static speed limits: base ``base_speed_m_s`` [m/s], moving spot ``spot_speed_m_s`` [m/s],
     joints ``joint_speed_ratio`` of their velocity limits, ``min_segment_s`` [s], sample ``dt_s`` [s],
     collision check of the timed segments every ``check_every`` samples, a segment deeper than
-    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times,
-    ``deadline`` (``time.monotonic()`` [s]) past which RequestTimeoutError is raised."""
+    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times.
+    The request's time budget (:mod:`services.budget`) is checked before every posture generation, every
+    re-planning try and every ``BUDGET_CHECK_SAMPLES`` collision-checked samples: past it,
+    RequestTimeoutError names the transition and step reached (issue 16)."""
 
     n: int = 20
     lift_m: float = 0.03
@@ -63,7 +69,6 @@ class InterpolationConfig:
     collision_tol_m: float = 0.005
     max_refinements: int = 4
     check_every: int = 4
-    deadline: float = math.inf  # time.monotonic() after which the interpolation gives up (timeout)
 
 
 @dataclass(frozen=True)
@@ -244,6 +249,7 @@ def transition(
     out: list[np.ndarray] = []
     q = q1.copy()
     for i in range(1, config.n + 1):
+        budget.check(f"the interpolation's posture {i} of {config.n}")
         q_ref = pin.interpolate(gen.model, q1, q2, min(1.0, lead * i / config.n))
         extra = []
         if moving is not None:
@@ -358,7 +364,8 @@ def interpolate_transition(
     best: tuple[float, np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None] | None = None
     failure: InfeasibleError | None = None
     refinements = 0
-    for n, detour, lead in tries[: config.max_refinements + 1]:
+    for attempt, (n, detour, lead) in enumerate(tries[: config.max_refinements + 1]):
+        budget.check(f"the interpolation's re-planning try {attempt + 1} (collision or failed posture)")
         # the last posture generated aims at q2; the witness itself (stable and collision free by
         # construction) ends the segment, so that the next one starts exactly there
         try:
@@ -401,14 +408,15 @@ def interpolate_plan(
     collisions: list[SegmentCollision] = []
     refinements = 0
     for k in range(1, len(sets)):
-        if time.monotonic() > config.deadline:
-            raise RequestTimeoutError(
-                f"the time budget ran out while interpolating transition {k} of {len(sets) - 1}",
-                {"transitions_done": k - 1},
-            )
         s1, s2 = sets[k - 1], sets[k]
         q1, q2 = np.asarray(witnesses[k - 1], float), np.asarray(witnesses[k], float)
-        timed, path, hit, refined = interpolate_transition(gen, s1, q1, s2, q2, removed, config, v_max)
+        try:
+            timed, path, hit, refined = interpolate_transition(gen, s1, q1, s2, q2, removed, config, v_max)
+        except RequestTimeoutError as exc:
+            raise RequestTimeoutError(
+                f"{exc.message} (interpolating transition {k} of {len(sets) - 1})",
+                {**exc.details, "transitions_done": k - 1},
+            ) from exc
         refinements += refined
         if hit is not None and hit[0] > config.collision_tol_m:
             collisions.append(SegmentCollision(k, hit[0], hit[1], hit[2], count + hit[3] - 1))
@@ -446,7 +454,9 @@ def deepest_collision(
     data = gen.model.createData()
     worst: tuple[float, str, str, int] | None = None
     indices = sorted({*range(0, len(q), max(1, every)), len(q) - 1})
-    for i in indices:
+    for n, i in enumerate(indices):
+        if n % BUDGET_CHECK_SAMPLES == 0:
+            budget.check(f"the interpolation's collision check, sample {i} of {len(q)}")
         pin.framesForwardKinematics(gen.model, data, q[i])
         d = task.distances(data)
         j = int(np.argmin(d))

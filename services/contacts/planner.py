@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from services import budget
 from services.contacts import chair_egress
 from services.contacts.environment import Environment, environment_of
 from services.contacts.interpolate import InterpolationConfig, Motion, interpolate_plan
@@ -117,8 +118,11 @@ def build(
 
 def plan(robot: RobotModel, problem: PlanProblem, progress: ProgressHook | None = None) -> Plan:
     """Search and interpolate. Raises InfeasibleError (tree exhausted; details: best set reached and why),
-    RequestTimeoutError (time or node budget spent; details: the partial plan to the best node)."""
+    RequestTimeoutError (time or node budget spent, in the search or in the interpolation, whose time
+    is the request's budget (:mod:`services.budget`) when one is open; details: the partial plan to the
+    best node, ``status`` "reached" when the search had found the goal)."""
     gen, trajectory, start, pairs = build(robot, problem)
+    budget.check("the set-up (scene, posture generator, key postures), before the search")
     planner = ContactPlanner(gen, trajectory, problem.goal, pairs, problem.search, progress)
     result = planner.plan(start, problem.q_start)
     if result.status != "reached":
@@ -138,9 +142,15 @@ def plan(robot: RobotModel, problem: PlanProblem, progress: ProgressHook | None 
         )
     motion = None
     if problem.interpolation is not None:
-        motion = interpolate_plan(
-            gen, [n.contacts for n in result.path], [n.q for n in result.path], problem.interpolation
-        )
+        try:
+            motion = interpolate_plan(
+                gen, [n.contacts for n in result.path], [n.q for n in result.path], problem.interpolation
+            )
+        except RequestTimeoutError as exc:  # the request's budget ran out after the search: the plan
+            raise RequestTimeoutError(  # found is the partial result, without its motion
+                f"the contact plan was found ({len(result.path)} sets) but not its motion: {exc.message}",
+                {**exc.details, **partial_details(result)},
+            ) from exc
     return Plan(result, motion, trajectory, gen.env)
 
 

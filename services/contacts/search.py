@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from services import budget
 from services.contacts.posture import Floating, PostureGenerator
 from services.contacts.potential import PotentialTask, RoughTrajectory
 from services.contacts.sets import Contact, ContactSet, canonical, sets_close
@@ -179,8 +180,19 @@ class ContactPlanner:
         heapq.heappush(self._heap, (node.f, -node.depth, next(self._seq), node.index, stream))
         return node
 
+    def _timed_out(self) -> str:
+        """Why the search must stop for time ("" if it need not): its own share of the budget
+        (``config.time_budget_s``) or the whole request's (:mod:`services.budget`, issue 16)."""
+        if time.perf_counter() > self._deadline:
+            return f"the search's time budget of {self.config.time_budget_s:.3g} s spent"
+        if budget.expired():
+            request = budget.current()
+            assert request is not None
+            return f"the request's time budget of {request.budget_s:.3g} s spent"
+        return ""
+
     def _out_of_time(self) -> bool:
-        return time.perf_counter() > self._deadline or len(self.nodes) >= self.config.max_nodes
+        return bool(self._timed_out()) or len(self.nodes) >= self.config.max_nodes
 
     def _volume(self, node: Node, spot: str, surface_name: str) -> SearchVolume | None:
         """C of the pair, limited to the spot's reach (see the module docstring)."""
@@ -279,8 +291,9 @@ class ContactPlanner:
         status, message = "exhausted", "every leaf was expanded without reaching the goal"
         goal_node: Node | None = None
         while self._heap:
-            if time.perf_counter() > self._deadline:
-                status, message = "timeout", f"time budget of {cfg.time_budget_s:.0f} s spent"
+            spent = self._timed_out()
+            if spent:
+                status, message = "timeout", spent
                 break
             if len(self.nodes) >= cfg.max_nodes:
                 status, message = "max_nodes", f"{cfg.max_nodes} nodes generated"

@@ -10,7 +10,9 @@ search is published on ``contacts/progress``.
 Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` of the wrong
 size, a start contact that does not hold at ``q_start``), ``infeasible`` (the search tree was exhausted,
 or an interpolation step failed; ``details`` has the best set reached and why), ``timeout`` (the time or
-node budget was spent; ``details`` has the partial plan: sets, changes, witnesses).
+node budget was spent; ``details`` has the partial plan: sets, changes, witnesses). ``time_budget_s``
+bounds the whole request (set-up, search, interpolation with its re-planning and collision checks):
+the reply comes within it plus the longest step between two checks (one posture generation).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small dense problems: thre
 
 import numpy as np
 
+from services import budget
 from services.bus.schemas import contacts as msg
 from services.bus.service import Service, handles, run_service
 from services.contacts.closed_loop import replan_transition
@@ -71,6 +74,12 @@ class ContactsService(Service):
 
     @handles(msg.PLAN)
     def plan(self, request: msg.PlanRequest) -> msg.PlanReply:
+        """The plan of ``request`` within its ``time_budget_s`` (the whole request: set-up, search,
+        interpolation, its re-planning and collision checks; issue 16)."""
+        with budget.within(request.time_budget_s):
+            return self._plan(request)
+
+    def _plan(self, request: msg.PlanRequest) -> msg.PlanReply:
         problem = to_problem(request)
         request_id = f"{request.scene}@{time.time():.3f}"
 
@@ -148,14 +157,13 @@ def to_problem(request: msg.PlanRequest) -> PlanProblem:
     ):
         if any(len(p) != 2 for p in pairs):
             raise InvalidRequestError(f"{name} must be a list of [spot, surface] pairs, got {pairs}")
-    deadline = time.monotonic() + request.time_budget_s
     search = SearchConfig(
         best_first_sons=request.best_first_sons,
         max_nodes=request.max_nodes,
         time_budget_s=SEARCH_SHARE * request.time_budget_s if request.interpolate else request.time_budget_s,
     )
     interpolation = (
-        replace(InterpolationConfig(), n=request.n_interpolation, deadline=deadline)
+        replace(InterpolationConfig(), n=request.n_interpolation)
         if request.interpolate
         else None
     )

@@ -16,6 +16,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
+from services.bus.schemas.footsteps import (
+    REASON_MAX_ITERATIONS,
+    REASON_MAX_STEPS,
+    REASON_SOLVED,
+    REASON_STALLED,
+    REASON_STEP_CAP,
+    REASON_TIME_BUDGET,
+)
 from services.errors import InfeasibleError, InvalidRequestError, RequestTimeoutError
 from services.footsteps.chain import Stance, VirtualChain
 from services.footsteps.geometry import same_pose
@@ -225,10 +233,10 @@ class _Algorithm1:
             if grow:
                 grow = False
                 if self.chain.n_steps >= self.request.max_steps:
-                    reason = "max_steps"
+                    reason = REASON_MAX_STEPS
                     break
                 if step_cap is not None and self.chain.n_steps >= step_cap:
-                    reason = "step_cap"
+                    reason = REASON_STEP_CAP
                     break
                 # Line 15: add a footstep at the root of the chain; the world state is unchanged.
                 chain, q = self.chain.with_root_footprint(q)
@@ -246,22 +254,22 @@ class _Algorithm1:
                 stalled = bool(np.all(values - new_values < self.epsilons))
                 values = new_values
                 if self._solved(values, cval):
-                    reason = "solved"
+                    reason = REASON_SOLVED
                     break
                 if stalled:
                     # Lines 17-18: the extra footstep did not help: a local minimum (section 6.1).
-                    reason = "stalled"
+                    reason = REASON_STALLED
                     break
                 continue
             # Lines 2-4 (V^(0)) are the values at q; line 7: all tasks solved -> quit.
             if self._solved(values, cval):
-                reason = "solved"
+                reason = REASON_SOLVED
                 break
             if iterations >= self.request.max_iterations:
-                reason = "max_iterations"
+                reason = REASON_MAX_ITERATIONS
                 break
             if self.budget.expired():
-                reason = "time_budget"
+                reason = REASON_TIME_BUDGET
                 break
             # Lines 5-6: solve the prioritized systems (7) and integrate.
             q = self._step(systems, q)
@@ -271,7 +279,7 @@ class _Algorithm1:
             # Lines 10-14: value decrease of every task, eq. (15); all below epsilon -> add a step.
             grow = self._stalled(values, new_values) and not self._solved(new_values, cval)
             values = new_values
-        if reason in ("stalled", "max_steps") and not self.success(values, cval):
+        if reason in (REASON_STALLED, REASON_MAX_STEPS) and not self.success(values, cval):
             # Algorithm 1 stops right after an iteration; let the chain settle (no more steps) so that
             # the equalities of level 0 and nearly met tasks converge.
             for _ in range(self.request.options.polish_iterations):
@@ -442,7 +450,7 @@ def plan_footsteps_best(
     worst = max(zip(request.tasks, best.values, strict=True), key=lambda tv: tv[1] / tv[0].tol())
     # The budget cut the search short (of either start foot): nobody knows the tasks cannot be met, so
     # the answer is ``timeout`` with the best partial plan, not ``infeasible`` (issue 16).
-    timed_out = any(o.reason == "time_budget" for o in outcomes)
+    timed_out = any(o.reason == REASON_TIME_BUDGET for o in outcomes)
     error_type = RequestTimeoutError if timed_out else InfeasibleError
     verdict = "the time budget ran out before the tasks were met" if timed_out else "the tasks cannot be met"
     error = error_type(
@@ -465,12 +473,12 @@ def plan_footsteps_best(
 
 
 _REASONS = {
-    "stalled": "no task improves even with an extra footstep: a local minimum of the gradient descent",
-    "max_steps": "the step cap max_steps was reached",
-    "max_iterations": "the iteration cap max_iterations was reached",
-    "time_budget": "the time budget ran out",
-    "step_cap": "the other start foot already needs fewer steps",
-    "solved": "solved",
+    REASON_STALLED: "no task improves even with an extra footstep: a local minimum of the gradient descent",
+    REASON_MAX_STEPS: "the step cap max_steps was reached",
+    REASON_MAX_ITERATIONS: "the iteration cap max_iterations was reached",
+    REASON_TIME_BUDGET: "the time budget ran out",
+    REASON_STEP_CAP: "the other start foot already needs fewer steps",
+    REASON_SOLVED: "solved",
 }
 
 

@@ -48,7 +48,6 @@ from services.footsteps.request import (
     PlannerOptions,
 )
 from services.model import RobotModel, load_robot
-from services.model.ground import Rectangle
 
 
 @dataclass(frozen=True)
@@ -138,8 +137,7 @@ def _box_disks(boxes: list[ObstacleMsg]) -> list[tuple[float, float, float]]:
                 f"boxes[{i}]: expected kind 'box' with size [sx, sy, sz] > 0 (or 'cylinder'), got "
                 f"kind {box.kind!r}, size {box.size}"
             )
-        rect = Rectangle((float(box.center[0]), float(box.center[1])), (box.size[0], box.size[1]), box.yaw)
-        out.extend(disks_covering(rect))
+        out.extend(disks_covering(box.footprint))
     return out
 
 

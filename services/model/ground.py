@@ -1,5 +1,6 @@
 """Ground geometry shared by every planner: sole poses and footstep sequences on the flat floor, the
-stepping bounds, rectangles, convex hulls, signed distances to convex polygons and the quintic
+stepping bounds, rectangles (:class:`Rectangle`, defined beside the bus schemas so that the supervisor
+shares it, re-exported here), convex hulls, signed distances to convex polygons and the quintic
 smoothstep. One concept, one place: walking, footsteps, navigation, reaching, the IK tasks and vision
 use these and keep no copy of their own.
 
@@ -23,6 +24,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from services.bus.schemas.rectangle import Rectangle
 from services.errors import InfeasibleError, InvalidRequestError
 
 Side = Literal["left", "right"]
@@ -224,49 +226,6 @@ class FootstepBounds:
 
 
 # ------------------------------------------------------------------------------------------ rectangles
-
-
-@dataclass(frozen=True)
-class Rectangle:
-    """A rectangle on the floor: centre (x, y) [m], size (length along its yaw, width across) [m] and
-    yaw [rad], world frame. The one rectangle of the stack: soles, object footprints (vision), box
-    obstacles (navigation) use its maths."""
-
-    center_xy_m: tuple[float, float]
-    size_m: tuple[float, float]
-    yaw_rad: float
-
-    def corners(self) -> np.ndarray:
-        """The 4 corners (4, 2) [m], counter-clockwise from the front-left one."""
-        hl, hw = 0.5 * self.size_m[0], 0.5 * self.size_m[1]
-        local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
-        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        R = np.array([[c, -s], [s, c]])
-        return local @ R.T + np.array([float(self.center_xy_m[0]), float(self.center_xy_m[1])])
-
-    def to_local(self, points_xy_m: Any) -> np.ndarray:
-        """World points (n, 2) (or (2,)) [m] in the rectangle's frame (x along its length), (n, 2)."""
-        P = np.atleast_2d(np.asarray(points_xy_m, dtype=float))
-        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        dx, dy = P[:, 0] - self.center_xy_m[0], P[:, 1] - self.center_xy_m[1]
-        return np.column_stack([c * dx + s * dy, -s * dx + c * dy])
-
-    def to_world(self, local_xy_m: Any) -> np.ndarray:
-        """Points (n, 2) (or (2,)) [m] of the rectangle's frame in the world, (n, 2)."""
-        L = np.atleast_2d(np.asarray(local_xy_m, dtype=float))
-        c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        return np.column_stack(
-            [self.center_xy_m[0] + c * L[:, 0] - s * L[:, 1], self.center_xy_m[1] + s * L[:, 0] + c * L[:, 1]]
-        )
-
-    def signed_distance(self, points_xy_m: Any) -> np.ndarray:
-        """Signed distance (n,) [m] of points (n, 2) (or (2,)) to the rectangle: > 0 outside (the
-        Euclidean distance), < 0 inside (minus the distance to the boundary)."""
-        local = np.abs(self.to_local(points_xy_m))
-        half = 0.5 * np.asarray(self.size_m, dtype=float)
-        excess = local - half
-        outside = np.hypot(np.maximum(excess[:, 0], 0.0), np.maximum(excess[:, 1], 0.0))
-        return np.where(np.all(excess <= 0.0, axis=1), np.max(excess, axis=1), outside)
 
 
 def sole_corners(pose: SolePose, length_m: float, width_m: float) -> np.ndarray:

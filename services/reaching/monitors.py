@@ -14,6 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from services.bus.schemas.reaching import (
+    CRITERION_EE_ERROR,
+    CRITERION_JOINT_LIMITS,
+    CRITERION_JOINT_SPEED,
+    CRITERION_JOINT_TORQUE,
+    CRITERION_MANIPULABILITY,
+    CRITERION_MULTIBODY_ZMP,
+)
 from services.ik import ArmManipulability
 from services.ik.dofs import joint_dofs
 from services.ik.kinematics import frame_id, frame_jacobian
@@ -106,32 +114,32 @@ class Violation:
 
     def describe(self) -> str:
         """A sentence for error messages."""
-        if self.criterion == "manipulability":
+        if self.criterion == CRITERION_MANIPULABILITY:
             return (
                 f"the arm's manipulability (eq. 5) fell to {self.value:.3g} < {self.threshold:.3g} at "
                 f"t={self.time_s:.2f} s (the arm approaches a singular configuration)"
             )
-        if self.criterion == "ee_error":
+        if self.criterion == CRITERION_EE_ERROR:
             return (
                 f"the hand fell {1e3 * self.value:.3g} mm behind its reference (threshold "
                 f"{1e3 * self.threshold:.3g} mm) at t={self.time_s:.2f} s"
             )
-        if self.criterion == "joint_speed":
+        if self.criterion == CRITERION_JOINT_SPEED:
             return (
                 f"an arm joint had to move at {100 * self.value:.0f} % of its velocity limit (admissible "
                 f"{100 * self.threshold:.0f} %) at t={self.time_s:.2f} s"
             )
-        if self.criterion == "joint_torque":
+        if self.criterion == CRITERION_JOINT_TORQUE:
             return (
                 f"holding the posture takes {100 * self.value:.0f} % of a joint's effort limit (admissible "
                 f"{100 * self.threshold:.0f} %) at t={self.time_s:.2f} s"
             )
-        if self.criterion == "multibody_zmp" and self.value > 0:
+        if self.criterion == CRITERION_MULTIBODY_ZMP and self.value > 0:
             return (
                 f"the multibody ZMP leaves the support polygon by {1e3 * self.value:.0f} mm at "
                 f"t={self.time_s:.2f} s"
             )
-        if self.criterion == "multibody_zmp":
+        if self.criterion == CRITERION_MULTIBODY_ZMP:
             return (
                 f"the whole-body motion has no ZMP at t={self.time_s:.2f} s (vertical contact force "
                 f"{self.value:.3g} N: a joint jumps between two IK knots)"
@@ -200,14 +208,15 @@ def first_violation(criteria: tuple[str, ...], values: KnotValues, limits: Thres
     """The first criterion of ``criteria`` out of its admissible range at a knot, or None."""
     t = values.time_s
     for criterion in criteria:
-        if criterion == "manipulability" and values.manipulability < limits.manipulability:
+        if criterion == CRITERION_MANIPULABILITY and values.manipulability < limits.manipulability:
             return Violation(criterion, t, values.manipulability, limits.manipulability)
-        if criterion == "ee_error" and values.ee_error_m > limits.ee_error_m:
+        if criterion == CRITERION_EE_ERROR and values.ee_error_m > limits.ee_error_m:
             return Violation(criterion, t, values.ee_error_m, limits.ee_error_m)
-        if criterion == "joint_speed" and values.joint_speed_ratio > limits.joint_speed_ratio:
+        if criterion == CRITERION_JOINT_SPEED and values.joint_speed_ratio > limits.joint_speed_ratio:
             return Violation(criterion, t, values.joint_speed_ratio, limits.joint_speed_ratio)
-        if criterion == "joint_torque" and values.torque_ratio > limits.torque_ratio:
+        if criterion == CRITERION_JOINT_TORQUE and values.torque_ratio > limits.torque_ratio:
             return Violation(criterion, t, values.torque_ratio, limits.torque_ratio)
-        if criterion == "joint_limits" and values.joint_limit_margin_rad < limits.joint_limit_margin_rad:
+        margin = values.joint_limit_margin_rad
+        if criterion == CRITERION_JOINT_LIMITS and margin < limits.joint_limit_margin_rad:
             return Violation(criterion, t, values.joint_limit_margin_rad, limits.joint_limit_margin_rad)
     return None

@@ -12,16 +12,29 @@ import math
 from dataclasses import dataclass, fields
 from typing import Any
 
+from services.bus.schemas.reaching import (
+    CRITERION_EE_ERROR,
+    CRITERION_JOINT_LIMITS,
+    CRITERION_JOINT_SPEED,
+    CRITERION_JOINT_TORQUE,
+    CRITERION_MANIPULABILITY,
+)
 from services.errors import InvalidRequestError
 from services.reaching.monitors import MANIPULABILITY_ROWS, Thresholds
 
-CRITERIA = ("manipulability", "ee_error", "joint_speed", "joint_torque", "joint_limits")
+CRITERIA = (
+    CRITERION_MANIPULABILITY,
+    CRITERION_EE_ERROR,
+    CRITERION_JOINT_SPEED,
+    CRITERION_JOINT_TORQUE,
+    CRITERION_JOINT_LIMITS,
+)
 """Monitored criteria (Fig. 4): the arm's manipulability (eq. 5) below its threshold, the end-effector
 error above its threshold, an arm joint faster than ``velocity_ratio`` of its limit, the static torque
 of a joint without contact above ``torque_ratio`` of its effort limit, an arm joint at its limit."""
 
 
-PAPER_CRITERIA = ("manipulability", "ee_error")
+PAPER_CRITERIA = (CRITERION_MANIPULABILITY, CRITERION_EE_ERROR)
 """The criteria of the paper's experiment ("Experimental Results"): the arm's manipulability below
 1.5e-4 and the end-effector error above 4e-5 m."""
 
@@ -212,7 +225,7 @@ class ReachingOptions:
         if self.criteria is not None:
             return self.criteria
         extra = getattr(robot.params, "extra", None) or {}
-        torque = ("joint_torque",) if extra.get(TORQUE_TRIGGER_PARAM, 0.0) else ()
+        torque = (CRITERION_JOINT_TORQUE,) if extra.get(TORQUE_TRIGGER_PARAM, 0.0) else ()
         return PAPER_CRITERIA + torque
 
     def thresholds(self, robot: Any) -> Thresholds:

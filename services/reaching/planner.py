@@ -30,6 +30,13 @@ import numpy as np
 import pinocchio as pin
 
 from services import budget
+from services.bus.schemas.reaching import (
+    CRITERION_MANIPULABILITY,
+    CRITERION_MULTIBODY_ZMP,
+    REASON_FAILED_AFTER_RESHAPING,
+    REASON_STEPPING_NOT_ALLOWED,
+    REASON_TOO_MANY_STEPS,
+)
 from services.errors import InfeasibleError, InternalError
 from services.model import load_robot
 from services.model.ground import sole_pose_at
@@ -62,7 +69,7 @@ WALK_MARGIN_M = 0.12
 LOW_TARGET_REACH_RATIO = 0.8
 # Criteria that only trigger the reshaping of the support polygon (paper 001, Fig. 4): with stepping
 # disallowed they do not veto a motion that meets every other criterion (``ReachPlanner._without_trigger``).
-TRIGGER_ONLY = ("manipulability",)
+TRIGGER_ONLY = (CRITERION_MANIPULABILITY,)
 NOT_TRIGGER_ONLY = tuple(c for c in CRITERIA if c not in TRIGGER_ONLY)
 # Fade-in of the second preview stage's ZMP error at the start of a motion without a standing lead-in [s].
 CORRECTION_FADE_IN_S = 0.4
@@ -76,9 +83,9 @@ def _no_zmp(exc: InfeasibleError, spec: MotionSpec) -> Violation:
     if "sample" not in exc.details:
         raise exc
     k = min(int(exc.details["sample"]), spec.n_samples - 1)
-    if "zmp_outside_m" in exc.details:
-        return Violation("multibody_zmp", float(spec.times_s[k]), float(exc.details["zmp_outside_m"]), 0.0)
-    return Violation("multibody_zmp", float(spec.times_s[k]), float(exc.details["vertical_force_n"]), 0.0)
+    details = exc.details
+    value = details["zmp_outside_m"] if "zmp_outside_m" in details else details["vertical_force_n"]
+    return Violation(CRITERION_MULTIBODY_ZMP, float(spec.times_s[k]), float(value), 0.0)
 
 
 class ReachPlanner:
@@ -140,7 +147,7 @@ class ReachPlanner:
                 other = attempts[-1].violation
                 if other is not None:
                     why += f"; without that trigger, '{other.criterion}' failed ({other.describe()})"
-            raise self._infeasible(req, violation, why)
+            raise self._infeasible(req, violation, why, reason=REASON_STEPPING_NOT_ALLOWED)
 
         candidates = self._reshapings(req, left, right)
         if not candidates:
@@ -151,6 +158,7 @@ class ReachPlanner:
                 violation,
                 f"reshaping the support polygon towards it would take at least {needed} steps "
                 f"(max_steps={opt.max_steps})",
+                reason=REASON_TOO_MANY_STEPS,
                 steps_needed=needed,
             )
         last_violation = violation
@@ -190,6 +198,7 @@ class ReachPlanner:
             "even after reshaping the support polygon ("
             + ", ".join(f"{p.kind}: {p.n_steps} steps" for p in candidates)
             + ")",
+            reason=REASON_FAILED_AFTER_RESHAPING,
         )
 
     def _without_trigger(
@@ -483,13 +492,14 @@ class ReachPlanner:
         )
 
     def _infeasible(
-        self, req: ReachRequest, violation: Violation, why: str, **details: Any
+        self, req: ReachRequest, violation: Violation, why: str, reason: str, **details: Any
     ) -> InfeasibleError:
         t = req.target_world_m
         return InfeasibleError(
             f"the {req.hand} hand cannot reach the target ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) m: criterion "
             f"'{violation.criterion}' failed ({violation.describe()}) and {why}",
             {
+                "reason": reason,
                 "criterion": violation.criterion,
                 "time_s": violation.time_s,
                 "value": violation.value,

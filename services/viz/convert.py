@@ -408,8 +408,7 @@ def sighting(stamp_ns: int, reply: per_msg.LocateReply) -> Out:
     }
     fp = reply.footprint
     if fp is not None:
-        corners = ground.Rectangle((fp.center[0], fp.center[1]), (fp.size[0], fp.size[1]), fp.yaw).corners()
-        prims["lines"] = [_loop(corners, col, z=float(fp.top_z))]
+        prims["lines"] = [_loop(fp.rectangle.corners(), col, z=float(fp.top_z))]
     id_ = f"sighting/{reply.object}"
     entity = _entity(stamp_ns, id_, **prims)
     return [(c.MAP_SIGHTINGS, SceneUpdate(deletions=[_delete(stamp_ns, id_)], entities=[entity]))]

@@ -36,7 +36,7 @@ from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
-from services.model.ground import Rectangle, mid_feet
+from services.model.ground import mid_feet
 from services.walking.footsteps import (
     SIDES,
     Footstep,
@@ -198,12 +198,9 @@ def _floor_boxes(obstacles: list[Any]) -> list[MapBox]:
         if o.kind == "box":
             if len(o.size) != 3:
                 raise InvalidRequestError(f"obstacles[{i}].size must be [sx, sy, sz] [m], got {o.size!r}")
-            size, yaw = (float(o.size[0]), float(o.size[1])), float(o.yaw)
-        elif o.kind == "cylinder":
-            size, yaw = (2.0 * float(o.radius), 2.0 * float(o.radius)), 0.0
-        else:
+        elif o.kind != "cylinder":
             raise InvalidRequestError(f"obstacles[{i}].kind must be 'box' or 'cylinder', got {o.kind!r}")
-        out.append(MapBox(o.name, Rectangle((float(o.center[0]), float(o.center[1])), size, yaw)))
+        out.append(MapBox(o.name, o.footprint))
     return out
 
 

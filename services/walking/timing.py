@@ -50,12 +50,12 @@ class WalkTiming:
     parameter away.
     """
 
-    single_support_s: float = 0.8
+    single_support_s: float = 0.7
     double_support_s: float = 0.3
     initial_double_support_s: float = 0.8
     final_double_support_s: float = 0.7
     final_hold_s: float = 0.4
-    initial_hold_s: float = 0.8
+    initial_hold_s: float = 0.6
     dt_s: float = 0.005
 
     def validate(self) -> None:

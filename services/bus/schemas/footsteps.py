@@ -44,6 +44,15 @@ from services.bus.schemas.common import Footstep
 from services.bus.schemas.navigation import ObstacleMsg
 from services.bus.spec import EndpointSpec
 
+#: Where Algorithm 1 stopped (``details["reason"]`` of ``footsteps/plan``'s ``infeasible`` and ``timeout``
+#: replies; sub-reasons across processes).
+REASON_SOLVED = "solved"  # every task met (never in an error)
+REASON_STALLED = "stalled"  # no task improves even with an extra footstep (lines 17-18, section 6.1)
+REASON_MAX_STEPS = "max_steps"  # the step cap max_steps was reached
+REASON_STEP_CAP = "step_cap"  # the other start foot already needs fewer steps
+REASON_MAX_ITERATIONS = "max_iterations"  # the iteration cap max_iterations was reached
+REASON_TIME_BUDGET = "time_budget"  # the time budget ran out (a ``timeout`` reply)
+
 
 class Task(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """A desired task (section 4 of the paper); the order of ``PlanRequest.tasks`` is the priority order.

@@ -15,6 +15,7 @@ import numpy as np
 from msgspec import Meta
 
 from services.bus.limits import MAX_OBSTACLES, Angle, Budget, Coord, Name, Point3, PositiveSize, Seed, Size
+from services.bus.schemas.rectangle import Rectangle
 from services.bus.spec import EndpointSpec
 
 #: ``details["reason"]`` of ``navigation/goto``'s ``infeasible`` replies (sub-reasons across processes).
@@ -43,6 +44,15 @@ class ObstacleMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     yaw: Angle = 0.0  # box: rotation about z [rad]
     radius: Size = 0.0  # cylinder [m]
     height: Size = 0.0  # cylinder [m]
+
+    @property
+    def footprint(self) -> Rectangle:
+        """Its floor projection (world [m, rad]): a box's x and y extents turned by its yaw; a cylinder's
+        bounding square (side 2 ``radius``). The caller checked ``center`` and ``size`` have their length."""
+        centre = (float(self.center[0]), float(self.center[1]))
+        if self.kind == "cylinder":
+            return Rectangle(centre, (2.0 * float(self.radius), 2.0 * float(self.radius)), 0.0)
+        return Rectangle(centre, (float(self.size[0]), float(self.size[1])), float(self.yaw))
 
 
 class CarriedBarMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):

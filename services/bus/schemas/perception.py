@@ -12,6 +12,7 @@ import msgspec
 import numpy as np
 
 from services.bus.limits import Budget, ImageSide, Name
+from services.bus.schemas.rectangle import Rectangle
 from services.bus.spec import EndpointSpec
 
 # ---------------------------------------------------------------------------------------------- locate
@@ -76,6 +77,12 @@ class FootprintMsg(msgspec.Struct, kw_only=True, frozen=True):
     yaw: float  # [rad], in (-pi/2, pi/2]
     top_z: float  # its top: the highest height many outline points share, world [m]
     n_points: int  # outline points it was fitted to
+
+    @property
+    def rectangle(self) -> Rectangle:
+        """The footprint as the stack's rectangle (world [m, rad])."""
+        centre = (float(self.center[0]), float(self.center[1]))
+        return Rectangle(centre, (float(self.size[0]), float(self.size[1])), float(self.yaw))
 
 
 class LocateReply(msgspec.Struct, kw_only=True, frozen=True):

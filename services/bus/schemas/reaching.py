@@ -16,6 +16,20 @@ from services.bus.limits import Budget, Margin, Name, Point3, Quaternion
 from services.bus.schemas.common import Footstep
 from services.bus.spec import EndpointSpec
 
+#: The monitored criteria (paper 001 Fig. 4): the names of ``Attempt.violation`` and of
+#: ``details["criterion"]`` of ``reaching/reach``'s ``infeasible`` replies (sub-reasons across processes).
+CRITERION_MANIPULABILITY = "manipulability"  # the arm's manipulability (eq. 5) below its threshold
+CRITERION_EE_ERROR = "ee_error"  # the hand behind its reference by more than its threshold
+CRITERION_JOINT_SPEED = "joint_speed"  # an arm joint faster than its share of the velocity limit
+CRITERION_JOINT_TORQUE = "joint_torque"  # a static torque above its share of the effort limit
+CRITERION_JOINT_LIMITS = "joint_limits"  # an arm joint at its limit
+CRITERION_MULTIBODY_ZMP = "multibody_zmp"  # the multibody ZMP leaves the support polygon (or has none)
+
+#: ``details["reason"]`` of ``reaching/reach``'s ``infeasible`` replies: why no motion was kept.
+REASON_STEPPING_NOT_ALLOWED = "stepping_not_allowed"  # a criterion failed and allow_stepping is false
+REASON_TOO_MANY_STEPS = "too_many_steps"  # reshaping the support polygon would need more than max_steps
+REASON_FAILED_AFTER_RESHAPING = "failed_after_reshaping"  # a criterion still fails after every reshaping
+
 
 class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Reach ``target`` with the grasp frame of ``hand``, starting from ``q_start`` (planners are

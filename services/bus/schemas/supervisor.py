@@ -11,6 +11,10 @@ import msgspec
 
 from services.bus.spec import TopicSpec
 
+#: ``details["reason"]`` of the ``unavailable`` failure the supervisor reports when the sim process died and
+#: was restarted: the world it held (scene, objects, the robot's place) is gone. Final: never retried.
+REASON_WORLD_LOST = "world_lost"
+
 #: Kinds of :class:`SupervisorEvent`.
 EVENT_KINDS = (
     "run_started",

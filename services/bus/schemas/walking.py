@@ -88,11 +88,11 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     left_start: Pose2 | None = None  # [x, y, yaw] of the left sole before the first step
     right_start: Pose2 | None = None  # [x, y, yaw] of the right sole before the first step
     # timing [s]
-    single_support_s: Phase = 0.8
+    single_support_s: Phase = 0.7
     double_support_s: Phase = 0.3  # between two steps (0.1 is fragile in the sim: see the README)
     initial_double_support_s: Phase = 0.8  # first weight transfer onto the first stance foot
     final_double_support_s: Phase = 0.7  # last weight transfer back between the feet
-    initial_hold_s: Phase = 0.8  # standing still before the first transfer (preview lead-in)
+    initial_hold_s: Phase = 0.6  # standing still before the first transfer (preview lead-in)
     stop_at_end: bool = True  # stand still final_hold_s at the end (else end with the last transfer)
     final_hold_s: Phase = 0.4
     # pattern options
@@ -212,7 +212,7 @@ class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     clearance_m: Size = 0.35
     sole_margin_m: Size = 0.03
     turn_room_m: Size = 0.3
-    single_support_s: Phase = 0.8
+    single_support_s: Phase = 0.7
     double_support_s: Phase = 0.3  # 0.1 tipped the simulated robot over in about half of the 60-90 deg turns
     time_budget_s: Budget | None = None  # as PlanRequest.time_budget_s [s]
 
