@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from services.bus.schemas import walking as walk_msg
 from services.errors import (
+    CollisionError,
     HumanoidError,
     InfeasibleError,
     InvalidRequestError,
@@ -132,15 +133,15 @@ class ManipulationActions:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
         reaching refuses that (or ``config.upright_hand`` is off); ``orientation``: the grasp frame at
-        that world quaternion [qx, qy, qz, qw] (the hand of footsteps/plan's final posture), position
-        only when reaching refuses it; else position only."""
+        that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
+        posture, or fingers down), position only when reaching refuses it; else position only."""
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
                 plan = self.planners.reach(hand, point, orientation=orientation, allow_stepping=stepping)
             except InfeasibleError as exc:
-                self.progress(f"{what}: the hand as in the planned final posture refused ({exc.message})")
+                self.progress(f"{what}: keeping the hand's orientation refused ({exc.message})")
             else:
-                return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
+                return self._play(plan, what + " (keeping the hand's orientation)", allowed)
         if upright and self.config.upright_hand and yaw_rad is not None:
             try:
                 plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=stepping)
@@ -240,10 +241,11 @@ class ManipulationActions:
 
         First the last steps, which footsteps/plan decides with the final posture for the hand on the
         target (paper 000 §7), then two motions of ``reaching/reach``: to ``approach_m`` above the
-        target, the hand turned as in footsteps/plan's final posture and without stepping (the footstep
-        planner decided the stance; ``last_steps_posture``), or, where reaching refuses that, position
-        only with support polygon reshaping (steps) when needed; then straight down onto it with the
-        object as an allowed contact, the hand keeping its orientation.
+        target, the hand turned as in footsteps/plan's final posture and without stepping (the
+        footstep planner decided the stance; "grasp" in ``last_steps_posture``), or (by default, or
+        where reaching refuses that) position only with support polygon reshaping (steps) when
+        needed; then straight down onto it with the object as an allowed contact, the hand keeping
+        its orientation.
         """
         hand, target = step.args
         self.last_reach = (hand, target)  # the reach under way (a remedy backs this hand off its target)
@@ -256,17 +258,20 @@ class ManipulationActions:
         # of it (it can be beside the wrist too: fetch seed 37).
         self._clear_of_felt(point, f"step around {target}")
         near = self._felt_near(point)
-        jaws = jaws_clear_of(point, near, self._heading(), self.config.jaws_turns_deg) if near else None
+        turns = self.config.jaws_turns_deg
+        jaws = jaws_clear_of(point, near, self._heading(), turns) if near and turns else None
         yaw = self._heading() if jaws is None else jaws
         point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
-        # The paper's task: the hand on the object (its final posture is then the grasp posture, which
-        # the lowering ends in; planned for the point above, the lowering was 12 cm farther from the
-        # shoulder than anything the footstep planner checked).
-        decided = self._last_steps(hand, point, point, f"step up to {target}")
+        # The hand on the object (the paper's task) with the grasp's posture in ``last_steps_posture``:
+        # its final posture is then the one the lowering ends in. Else above it: planned for the
+        # object itself, the stance moved and the position-only lowering brought the wrist onto the
+        # neighbouring ball in fetch seed 12, which it grasps without a retry when planned above.
+        hand_at = point if "grasp" in self.config.last_steps_posture else above
+        decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
         support = self._support(target)
         if decided is None and support and self._walk_nearer(support[0], point, f"step up to {target}"):
-            decided = self._last_steps(hand, point, point, f"step up to {target}")
+            decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
             walked = True
         else:
             walked = decided is not None and decided.walk is not None
@@ -285,10 +290,10 @@ class ManipulationActions:
         # planner decided the stance and the posture together; reaching executes that hand pose), or,
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
-        final = self._final_hand(decided)
+        final = self._final_hand(decided, target, "grasp")
         steps = None if jaws is None else self._fingers_down(hand, above, f"reach above {target}", jaws)
         if steps is None:
-            steps = self._as_planned(hand, above, f"reach above {target}", [], final)
+            steps = self._as_planned(hand, above, f"reach above {target}", [], final, target)
         if steps is None:
             steps = self._move_hand(
                 hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
@@ -379,15 +384,28 @@ class ManipulationActions:
             return True
         return False
 
-    def _final_hand(self, decided: LastSteps | None) -> list[float] | None:
+    def _final_hand(self, decided: LastSteps | None, target: str, approach: str) -> list[float] | None:
         """The grasp frame's world orientation in footsteps/plan's final posture ([qx, qy, qz, qw]), when
-        it decided the last steps and ``last_steps_posture`` is on; else None."""
-        if decided is None or not self.config.last_steps_posture or not decided.hand_quat:
+        it decided the last steps and ``approach`` ("grasp" or "put") is in ``last_steps_posture``,
+        unless an approach to ``target`` in that orientation touched something before
+        (``Memory.posture_touched``); else None."""
+        if decided is None or approach not in self.config.last_steps_posture or not decided.hand_quat:
+            return None
+        if target in self.memory.posture_touched:
+            self.progress(
+                f"{target}: the hand as in footsteps/plan's final posture touched before: position only"
+            )
             return None
         return decided.hand_quat
 
     def _as_planned(
-        self, hand: str, point: np.ndarray, what: str, allowed: list[str], quat: list[float] | None
+        self,
+        hand: str,
+        point: np.ndarray,
+        what: str,
+        allowed: list[str],
+        quat: list[float] | None,
+        target: str,
     ) -> int | None:
         """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
         stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
@@ -402,7 +420,11 @@ class ManipulationActions:
         except InfeasibleError as exc:
             self.progress(f"{what}: the hand as in footsteps/plan's final posture refused ({exc.message})")
             return None
-        return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
+        try:
+            return self._play(plan, what + " (hand as in footsteps/plan's final posture)", allowed)
+        except CollisionError:
+            self.memory.posture_touched.add(target)  # the retry approaches it position only
+            raise
 
     def _hand_at(self, hand: str, quat: list[float], tolerance_rad: float = 0.1) -> bool:
         """Whether the ``hand``'s grasp frame is within ``tolerance_rad`` of the world orientation
@@ -566,8 +588,8 @@ class ManipulationActions:
                 decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
-            final = self._final_hand(decided)
-            if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final) is None:
+            final = self._final_hand(decided, place, "put")
+            if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final, place) is None:
                 self._move_hand(
                     hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
                 )

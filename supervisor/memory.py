@@ -52,12 +52,17 @@ class Memory:
     #: World points [m] where a hand touched something perception does not know (no model of it: a
     #: ball beside the one to grasp): felt, not seen; the next approach keeps the fingers off them.
     felt: list[np.ndarray] = field(default_factory=list)
+    #: Objects a hand (or what it held) touched on its way above them turned as in footsteps/plan's
+    #: final posture (that orientation swept the forearm into them): their next approaches are
+    #: position only.
+    posture_touched: set[str] = field(default_factory=set)
 
     def clear(self) -> None:
         """Forget everything (a new scene)."""
         self.sightings.clear()
         self.holding.clear()
         self.felt.clear()
+        self.posture_touched.clear()
 
     def remember(self, sighting: Sighting) -> None:
         """Keep ``sighting`` as the latest of its object. Seen without a footprint (cut by the image

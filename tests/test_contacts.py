@@ -384,3 +384,26 @@ def test_a_patch_bears_only_on_its_surface(chair):
     off = Contact("left_thigh", "chair.seat", hx + 0.2, 0.06, 0.0)
     with pytest.raises(InfeasibleError, match="off the surface"):
         patch_of(off, gen.spots["left_thigh"], env)
+
+
+def test_a_new_sole_lands_on_its_own_side_of_the_other(chair):
+    robot, env, gen, q0, start = chair
+    planner = ContactPlanner(
+        gen,
+        RoughTrajectory(gen.model, [q0, robot.half_sitting_at(0.3, 0.0, 0.0)]),
+        Goal("y", 0.6, chair_egress.FINAL_PAIRS),
+        chair_egress.PAIRS,
+        SearchConfig(stance_width_m=0.1),
+    )
+    left = next(c for c in start if c.spot == "left_sole")
+    right = next(c for c in start if c.spot == "right_sole")
+    standing_on_left = planner._add(None, (left,), q0, "start")
+    volume = planner._volume(standing_on_left, "right_sole", "floor")
+    assert volume is not None and volume.upper[1] == pytest.approx(left.y - 0.1)  # never crossing
+    standing_on_right = planner._add(None, (right,), q0, "start")
+    volume = planner._volume(standing_on_right, "left_sole", "floor")
+    assert volume is not None and volume.lower[1] == pytest.approx(right.y + 0.1)
+    hand = planner._volume(standing_on_right, "left_hand", "table.top")  # hands: any side
+    hx, hy = env.surface("table.top").half_size_m  # but never at the very edge of a surface
+    assert hand is not None and hand.lower[0] >= -hx + 0.05 - 1e-9 and hand.upper[0] <= hx - 0.05 + 1e-9
+    assert hand.lower[1] >= -hy + 0.05 - 1e-9 and hand.upper[1] <= hy - 0.05 + 1e-9

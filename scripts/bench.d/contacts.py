@@ -6,7 +6,8 @@ reported), and plays the plan in a pybullet world (DIRECT) set by set, each tran
 the measured state (services/contacts/closed_loop.py);
 then the same search with §2.8 switched off (every son generated), to compare the nodes generated, as
 the paper does ("about four times less"). Figures beside the paper's (81 sets, 2400 nodes, about 5 h
-on a Pentium IV 3.4 GHz; interpolation about 90 s with n = 20). Writes bench/out/contacts.json.
+on a Pentium IV 3.4 GHz; interpolation about 90 s with n = 20). Writes bench/out/contacts.json and the
+plan found (bench/out/contacts_plan.npz: ``humanoid scenario chair-egress --plan`` plays it again).
 
 Usage: scripts/bench contacts [--budget S] [--n N] [--skip-off] [--help]
 """
@@ -25,6 +26,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "bench" / "out" / "contacts.json"
+PLAN = ROOT / "bench" / "out" / "contacts_plan.npz"  # the §2.8 plan (humanoid scenario chair-egress --plan)
 PAPER = {
     "sets": 81,
     "nodes_generated": 2400,
@@ -71,6 +73,17 @@ def run(best_first: bool, budget_s: float, n: int, execute: bool) -> dict:
     )
     if result.status != "reached" or not execute:
         return row
+    from services.contacts.plan_file import save_plan
+
+    row["plan_file"] = str(
+        save_plan(
+            PLAN,
+            [nd.contacts for nd in result.path],
+            [nd.q for nd in result.path],
+            [nd.change for nd in result.path],
+            {k: row[k] for k in ("nodes_generated", "nodes_expanded", "plan_s")},
+        ).relative_to(ROOT)
+    )
     motion = interpolate_plan(
         gen, [nd.contacts for nd in result.path], [nd.q for nd in result.path], InterpolationConfig(n=n)
     )

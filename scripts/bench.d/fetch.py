@@ -16,6 +16,7 @@ the robot: how long the robot stands still thinking), ``footsteps_plan_calls`` (
 ``footsteps/**`` message to an MCAP file beside ``--out`` and each fetch's requests are those logged
 between its start and end; in ``--worker`` mode, the supervisor's requests as they go out), and per run: seed,
 ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure.
+The supervisor's transcript of each fetch goes to ``LOG_DIR/transcript_<seed>.txt``.
 Goals (issues 10, 15): success >= 95 %, wall time <= sim time, median think <= 1 s, >= 2 footstep
 plans per fetch.
 
@@ -125,7 +126,13 @@ def main(argv: list[str]) -> int:
         for seed in seeds:
             watch.reset()
             start_ns = time.time_ns()
-            summary, _report = fetch(sup, seed=seed)
+            # The supervisor's transcript of each fetch beside the services' logs (failures by cause).
+            with open(Path(args.log_dir) / f"transcript_{seed}.txt", "w") as transcript:
+                sup.out = transcript
+                try:
+                    summary, _report = fetch(sup, seed=seed)
+                finally:
+                    sup.out = None
             windows.append((start_ns, time.time_ns()))
             gt = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
             on_table, why = ball_on_table(gt)

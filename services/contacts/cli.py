@@ -8,11 +8,14 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import Any
 
 EXAMPLES = """examples:
   humanoid scenario chair-egress                     # plan (<= 300 s), interpolate, execute, report
   humanoid scenario chair-egress --budget 600 --no-best-first   # all sons generated (no §2.8)
+  humanoid scenario chair-egress --save-plan out/chair_plan.npz   # then, without searching again:
+  humanoid scenario chair-egress --plan out/chair_plan.npz        # execute the saved plan set by set
 """
 
 
@@ -32,6 +35,10 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument("--no-best-first", action="store_true", help="generate every son (§2.8 off)")
     p.add_argument("--n", type=int, default=10, help="posture generations per transition (§3.3's n)")
     p.add_argument("--no-execute", action="store_true", help="plan and interpolate only")
+    p.add_argument("--save-plan", type=Path, help="write the plan found to this .npz (plan_file.py)")
+    p.add_argument(
+        "--plan", type=Path, help="execute a plan saved by --save-plan (no search, no interpolation)"
+    )
     p.add_argument(
         "--open-loop",
         action="store_true",
@@ -43,7 +50,9 @@ def add_cli(subparsers: Any) -> None:
 SUPPORTS = ("chair", "table")  # objects any link may touch during the motion (sim/execute's supports)
 
 
-def _closed_loop(robot: Any, problem: Any, result: Any, world: Any, n: int) -> tuple[str, str]:
+def _closed_loop(
+    robot: Any, environment: Any, sets: list, witnesses: list, world: Any, n: int
+) -> tuple[str, str]:
     """Play the plan set by set in ``world``, each transition re-planned from the measured state
     (``services.contacts.closed_loop``); prints one line per transition; (outcome, message)."""
     from services.contacts.closed_loop import TransitionReport, execute_set_by_set
@@ -51,7 +60,7 @@ def _closed_loop(robot: Any, problem: Any, result: Any, world: Any, n: int) -> t
     from services.contacts.posture import PostureGenerator
     from services.contacts.spots import robot_spots
 
-    gen = PostureGenerator(robot, result.environment, robot_spots(robot))
+    gen = PostureGenerator(robot, environment, robot_spots(robot))
 
     def play(q, dt):
         executed = world.execute(q, dt, supports=SUPPORTS)
@@ -67,8 +76,8 @@ def _closed_loop(robot: Any, problem: Any, result: Any, world: Any, n: int) -> t
 
     run = execute_set_by_set(
         gen,
-        result.sets,
-        list(result.witnesses),
+        sets,
+        witnesses,
         play,
         lambda: world.state().q,
         InterpolationConfig(n=n),
@@ -81,7 +90,9 @@ def _closed_loop(robot: Any, problem: Any, result: Any, world: Any, n: int) -> t
 def cmd_scenario(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from services.contacts.environment import environment_of
     from services.contacts.interpolate import InterpolationConfig
+    from services.contacts.plan_file import load_plan, save_plan
     from services.contacts.planner import default_problem, plan
     from services.contacts.search import Node, SearchConfig
     from services.model import load_robot
@@ -104,30 +115,55 @@ def cmd_scenario(args: argparse.Namespace) -> int:
         search=SearchConfig(
             best_first_sons=not args.no_best_first, max_nodes=args.max_nodes, time_budget_s=args.budget
         ),
-        interpolation=InterpolationConfig(n=args.n),
+        # executed set by set, each transition is interpolated from the measured state: no whole motion
+        interpolation=InterpolationConfig(n=args.n)
+        if (args.open_loop or args.no_execute) and not args.plan
+        else None,
     )
-    result = plan(robot, problem, progress)
-    s = result.search
-    print(
-        f"plan: {len(s.path)} sets, {s.nodes_generated} nodes generated, {s.nodes_expanded} expanded, "
-        f"{s.posture_generations} posture generations, {s.plan_s:.1f} s"
-    )
-    for k, node in enumerate(s.path):
-        print(f"  {k:3d} {node.change:50s} {' '.join(c.describe() for c in node.contacts)}")
-    motion = result.motion
-    assert motion is not None
-    print(
-        f"interpolation: {motion.q.shape[0]} samples ({motion.q.shape[0] * motion.dt_s:.1f} s of motion) "
-        f"in {motion.interpolation_s:.1f} s"
-    )
+    motion = None
+    if args.plan:
+        saved = load_plan(args.plan)
+        sets, witnesses = saved.sets, list(saved.witnesses)
+        print(f"plan read from {args.plan}: {len(sets)} sets {saved.meta}")
+        environment = environment_of(layout(load_scene(problem.scene)))
+    else:
+        result = plan(robot, problem, progress)
+        s = result.search
+        print(
+            f"plan: {len(s.path)} sets, {s.nodes_generated} nodes generated, {s.nodes_expanded} expanded, "
+            f"{s.posture_generations} posture generations, {s.plan_s:.1f} s"
+        )
+        for k, node in enumerate(s.path):
+            print(f"  {k:3d} {node.change:50s} {' '.join(c.describe() for c in node.contacts)}")
+        sets, witnesses, environment, motion = (
+            result.sets,
+            list(result.witnesses),
+            result.environment,
+            result.motion,
+        )
+        if args.save_plan:
+            meta = {
+                "nodes_generated": s.nodes_generated,
+                "nodes_expanded": s.nodes_expanded,
+                "plan_s": s.plan_s,
+            }
+            print(
+                "plan written to",
+                save_plan(args.save_plan, sets, witnesses, [n.change for n in s.path], meta),
+            )
+    if motion is not None:
+        print(
+            f"interpolation: {motion.q.shape[0]} samples ({motion.q.shape[0] * motion.dt_s:.1f} s of motion) "
+            f"in {motion.interpolation_s:.1f} s"
+        )
     if args.no_execute:
         return 0
     with World(robot, "chair_egress") as world:
-        if args.open_loop:
+        if motion is not None:  # --open-loop: the planned motion as is
             executed = world.execute(motion.q, motion.dt_s, supports=SUPPORTS, hold_s=1.0)
             outcome, message = executed.outcome, executed.message
         else:
-            outcome, message = _closed_loop(robot, problem, result, world, args.n)
+            outcome, message = _closed_loop(robot, environment, sets, witnesses, world, args.n)
         q = world.state().q
         standing = all(
             abs(float(robot.sole_pose(q, side).translation[2])) < 0.01 for side in ("left", "right")

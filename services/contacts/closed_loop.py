@@ -23,8 +23,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
-from services.contacts.posture import PostureGenerator
+from services.contacts.posture import Floating, PostureConfig, PostureGenerator
 from services.contacts.sets import ContactSet, contact_at
+from services.contacts.volumes import around
 from services.errors import InfeasibleError
 from services.ik import PostureTask
 
@@ -70,6 +71,9 @@ REREAD_M = 0.01  # a held contact is re-read where its spot is when it slid more
 # iterations (it starts from a measured posture a few cm off)
 REGENERATE_TOL_M = 5e-3
 REGENERATE_ITERS = 150
+# a new contact the measured supports do not admit where it was planned is searched again in this
+# volume around its planned place (x [m], y [m], theta [rad] half sizes)
+FLOAT_HALF = (0.05, 0.05, 0.25)
 
 
 def measured_contacts(
@@ -96,6 +100,12 @@ def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) ->
     return max(errors, default=0.0)
 
 
+def _relaxed(gen: PostureGenerator) -> PostureConfig:
+    """The generator's settings with contacts matched within ``REGENERATE_TOL_M`` in at most
+    ``REGENERATE_ITERS`` iterations (postures generated from a measured state)."""
+    return replace(gen.config, tol=REGENERATE_TOL_M, max_iters=REGENERATE_ITERS)
+
+
 def regenerate_witness(
     gen: PostureGenerator,
     s1_planned: ContactSet,
@@ -106,8 +116,10 @@ def regenerate_witness(
     """(s1 measured, s2 with its held contacts measured, the new witness or None, why not): the son's
     rule of the search (§2.3): a removal keeps the removed contact as geometry with the stability on the
     rest; an addition puts the new contact (at its planned place) out of the stability. The posture
-    generation starts from the measured posture, then (if it fails) from the planned witness; when
-    both fail, the planned sets and witness are returned with the reason (the transition then drags the
+    generation starts from the measured posture, then (if it fails) from the planned witness, then (an
+    addition) lets the posture generator place the new contact within ``FLOAT_HALF`` of its planned
+    place (§2.6's floating contact); when all fail, the planned sets and witness are returned with the
+    reason (the transition then drags the
     slid supports back, as the open-loop replay does)."""
     s1 = measured_contacts(gen, s1_planned, q_measured)
     by_pair = {c.pair: c for c in s1}
@@ -117,16 +129,25 @@ def regenerate_witness(
     stable = s1 if added else s2
     reference = PostureTask(gen.model, q2_planned)
     reasons = []
-    relaxed = replace(gen.config, tol=REGENERATE_TOL_M, max_iters=REGENERATE_ITERS)
+    relaxed = _relaxed(gen)
     for start in (q_measured, q2_planned):
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
         reasons.append(result.reason)
+    if added:  # the new contact chosen again by the posture generator near its planned place (§2.6)
+        new = added[0]
+        volume = around((new.x, new.y, new.theta), FLOAT_HALF)
+        floating = Floating(new.spot, new.surface, volume)
+        result = gen.generate(s1, s1, q_measured, reference, floating, config=relaxed)
+        if result.ok and result.contact is not None:
+            return s1, tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""
+        reasons.append(f"{new.spot} within {FLOAT_HALF} of its place: {result.reason}")
     if s1 != tuple(s1_planned):
         reason = f"no witness for the supports where they slid ({'; '.join(reasons)}): the planned one"
         return tuple(s1_planned), tuple(s2_planned), np.asarray(q2_planned, float), reason
-    return s1, s2, None, f"from the measured posture: {reasons[0]}; from the planned one: {reasons[1]}"
+    tried = ("from the measured posture", "from the planned one", "the new contact moved")
+    return s1, s2, None, "; ".join(f"{t}: {r}" for t, r in zip(tried, reasons, strict=False))
 
 
 @dataclass(frozen=True)
@@ -157,6 +178,8 @@ def replan_transition(
     contacts removed at the previous transition (their bodies leave them now). Raises InfeasibleError
     when the measured supports admit no witness of the next set, or an interpolation step fails."""
     config = config or InterpolationConfig()
+    # from a measured posture the held contacts are matched within the sim's compliance, as the witness
+    config = replace(config, posture=config.posture or _relaxed(gen))
     q1 = np.asarray(q_measured, float)
     s1, s2, q2, reason = regenerate_witness(gen, s1_planned, s2_planned, np.asarray(q2_planned, float), q1)
     error = _support_error(gen, s1_planned, q1)

@@ -35,11 +35,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
-from scipy.interpolate import CubicSpline
 
 from services import budget
-from services.contacts.posture import PostureGenerator
+from services.contacts.posture import PostureConfig, PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
+from services.contacts.timing import ZMP_SLOWDOWNS, interval_times, knots, time_segment, zmp_shift
 from services.errors import InfeasibleError, RequestTimeoutError
 from services.ik import FramePoseTask, PostureTask
 from services.ik.tasks.capsule_box import CapsuleBoxTask
@@ -54,10 +54,13 @@ class InterpolationConfig:
     quasi-static speed limits: base ``base_speed_m_s`` [m/s], moving spot ``spot_speed_m_s`` [m/s],
     joints ``joint_speed_ratio`` of their velocity limits, ``min_segment_s`` [s], sample ``dt_s`` [s],
     collision check of the timed segments every ``check_every`` samples, a segment deeper than
-    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times.
-    The request's time budget (:mod:`services.budget`) is checked before every posture generation, every
-    re-planning try and every ``BUDGET_CHECK_SAMPLES`` collision-checked samples: past it,
-    RequestTimeoutError names the transition and step reached (issue 16)."""
+    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times,
+    the largest distance ``zmp_shift_m`` [m] between the ZMP the timed motion needs and the CoM's
+    projection (a quasi-static motion: ``services.contacts.timing``), the posture generator's settings
+    ``posture`` (None: the generator's own). The request's time budget (:mod:`services.budget`) is
+    checked before every posture generation, every re-planning try and every ``BUDGET_CHECK_SAMPLES``
+    collision-checked samples: past it, RequestTimeoutError names the transition and step reached
+    (issue 16)."""
 
     n: int = 20
     lift_m: float = 0.03
@@ -67,6 +70,8 @@ class InterpolationConfig:
     min_segment_s: float = 0.8
     dt_s: float = 0.005
     collision_tol_m: float = 0.005
+    zmp_shift_m: float = 0.01
+    posture: PostureConfig | None = None  # the posture generator's settings (None: the generator's)
     max_refinements: int = 4
     check_every: int = 4
 
@@ -98,6 +103,16 @@ class SegmentCollision:
     capsule: str
     box: str
     sample: int
+
+
+def moving_candidates(s1: ContactSet, s2: ContactSet, released: ContactSet) -> list[str]:
+    """The spots that may move between the witnesses of S1 and S2: that of a contact made now (in S2,
+    not S1) or released at the previous transition (``released``). A contact held in S1 and S2, or
+    removed now (it stays in place until q2, §2.3), does not move, even when q1 is a measured posture
+    with its spot a few mm off (executing set by set): taken for the moving body, a sole 6 mm off left
+    the stability and the first posture threw the CoM 10 cm onto the other sole (1.6 m/s^2: the robot
+    tipped over its toes, services/contacts/README.md)."""
+    return sorted({c.spot for c in s2 if c not in s1} | {c.spot for c in released})
 
 
 def _moving_spot(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2: np.ndarray) -> str | None:
@@ -224,7 +239,7 @@ def transition(
     """The n postures from q1 to q2 (q2 last). ``geometric_extra``: a contact removed at the previous
     transition, still in place at q1 (its body leaves it now). Raises InfeasibleError naming the step."""
     pairs1 = {c.pair: c for c in (*s1, *geometric_extra)}
-    candidates = sorted({c.spot for c in (*pairs1.values(), *s2)})
+    candidates = moving_candidates(s1, s2, geometric_extra)
     moving = _moving_spot(gen, candidates, q1, q2)
     # held: every contact in place at q1 that stays in place at q2 (a contact removed at this
     # transition is still there at q2, §2.3: it is released at q2)
@@ -270,6 +285,7 @@ def transition(
             PostureTask(gen.model, q_ref),
             guide=extra,
             extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []) + released,
+            config=config.posture,
         )
         if not result.ok:
             raise InfeasibleError(
@@ -282,47 +298,26 @@ def transition(
     return out
 
 
-def sinusoidal_profile(n_samples: int) -> np.ndarray:
-    """s(t) in [0, 1] with a sinusoidal speed (1 - cos), null at both ends (§4)."""
-    t = np.linspace(0.0, 1.0, n_samples)
-    return t - np.sin(2.0 * math.pi * t) / (2.0 * math.pi)
-
-
-def segment_duration(
-    gen: PostureGenerator,
-    waypoints: np.ndarray,
-    config: InterpolationConfig,
-    v_max: np.ndarray,
-    moving_path_m: float = 0.0,
-) -> float:
-    """Duration [s] of a segment so that the peak speed (twice the mean under the sinusoidal profile)
-    stays within the quasi-static limits."""
-    d = np.array(
-        [pin.difference(gen.model, waypoints[k], waypoints[k + 1]) for k in range(len(waypoints) - 1)]
-    )
-    base = float(np.linalg.norm(d[:, :3], axis=1).sum())
-    joints = np.abs(d[:, 6:]).sum(axis=0)
-    ratio = float(np.max(joints / (config.joint_speed_ratio * v_max[6:]))) if joints.size else 0.0
-    return max(
-        config.min_segment_s,
-        2.0 * base / config.base_speed_m_s,
-        2.0 * ratio,
-        2.0 * moving_path_m / config.spot_speed_m_s,
-    )
-
-
-def time_segment(gen: PostureGenerator, waypoints: np.ndarray, duration_s: float, dt_s: float) -> np.ndarray:
-    """Samples every dt_s of a clamped cubic spline through the waypoints (tangent coordinates from the
-    first), timed by the sinusoidal profile; the last sample is the last waypoint."""
-    base = waypoints[0]
-    d = np.array([pin.difference(gen.model, base, w) for w in waypoints])
-    spline = CubicSpline(np.linspace(0.0, 1.0, len(waypoints)), d, bc_type="clamped")
-    n = max(2, round(duration_s / dt_s) + 1)
-    u = sinusoidal_profile(n)
-    q = np.array([pin.integrate(gen.model, base, v) for v in spline(u)])
-    # a cubic through postures at a joint limit can overshoot it by a hair: clip
+def timed_segment(
+    gen: PostureGenerator, waypoints: np.ndarray, config: InterpolationConfig, v_max: np.ndarray
+) -> np.ndarray:
+    """Samples every ``config.dt_s`` of the discrete path ``waypoints`` (``services.contacts.timing``):
+    knots spaced by each interval's time at the quasi-static speed limits, the sinusoidal profile over
+    twice their sum (at least ``min_segment_s``), slowed down while the needed ZMP leaves the CoM's
+    projection by more than ``zmp_shift_m``; joints clipped to their limits (a cubic through postures
+    at a limit can overshoot it by a hair)."""
+    times = interval_times(gen.model, waypoints, config.base_speed_m_s, config.joint_speed_ratio * v_max[6:])
+    u = knots(times)
+    duration = max(config.min_segment_s, 2.0 * float(times.sum()))
     bound = gen.solver.bound_q_idx
-    q[:, bound] = q[:, bound].clip(gen.solver.q_lower[bound], gen.solver.q_upper[bound])
+    for attempt in range(ZMP_SLOWDOWNS + 1):
+        budget.check(f"the interpolation's timing, try {attempt + 1}")
+        q = time_segment(gen.model, waypoints, duration, config.dt_s, u)
+        q[:, bound] = q[:, bound].clip(gen.solver.q_lower[bound], gen.solver.q_upper[bound])
+        shift = float(zmp_shift(gen.model, q, config.dt_s, config.check_every).max())
+        if shift <= config.zmp_shift_m or attempt == ZMP_SLOWDOWNS:
+            return q
+        duration *= 1.05 * math.sqrt(min(shift, 100.0) / config.zmp_shift_m)
     return q
 
 
@@ -376,7 +371,7 @@ def interpolate_transition(
             continue
         path = [q1, *generated[:-1], q2]
         segment = np.array(path)
-        timed = time_segment(gen, segment, segment_duration(gen, segment, config, v_max), config.dt_s)
+        timed = timed_segment(gen, segment, config, v_max)
         hit = deepest_collision(gen, timed, touching, config.check_every, moving)
         depth = 0.0 if hit is None else hit[0]
         if best is None or depth < best[0]:

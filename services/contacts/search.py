@@ -21,7 +21,8 @@ New leaves too close to an existing node or leaf (same pairs, every contact with
 Deviation from the paper, for speed on this machine: the search volume of a pair is C = E x ]-pi, pi]
 intersected with a box of half size ``reach_m`` around the spot's current position and
 ``reach_theta_rad`` around its current heading (still convex, §2.6), and surfaces more than
-``reach_z_m`` above or below the spot are not tried.
+``reach_z_m`` above or below the spot are not tried. C also keeps the spot ``edge_margin_m`` inside the
+surface's edges, and a sole ``stance_width_m`` to its own side of the other one (``stance_pairs``).
 """
 
 from __future__ import annotations
@@ -58,6 +59,12 @@ class SearchConfig:
     close_m: float = 0.08
     close_rad: float = 0.4
     max_sons_per_pair: int = 8
+    # (left spot, right spot): a new one lands at least stance_width_m to its own side of the other
+    stance_pairs: tuple[tuple[str, str], ...] = (("left_sole", "right_sole"),)
+    stance_width_m: float = 0.10
+    # a new contact's spot at least this far inside its surface's edges [m] (a hand planned 4 mm from
+    # a table's corner bore nothing in the sim: its clipped patch was a sliver)
+    edge_margin_m: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -204,7 +211,7 @@ class ContactPlanner:
             return None
         x, y = float(local.translation[0]), float(local.translation[1])
         heading = math.atan2(float(local.rotation[1, 0]), float(local.rotation[0, 0]))
-        full = full_volume(*surface.half_size_m)
+        full = full_volume(*(max(h - cfg.edge_margin_m, 0.0) for h in surface.half_size_m))
         reach = SearchVolume(
             (x - cfg.reach_m, y - cfg.reach_m, heading - cfg.reach_theta_rad),
             (x + cfg.reach_m, y + cfg.reach_m, heading + cfg.reach_theta_rad),
@@ -216,9 +223,36 @@ class ContactPlanner:
         )
         if xy is None:
             return None
+        xy = self._stance_side(node, spot, surface_name, xy)
+        if xy is None:
+            return None
         return SearchVolume(
             (xy.lower[0], xy.lower[1], reach.lower[2]), (xy.upper[0], xy.upper[1], reach.upper[2])
         )
+
+    def _stance_side(
+        self, node: Node, spot: str, surface_name: str, volume: SearchVolume
+    ) -> SearchVolume | None:
+        """``volume`` cut to the side of the spot's partner (``stance_pairs``) when the partner is on the
+        same surface: a left sole at least ``stance_width_m`` at +y (the surface's frame) of the right
+        one, a right sole as much at -y of the left one (a convex restriction of C, §2.6). Without it
+        the search crossed the feet (a right sole ahead of the left one and 1 cm to its left): the
+        weight transfer onto it was a tandem stance, and the next step had no way out between the
+        stance leg and the chair's leg (services/contacts/README.md)."""
+        width = self.config.stance_width_m
+        for left, right in self.config.stance_pairs:
+            if spot not in (left, right):
+                continue
+            partner = right if spot == left else left
+            other = next((c for c in node.contacts if c.spot == partner and c.surface == surface_name), None)
+            if other is None:
+                continue
+            if spot == left:
+                side = SearchVolume((-math.inf, other.y + width, -math.inf), (math.inf, math.inf, math.inf))
+            else:
+                side = SearchVolume((-math.inf, -math.inf, -math.inf), (math.inf, other.y - width, math.inf))
+            return volume.intersect(side)
+        return volume
 
     # -------------------------------------------------------------------------------- sons
     def _removal_sons(self, node: Node) -> None:

@@ -39,8 +39,9 @@ from services.reaching.result import ReachResult
 
 @dataclass(frozen=True)
 class ReachingConfig(ReachingOptions):
-    """Options of the service: the robot model (``hrp2_like`` or ``talos``), whether to measure the
-    reach envelopes at start-up (else at the first request of each hand), the wall-clock budget of a
+    """Options of the service: the robot model (``hrp2_like`` or ``talos``), whether to build the default
+    planner and its reach envelopes at start-up (each envelope height is measured at the first request
+    that needs it: ``services.reaching.envelope``), the wall-clock budget of a
     request that gives none (``time_budget_s`` [s], at most ``services.bus.limits.MAX_BUDGET_S``; past
     it the reply is ``timeout``) and the planner options."""
 

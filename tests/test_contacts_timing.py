@@ -1,0 +1,86 @@
+"""Executing a contact plan (services/contacts): which body moves in a transition, the quasi-static timing
+of a transition's path (knots by the intervals' times, the ZMP the motion needs kept near the CoM's
+projection) and a plan saved to disk and read back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from services.contacts.environment import environment_of
+from services.contacts.interpolate import InterpolationConfig, moving_candidates, timed_segment
+from services.contacts.plan_file import load_plan, save_plan
+from services.contacts.posture import PostureGenerator
+from services.contacts.sets import Contact
+from services.contacts.spots import robot_spots
+from services.contacts.timing import interval_times, knots, time_segment, zmp_shift
+from services.errors import InvalidRequestError
+from services.model import load_robot
+from sim.scene import layout, load_scene
+
+
+@pytest.fixture(scope="module")
+def gen():
+    robot = load_robot("hrp2_like")
+    return PostureGenerator(robot, environment_of(layout(load_scene("chair_egress"))), robot_spots(robot))
+
+
+LEFT = Contact("left_sole", "floor", 0.15, 0.10, 0.0)
+RIGHT = Contact("right_sole", "floor", 0.39, 0.11, -0.26)
+HAND = Contact("right_hand", "chair.seat", 0.25, -0.18, -0.5)
+
+
+def test_only_a_contact_made_now_or_released_before_moves():
+    # a removal (the weight onto the right sole): nothing moves, the left sole stays until q2 (§2.3)
+    assert moving_candidates((LEFT, RIGHT), (RIGHT,), ()) == []
+    # the next addition: the hand comes, and the left sole released at the previous transition leaves
+    assert moving_candidates((RIGHT,), (RIGHT, HAND), (LEFT,)) == ["left_sole", "right_hand"]
+
+
+def test_knots_follow_the_intervals_times(gen):
+    q0 = gen.robot.half_sitting_at(0.0, 0.0, 0.0)
+    far, near = q0.copy(), q0.copy()
+    far[0] += 0.08  # the base moves 8 cm, then 0.8 cm
+    near[0] += 0.088
+    times = interval_times(gen.model, np.array([q0, far, near]), 0.08, np.full(gen.model.nv - 6, 1.0))
+    assert times == pytest.approx([1.0, 0.1])
+    assert knots(times) == pytest.approx([0.0, 1.0 / 1.1, 1.0])
+    assert knots(np.zeros(2)) == pytest.approx([0.0, 0.5, 1.0])
+
+
+def test_the_zmp_of_a_still_posture_is_the_com_and_a_faster_motion_shifts_it(gen):
+    q0 = gen.robot.half_sitting_at(0.0, 0.0, 0.0)
+    assert zmp_shift(gen.model, np.array([q0] * 30), 0.005).max() < 1e-9
+    q1 = q0.copy()
+    q1[0] += 0.1
+    slow = zmp_shift(gen.model, time_segment(gen.model, np.array([q0, q1]), 2.0, 0.005), 0.005).max()
+    fast = zmp_shift(gen.model, time_segment(gen.model, np.array([q0, q1]), 1.0, 0.005), 0.005).max()
+    assert slow > 1e-3 and fast == pytest.approx(4.0 * slow, rel=0.15)  # 1 / T^2
+
+
+def test_a_timed_segment_stays_quasi_static(gen):
+    q0 = gen.robot.half_sitting_at(0.0, 0.0, 0.0)
+    waypoints = [q0]
+    for dx in (0.09, 0.005, 0.005, 0.0):  # uneven postures: the CoM moves 9 cm in the first step
+        q = waypoints[-1].copy()
+        q[0] += dx
+        waypoints.append(q)
+    config = InterpolationConfig(min_segment_s=0.1)
+    q = timed_segment(gen, np.array(waypoints), config, np.asarray(gen.robot.v_max, float))
+    assert zmp_shift(gen.model, q, config.dt_s).max() <= config.zmp_shift_m * 1.05
+    assert np.allclose(q[0], q0) and np.allclose(q[-1], waypoints[-1])
+    com = np.array([pin.centerOfMass(gen.model, gen.data, s)[0] for s in q])
+    assert np.all(np.diff(com) > -1e-6)  # no overshoot back and forth
+
+
+def test_a_saved_plan_reads_back(tmp_path):
+    sets = [(LEFT, RIGHT), (RIGHT,), (RIGHT, HAND)]
+    witnesses = np.arange(3 * 4, dtype=float).reshape(3, 4)
+    path = save_plan(tmp_path / "p.npz", sets, witnesses, ["start", "- a", "+ b"], {"nodes": 3})
+    plan = load_plan(path)
+    assert plan.sets == sets and plan.changes == ["start", "- a", "+ b"] and plan.meta == {"nodes": 3}
+    assert np.array_equal(plan.witnesses, witnesses)
+    np.savez(tmp_path / "other.npz", witnesses=witnesses)
+    with pytest.raises(InvalidRequestError, match="not a saved contact plan"):
+        load_plan(tmp_path / "other.npz")
