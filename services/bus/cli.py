@@ -10,9 +10,11 @@ import contextlib
 import difflib
 import json
 import os
+import signal
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from typing import Any
 
 from services.cli_common import (
@@ -708,20 +710,24 @@ def cmd_replay(args: argparse.Namespace) -> int:
                     progress.update(msg)
 
             rounds = 0
-            while True:
-                rounds += 1
-                stats = replay(
-                    session,
-                    reader,
-                    speed=args.speed,
-                    accept=key_filter(patterns, heartbeats=args.heartbeats),
-                    on_message=show_msg,
-                    start_s=args.start,
-                )
-                if progress is not None:
-                    progress.finish()
-                if not args.loop or stats.published == 0:
-                    break
+            with _ctrl_c_sets() as stopped:
+                while not stopped.is_set():
+                    rounds += 1
+                    stats = replay(
+                        session,
+                        reader,
+                        speed=args.speed,
+                        accept=key_filter(patterns, heartbeats=args.heartbeats),
+                        on_message=show_msg,
+                        start_s=args.start,
+                        stop=stopped,
+                    )
+                    if stopped.is_set():
+                        raise KeyboardInterrupt
+                    if progress is not None:
+                        progress.finish()
+                    if not args.loop or stats.published == 0:
+                        break
         except KeyboardInterrupt:
             if progress is not None:
                 progress.finish(complete=False)
@@ -777,6 +783,19 @@ class Progress:
             self._draw(1.0 if complete else self._done, end="\n")
         self.count = 0
         self._last_tenth = -1
+
+
+@contextlib.contextmanager
+def _ctrl_c_sets() -> Iterator[threading.Event]:
+    """While inside, Ctrl-C (SIGINT) sets the yielded event instead of raising KeyboardInterrupt
+    wherever the main thread happens to be (a KeyboardInterrupt raised between a zenoh call and its
+    clean-up could leave the session unable to close); the previous handler is restored on exit."""
+    stopped = threading.Event()
+    previous = signal.signal(signal.SIGINT, lambda *_: stopped.set())
+    try:
+        yield stopped
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _wait_for_peers(session: Any, timeout_s: float = 3.0) -> None:
