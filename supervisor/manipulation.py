@@ -593,26 +593,19 @@ class ManipulationActions:
                 self._move_hand(
                     hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
                 )
-            low = point.copy()
-            low[2] = max(self.config.put_lowest_m, point[2] - self.config.put_depth_m)
-            plan = self._lowering(hand, low, final)
             what = f"lower {obj} onto {place}"
-            self.progress(f"{what}: {plan.describe()}, until it touches")
-            executed = self.body.execute(
-                plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
-            )
+            executed, low_z = self._lower_onto(hand, point, place, final, allowed, what)
             if executed.touched:
-                self.progress(f"{what}: touched by {self._contacts(executed)}")
                 executed = self._onto_the_top(hand, obj, place, executed, allowed, final)
                 break
             if attempt == 2:
                 raise NotFoundError(
-                    f"lowered {obj} down to {low[2]:.2f} m twice without touching {place}: it is not "
+                    f"lowered {obj} down to {low_z:.2f} m twice without touching {place}: it is not "
                     f"where perception saw it, even seen again from here",
                     {"object": place, "reason": "no_surface"},
                 )
             self.progress(
-                f"lowered {obj} down to {low[2]:.2f} m without touching {place}: raising it and "
+                f"lowered {obj} down to {low_z:.2f} m without touching {place}: raising it and "
                 f"localizing {place} again"
             )
             # Measured: the place's map rectangle holds a point with nothing under it. Seen from here
@@ -693,23 +686,38 @@ class ManipulationActions:
             self._move_hand(hand, up, f"lift {obj} off the edge", allowed=off, stepping=False, yaw_rad=None)
             over = up + np.array([inward[0], inward[1], 0.0]) * c.put_edge_shift_m
             self._move_hand(hand, over, f"{obj} over the top", allowed=allowed, stepping=False, yaw_rad=None)
-            low = over.copy()
-            low[2] = max(c.put_lowest_m, over[2] - c.put_depth_m)
-            plan = self._lowering(hand, low, final)
             what = f"lower {obj} onto {place} again"
-            self.progress(f"{what}: {plan.describe()}, until it touches")
-            executed = self.body.execute(
-                plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
-            )
-            if executed.touched:
-                self.progress(f"{what}: touched by {self._contacts(executed)}")
-            else:
+            executed, low_z = self._lower_onto(hand, over, place, final, allowed, what)
+            if not executed.touched:
                 raise NotFoundError(
                     f"moved {obj} {c.put_edge_shift_m:.2f} m from an edge of {place} onto its top and "
-                    f"lowered it to {low[2]:.2f} m without touching it",
+                    f"lowered it to {low_z:.2f} m without touching it",
                     {"object": place, "reason": "no_surface"},
                 )
         return executed
+
+    def _lower_onto(
+        self,
+        hand: str,
+        above: np.ndarray,
+        place: str,
+        final: list[float] | None,
+        allowed: list[str],
+        what: str,
+    ) -> tuple[Executed, float]:
+        """Lower the held object from ``above`` (world [m]) by ``put_depth_m`` (not below
+        ``put_lowest_m``) until it touches ``place``: the execution (its ``touched`` reported) and the
+        lowest height planned [m]."""
+        low = above.copy()
+        low[2] = max(self.config.put_lowest_m, above[2] - self.config.put_depth_m)
+        plan = self._lowering(hand, low, final)
+        self.progress(f"{what}: {plan.describe()}, until it touches")
+        executed = self.body.execute(
+            plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
+        )
+        if executed.touched:
+            self.progress(f"{what}: touched by {self._contacts(executed)}")
+        return executed, float(low[2])
 
     def _lowering(self, hand: str, low: np.ndarray, final: list[float] | None) -> Plan:
         """The guarded lowering of a held object to ``low`` (no stepping): the hand keeping the
