@@ -14,7 +14,7 @@ import msgspec
 import numpy as np
 from msgspec import Meta
 
-from services.bus.limits import Coord, ImageSide, Name, Names, Phase, Point3, SceneName, Seed
+from services.bus.limits import Budget, Coord, ImageSide, Name, Names, Phase, Point3, SceneName, Seed
 from services.bus.spec import EndpointSpec, TopicSpec
 
 # ---------------------------------------------------------------------------------------------- topics
@@ -137,6 +137,9 @@ class RenderRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fi
     height_px: ImageSide = 480
     depth: bool = False  # also return depth along the optical axis
     segmentation: bool = False  # also return a per-pixel body id mask (see CameraImage.labels)
+    # the wait for the world and the draws [s] (a draw estimated to end past it is not started:
+    # ``timeout``); None: no budget (the image sides bound the work)
+    time_budget_s: Budget | None = None
 
 
 class CameraImage(msgspec.Struct, kw_only=True, frozen=True):
@@ -257,6 +260,7 @@ class SnapshotRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_
     height_px: ImageSide = 480
     eye: Point3 | None = None  # custom camera position [m] (with target)
     target: Point3 | None = None  # custom point looked at [m] (with eye)
+    time_budget_s: Budget | None = None  # as RenderRequest's: the wait for the world and the draw [s]
 
 
 class SnapshotReply(msgspec.Struct, kw_only=True, frozen=True):
