@@ -194,7 +194,8 @@ class SimService(Service):
 
     @handles(msg.KINEMATICS)
     def kinematics(self, request: msg.KinematicsRequest) -> msg.KinematicsReply:
-        return kinematics_reply(self.world.robot, request)
+        with budget.within_if(request.time_budget_s):
+            return kinematics_reply(self.world.robot, request)
 
     @handles(msg.EXECUTE)
     def execute(self, request: msg.ExecuteRequest) -> msg.ExecuteReply:

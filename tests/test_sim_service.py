@@ -138,7 +138,7 @@ def test_render_a_stereo_pair_over_the_bus(sim):
 def test_a_render_that_would_end_past_its_budget_is_not_started(sim):
     """Issue 16: a draw is one pybullet call that cannot be stopped, so one estimated to end past the
     request's budget is refused before it starts (the sim never renders for a caller that stopped
-    waiting); the endpoint serves on."""
+    waiting); the endpoint serves on. ``sim/kinematics`` checks its budget between configurations."""
     client, _, _ = sim
     huge = msg.RenderRequest(width_px=2048, height_px=2048, depth=True, segmentation=True, time_budget_s=0.01)
     refused = "would run out during the render of a 2048 x 2048 px"
@@ -149,6 +149,13 @@ def test_a_render_that_would_end_past_its_budget_is_not_started(sim):
         client.call(msg.SNAPSHOT, msg.SnapshotRequest(width_px=2048, height_px=2048, time_budget_s=0.01))
     small = client.call(msg.RENDER, msg.RenderRequest(width_px=160, height_px=120, time_budget_s=30.0))
     assert [im.rgb.shape for im in small.images] == [(120, 160, 3)] * 2
+    # the forward kinematics of many configurations stops at its budget too
+    q = client.call(msg.STATE, msg.StateRequest()).q
+    many = msg.KinematicsRequest(q=np.repeat(q[None, :], 2000, axis=0), time_budget_s=1e-3)
+    with pytest.raises(RequestTimeoutError, match="the forward kinematics, configuration"):
+        client.call(msg.KINEMATICS, many)
+    one = client.call(msg.KINEMATICS, msg.KinematicsRequest(q=q, time_budget_s=30.0))
+    assert one.mid_feet.shape == (1, 3)
 
 
 def test_gripper_snapshot_and_reset(sim):

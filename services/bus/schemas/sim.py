@@ -312,12 +312,15 @@ class KinematicsRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
 
     ``frames``: frame names (``RobotInfoReply.frames`` values) whose world poses to return.
     ``place_at``: [x, y, yaw] ([m], [m], [rad]): also return the last configuration moved so that its
-    mid-feet frame is there and its soles at z = 0 (joints unchanged).
+    mid-feet frame is there and its soles at z = 0 (joints unchanged). ``time_budget_s``: see below.
     """
 
     q: np.ndarray
     frames: Names = []
     place_at: Annotated[list[Coord], Meta(max_length=3)] = []
+    # wall-clock budget [s]: past it, ``timeout`` naming the configuration reached; None: no budget (the
+    # configuration and frame-pose limits bound the work)
+    time_budget_s: Budget | None = None
 
 
 class KinematicsReply(msgspec.Struct, kw_only=True, frozen=True):
