@@ -136,6 +136,11 @@ def test_typed_errors(services, q_seated):
             msg.PlanRequest(scene="chair_egress", q_start=np.zeros(5), start_contacts=SEATED),
             timeout_s=60,
         )
+    flat = msg.PlanRequest(  # one posture, not (k, nq): found by the fuzz (was internal)
+        scene="chair_egress", q_start=q_seated, start_contacts=SEATED, key_postures=q_seated
+    )
+    with pytest.raises(InvalidRequestError, match=r"key_postures must be \(k, nq=37\)"):
+        client.call(msg.PLAN, flat, timeout_s=60)
     short = msg.PlanRequest(scene="chair_egress", q_start=q_seated, start_contacts=SEATED, time_budget_s=3.0)
     with pytest.raises(RequestTimeoutError, match="before reaching the goal") as err:
         client.call(msg.PLAN, short, timeout_s=120)
