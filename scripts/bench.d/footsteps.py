@@ -12,7 +12,9 @@ stack's default numerics). ``executed`` plays the reach and the pick-up (paper t
 settings, the CoM kept 3 cm inside the support polygon; both start at half-sitting, as the sim
 does) in the sim: the footsteps walked with ``services.walking.two_stage.executable_walk`` (the CoM
 lowered, then slower supports, until every joint stays within its speed limit), then the final reach
-(outcome, fall, foot slip, hand error; the pick-up stops when the gripper reaches the floor).
+(outcome, fall, foot slip, hand error, the hands' lowest collision-box corner above the floor, planned
+and executed); ``pickup_no_hand_floor`` is the pick-up with the hands-above-floor constraint off (the
+gripper planned into the floor: the execution stops on that contact).
 ``epsilon_study`` is Fig. 10's threshold study (reach > gaze > posture,
 every epsilon_i x0.1 / x1 / x5: steps, step additions, time). ``numerics`` runs the three paper
 scenarios with each of Algorithm 1's numerics that differ from eqs. 2/15 switched to the paper's
