@@ -12,7 +12,7 @@ import pytest
 
 from services.contacts.environment import environment_of
 from services.contacts.limb_load import GRAVITY_M_S2, force_cap_n, limb_joints
-from services.contacts.posture import ARM_SPOTS, PostureConfig, PostureGenerator
+from services.contacts.posture import ARM_SPOTS, PostureGenerator, posture_config
 from services.contacts.spots import model_with_spots, robot_spots
 from services.contacts.stability import (
     ContactPatch,
@@ -128,11 +128,10 @@ def _signed_margin(polygon: np.ndarray, point: np.ndarray) -> float:
     return min(margins)
 
 
-def test_the_posture_generator_bounds_the_arms_only_by_default():
+def test_the_posture_generator_bounds_the_arms_when_asked():
     robot = load_robot("hrp2_like")
     env = environment_of(layout(load_scene("chair_egress")))
-    gen = PostureGenerator(robot, env, robot_spots(robot))
+    gen = PostureGenerator(robot, env, robot_spots(robot), posture_config(limb_load=True))
     assert set(gen.max_load) == set(ARM_SPOTS)
     assert all(0.0 < v < 0.5 for v in gen.max_load.values())
-    off = PostureGenerator(robot, env, robot_spots(robot), PostureConfig(limb_load_spots=()))
-    assert off.max_load == {}
+    assert PostureGenerator(robot, env, robot_spots(robot), posture_config(limb_load=False)).max_load == {}

@@ -37,6 +37,7 @@ import numpy as np
 import pinocchio as pin
 
 from services import budget
+from services.contacts.hold import hold_spots
 from services.contacts.posture import PostureConfig, PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
 from services.contacts.timing import ZMP_SLOWDOWNS, interval_times, knots, time_segment, zmp_shift
@@ -74,6 +75,8 @@ class InterpolationConfig:
     posture: PostureConfig | None = None  # the posture generator's settings (None: the generator's)
     max_refinements: int = 4
     check_every: int = 4
+    # held contacts kept in place at every sample, not only at the n postures (hold.py)
+    hold_contacts: bool = True
 
 
 @dataclass(frozen=True)
@@ -123,6 +126,26 @@ def _moving_spot(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2
         if d > best_d:
             best, best_d = spot, d
     return best
+
+
+def held_frames(
+    gen: PostureGenerator,
+    s1: ContactSet,
+    s2: ContactSet,
+    released: ContactSet,
+    q1: np.ndarray,
+    q2: np.ndarray,
+) -> list[str]:
+    """The spot frames held in place during the transition from q1 to q2: every contact of S1 but the
+    moving body's, and only those whose spot moves less than 5 mm between q1 and q2 (``hold.py`` keeps
+    them in place at every sample)."""
+    moving = _moving_spot(gen, moving_candidates(s1, s2, released), q1, q2)
+
+    def still(spot: str) -> bool:
+        shift = gen.spot_pose(q1, spot).translation - gen.spot_pose(q2, spot).translation
+        return bool(np.linalg.norm(shift) < 5e-3)
+
+    return [gen.spots[c.spot].frame_name for c in s1 if c.spot != moving and still(c.spot)]
 
 
 def _on_surface(gen: PostureGenerator, T: pin.SE3) -> np.ndarray | None:
@@ -299,13 +322,18 @@ def transition(
 
 
 def timed_segment(
-    gen: PostureGenerator, waypoints: np.ndarray, config: InterpolationConfig, v_max: np.ndarray
+    gen: PostureGenerator,
+    waypoints: np.ndarray,
+    config: InterpolationConfig,
+    v_max: np.ndarray,
+    held: Sequence[str] = (),
 ) -> np.ndarray:
     """Samples every ``config.dt_s`` of the discrete path ``waypoints`` (``services.contacts.timing``):
     knots spaced by each interval's time at the quasi-static speed limits, the sinusoidal profile over
     twice their sum (at least ``min_segment_s``), slowed down while the needed ZMP leaves the CoM's
     projection by more than ``zmp_shift_m``; joints clipped to their limits (a cubic through postures
-    at a limit can overshoot it by a hair)."""
+    at a limit can overshoot it by a hair); the ``held`` spot frames kept in place at every sample
+    when ``config.hold_contacts`` (``hold.py``)."""
     times = interval_times(gen.model, waypoints, config.base_speed_m_s, config.joint_speed_ratio * v_max[6:])
     u = knots(times)
     duration = max(config.min_segment_s, 2.0 * float(times.sum()))
@@ -314,6 +342,8 @@ def timed_segment(
         budget.check(f"the interpolation's timing, try {attempt + 1}")
         q = time_segment(gen.model, waypoints, duration, config.dt_s, u)
         q[:, bound] = q[:, bound].clip(gen.solver.q_lower[bound], gen.solver.q_upper[bound])
+        if config.hold_contacts and held:
+            q, _ = hold_spots(gen.model, held, q, bound, gen.solver.q_lower, gen.solver.q_upper)
         shift = float(zmp_shift(gen.model, q, config.dt_s, config.check_every).max())
         if shift <= config.zmp_shift_m or attempt == ZMP_SLOWDOWNS:
             return q
@@ -371,7 +401,7 @@ def interpolate_transition(
             continue
         path = [q1, *generated[:-1], q2]
         segment = np.array(path)
-        timed = timed_segment(gen, segment, config, v_max)
+        timed = timed_segment(gen, segment, config, v_max, held_frames(gen, s1, s2, removed, q1, q2))
         hit = deepest_collision(gen, timed, touching, config.check_every, moving)
         depth = 0.0 if hit is None else hit[0]
         if best is None or depth < best[0]:

@@ -18,9 +18,10 @@ A posture is a success when levels 1 and 2 are met (values under ``tol``) and th
 static equilibrium at the final CoM. Contacts kept as geometry only (a removed contact, §2.3, or the
 new contact) are matched but do not enter the stability region.
 
-Extension (not in the paper, which checks friction only): the force a spot of
-``PostureConfig.limb_load_spots`` (the hands and forearms) may carry is bounded by what its limb's
-joints hold in any posture (``limb_load.py``), in the equilibrium region and the force QP alike.
+Extension (not in the paper, which checks friction only; off by default): the force a spot of
+``PostureConfig.limb_load_spots`` (the hands and forearms, ``posture_config(limb_load=True)``) may carry
+is bounded by what its limb's joints hold in any posture (``limb_load.py``), in the equilibrium region
+and the force QP alike.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox
 from services.model import RobotModel
 
 ARM_SPOTS = ("left_hand", "right_hand", "left_forearm", "right_forearm")
+LIMB_LOAD = False  # the limb-load bound off by default (services/contacts/README.md: why)
 GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in the best iterate's choice
 
 
@@ -73,7 +75,7 @@ class PostureConfig:
     max_iters: int = 60
     # spots whose force is bounded by their limb's joint torques (limb_load.py; an extension of §2.2,
     # read when the generator is made: a per-call config does not change it)
-    limb_load_spots: tuple[str, ...] = ARM_SPOTS
+    limb_load_spots: tuple[str, ...] = ARM_SPOTS if LIMB_LOAD else ()
 
 
 @dataclass(frozen=True)
@@ -124,7 +126,7 @@ class PostureGenerator:
         )
         self._regions: dict[ContactSet, np.ndarray] = {}
         self.calls = 0
-        weight_n = pin.computeTotalMass(self.model) * GRAVITY_M_S2
+        weight_n = robot.total_mass_kg * GRAVITY_M_S2
         # |force| a spot may carry, as a fraction of the robot's weight (limb_load.py)
         self.max_load = {
             name: force_cap_n(self.model, self.spots[name]) / weight_n
@@ -350,6 +352,12 @@ class PostureGenerator:
             return lambda q, systems: trajectory.value(q)
         weights = [GUIDE_WEIGHT if level.name == "guide" else 1.0 for level in levels[2:]]
         return lambda q, systems: sum(w * s.value for w, s in zip(weights, systems[2:], strict=True))
+
+
+def posture_config(limb_load: bool = LIMB_LOAD) -> PostureConfig:
+    """The default settings, with the arms' limb-load bound (``limb_load``) or without it (the paper's
+    friction-only stability)."""
+    return PostureConfig(limb_load_spots=ARM_SPOTS if limb_load else ())
 
 
 def pairs_allowed(spots: Sequence[ContactSpot], surfaces: Sequence[str]) -> list[tuple[str, str]]:

@@ -53,6 +53,8 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     best_first_sons: bool = True  # §2.8: one leaf per (spot, surface) pair, sons in f_T order
     slope_k: Gain = 30.0  # k of f_T (eq. 1)
     interpolate: bool = True  # compute the 5 ms motion (§3.3)
+    # the arms' contact forces bounded by what their joints hold (an extension of §2.2; false: friction only)
+    limb_load: bool = False
     n_interpolation: Annotated[int, Meta(ge=1, le=1000)] = 20  # posture generations per transition (§3.3's n)
 
 
@@ -95,6 +97,7 @@ class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
     witness: np.ndarray  # (nq,) the planned witness of to_set
     released: ContactList = msgspec.field(default_factory=list)
     n_interpolation: Annotated[int, Meta(ge=2, le=100)] = 10  # bounded work: <= 7 tries of 2n postures
+    limb_load: bool = False  # as in PlanRequest: the arms' contact forces bounded by their joints
 
 
 class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
