@@ -67,8 +67,8 @@ def _closed_loop(
 
     gen = PostureGenerator(robot, environment, robot_spots(robot), posture_config(limb_load))
 
-    def play(q, dt):
-        executed = world.execute(q, dt, supports=SUPPORTS)
+    def play(q, dt, effort_scale):
+        executed = world.execute(q, dt, supports=SUPPORTS, effort_scale=effort_scale)
         return executed.outcome, executed.message
 
     def report(r: TransitionReport) -> None:

@@ -121,6 +121,7 @@ class ContactsService(Service):
             support_error_m=step.support_error_m,
             collision=step.collision,
             replan_s=time.perf_counter() - t0,
+            effort_scale=step.effort_scale,
         )
 
     def _generator(self, scene: str, limb_load: bool) -> PostureGenerator:

@@ -111,6 +111,9 @@ class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
     # because none was found for the supports where they slid ("" if nothing)
     collision: str
     replan_s: float  # wall time [s]
+    # joint name -> fraction of its effort limit to play q with (sim/execute's effort_scale): the arm of
+    # a hand or forearm in contact, compliant in the loop it closes (services/contacts/closed_loop.py)
+    effort_scale: dict[str, float] = {}
 
 
 class Progress(msgspec.Struct, kw_only=True, frozen=True):
