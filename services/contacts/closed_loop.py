@@ -14,7 +14,9 @@ The executor is given as callables (the sim in one process, or ``sim/execute`` o
 module imports neither pybullet nor zenoh.
 
 Each transition also names the joints to play with a reduced effort (``ReplannedTransition.
-effort_scale``): the limb of every hand or forearm touching a surface in the transition, at
+effort_scale``): the limb of every hand or forearm in contact from the transition's start (a hand
+coming onto the table keeps its full effort: at 60 % the reaching arm, catching the table's edge,
+tipped the robot over in the rise), at
 ``SUPPORT_EFFORT_SCALE`` of its effort limits. Position control makes the loop floor - stance leg -
 body - arm - table rigid: its internal forces are set by millimetre errors, not by the plan, and with
 full effort the arm pushed the table with 300-500 N (the plan needed about 120 N) until its shoulder and
@@ -224,7 +226,7 @@ def replan_transition(
     if hit is not None and hit[0] > config.collision_tol_m:
         segment = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
         collision = f"{collision}; {segment}" if collision else segment
-    scale = support_effort_scale(gen, (*s1, *s2))
+    scale = support_effort_scale(gen, s1)  # held from q1 (a contact made now: its arm still moves)
     return ReplannedTransition(timed, config.dt_s, q2, error, collision, scale)
 
 

@@ -19,10 +19,11 @@ sampled every ``dt_s`` (5 ms).
 Collisions (§4: "the interpolation must be checked for collisions"): every posture of the path is
 generated collision free (capsules against the scene's boxes and each other), and the timed segment
 between them is checked sample by sample (capsules against boxes, the pairs in contact excluded); a
-segment that goes more than ``collision_tol_m`` into a box is re-planned locally: twice as many
+segment that comes closer than ``clearance_m`` to a box is re-planned locally: twice as many
 posture generations (so with collision constraints between the former samples), then the moving
 body's path bent sideways or up around the obstacle (``DETOURS_M``), up to ``max_refinements`` tries;
-a segment still colliding is listed in ``Motion.collisions`` (never hidden).
+a segment still more than ``collision_tol_m`` into a box is listed in ``Motion.collisions`` (never
+hidden).
 A segment whose posture generation fails is reported (no hand correction).
 """
 
@@ -54,8 +55,9 @@ class InterpolationConfig:
     """``n`` postures per transition (the paper's n = 20), lift/approach height along the normal [m],
     quasi-static speed limits: base ``base_speed_m_s`` [m/s], moving spot ``spot_speed_m_s`` [m/s],
     joints ``joint_speed_ratio`` of their velocity limits, ``min_segment_s`` [s], sample ``dt_s`` [s],
-    collision check of the timed segments every ``check_every`` samples, a segment deeper than
-    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times,
+    collision check of the timed segments every ``check_every`` samples, a segment closer than
+    ``clearance_m`` [m] to a box re-planned with 2x the postures at most ``max_refinements`` times (one
+    still deeper than ``collision_tol_m`` [m] into a box reported),
     the largest distance ``zmp_shift_m`` [m] between the ZMP the timed motion needs and the CoM's
     projection (a quasi-static motion: ``services.contacts.timing``), the posture generator's settings
     ``posture`` (None: the generator's own). The request's time budget (:mod:`services.budget`) is
@@ -75,6 +77,10 @@ class InterpolationConfig:
     posture: PostureConfig | None = None  # the posture generator's settings (None: the generator's)
     max_refinements: int = 4
     check_every: int = 4
+    # a timed segment coming closer than this to a box it does not touch is re-planned locally (the
+    # n postures keep collision_margin_m; the spline between them cut a swinging foot to 1 mm of the
+    # chair's leg, and the executed foot struck it)
+    clearance_m: float = 0.01
     # held contacts kept in place at every sample, not only at the n postures (hold.py)
     hold_contacts: bool = True
 
@@ -376,8 +382,8 @@ def interpolate_transition(
     v_max: np.ndarray,
 ) -> tuple[np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None, int]:
     """One transition, timed and checked (§3.3, §4): (samples every dt from q1 to q2, the discrete path,
-    the deepest collision of the samples or None, local re-plannings done). A segment deeper than
-    ``config.collision_tol_m`` into a box (or whose posture generation fails) is re-planned locally:
+    the deepest collision of the samples or None, local re-plannings done). A segment closer than
+    ``config.clearance_m`` to a box (or whose posture generation fails) is re-planned locally:
     with twice the postures, with the reference posture leading, then with the moving body's path bent
     around (``TRIES``), at most
     ``config.max_refinements`` times; the least colliding try is returned with its collision, or
@@ -402,11 +408,11 @@ def interpolate_transition(
         path = [q1, *generated[:-1], q2]
         segment = np.array(path)
         timed = timed_segment(gen, segment, config, v_max, held_frames(gen, s1, s2, removed, q1, q2))
-        hit = deepest_collision(gen, timed, touching, config.check_every, moving)
-        depth = 0.0 if hit is None else hit[0]
+        hit = deepest_collision(gen, timed, touching, config.check_every, moving, config.clearance_m)
+        depth = -config.clearance_m if hit is None else hit[0]
         if best is None or depth < best[0]:
             best = (depth, timed, path, hit)
-        if depth <= config.collision_tol_m:
+        if depth <= -config.clearance_m:  # clear of every box by the clearance
             break
         refinements += 1
     if best is None:
@@ -467,11 +473,13 @@ def deepest_collision(
     touching: Sequence[tuple[str, str]],
     every: int = 1,
     moving: Sequence[tuple[str, str]] = (),
+    clearance_m: float = 0.0,
 ) -> tuple[float, str, str, int] | None:
-    """The deepest penetration (depth [m] > 0, capsule, box, sample index) of the robot's capsules into
-    the scene's boxes over the samples ``q[::every]`` (and the last one), the objects of the ``touching``
-    (spot, surface) pairs excluded for their spots, and for the ``moving`` pairs only the surface's own
-    box (:meth:`PostureGenerator.box_pairs`); None if no sample penetrates."""
+    """The deepest penetration (depth [m] > -``clearance_m``, capsule, box, sample index) of the robot's
+    capsules into the scene's boxes over the samples ``q[::every]`` (and the last one), the objects of
+    the ``touching`` (spot, surface) pairs excluded for their spots, and for the ``moving`` pairs only the
+    surface's own box (:meth:`PostureGenerator.box_pairs`); None if every sample stays ``clearance_m``
+    away (a negative depth: closer than the clearance, not into the box)."""
     pairs = gen.box_pairs(touching, moving)
     if not pairs:
         return None
@@ -485,7 +493,7 @@ def deepest_collision(
         pin.framesForwardKinematics(gen.model, data, q[i])
         d = task.distances(data)
         j = int(np.argmin(d))
-        if d[j] < 0.0 and (worst is None or -d[j] > worst[0]):
+        if d[j] < clearance_m and (worst is None or -d[j] > worst[0]):
             c, b = pairs[j]
             worst = (float(-d[j]), gen.capsules[c].name, gen.boxes[b].name, i)
     return worst
