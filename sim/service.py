@@ -221,6 +221,7 @@ class SimService(Service):
                     request.hold_s,
                     tuple(request.leaving),
                     tuple(request.supports),
+                    dict(request.effort_scale),
                 )
             except _OverBudgetError:
                 played = self.world.sim_time_s - t0

@@ -95,6 +95,7 @@ def stand_up(
             progress=progress,
             hold_s=1.0 if k == len(plan.sets) - 1 else 0.0,
             supports=SUPPORTS,
+            effort_scale=step.effort_scale,
         )
         played += executed.duration_s
     return ActionReport(

@@ -78,6 +78,7 @@ def test_a_one_removal_plan_with_its_motion_and_progress(services, q_seated):
             to_set=reply.sets[1],
             witness=reply.witnesses[1],
             n_interpolation=4,
+            limb_load=True,  # the arms' load bound (limb_load.py): no arm holds here, the same witness
         ),
         timeout_s=120,
     )

@@ -282,6 +282,26 @@ def test_trajectory_validation_messages():
             world.execute(q0[None, :], allowed_contacts=("no_such_object",))
 
 
+def test_a_joint_played_with_less_effort_yields_for_that_execution_only():
+    """The right arm held forward (its weight about 13 N m on the shoulder): with 5 % of the shoulder's
+    120 N m it sags; the next execution has the full effort again and lifts it back."""
+    with World("hrp2_like", "empty") as world:
+        shoulder = world.robot.joint_index("RARM_JOINT0").idx_q
+        lift = motions.joint_motion(world.robot, world.state().q, {"RARM_JOINT0": -1.5}, 1.0)
+        assert world.execute(lift).outcome == "completed"
+        held = np.repeat(lift[-1:], 200, axis=0)  # 1 s
+        assert world.execute(held, effort_scale={"RARM_JOINT0": 0.05}).outcome == "completed"
+        sagged = world.state().q
+        assert sagged[shoulder] - lift[-1][shoulder] > 0.1
+        back = motions.joint_motion(world.robot, sagged, {"RARM_JOINT0": -1.5}, 1.0)
+        assert world.execute(back, hold_s=0.5).outcome == "completed"
+        assert abs(world.state().q[shoulder] - lift[-1][shoulder]) < 0.02
+        with pytest.raises(InvalidRequestError, match="not a body joint"):
+            world.execute(held[:2], effort_scale={"RARM_GRIPPER": 0.5})
+        with pytest.raises(InvalidRequestError, match=r"in \(0, 1\]"):
+            world.execute(held[:2], effort_scale={"RARM_JOINT0": 0.0})
+
+
 # ------------------------------------------------------------------------------------------------ grasping
 def _ball_on_stand_scene():
     scene = load_scene("empty")

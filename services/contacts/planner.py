@@ -14,7 +14,7 @@ from services import budget
 from services.contacts import chair_egress
 from services.contacts.environment import Environment, environment_of
 from services.contacts.interpolate import InterpolationConfig, Motion, interpolate_plan
-from services.contacts.posture import PostureGenerator
+from services.contacts.posture import LIMB_LOAD, PostureGenerator, posture_config
 from services.contacts.potential import RoughTrajectory
 from services.contacts.search import ContactPlanner, Goal, ProgressHook, SearchConfig, SearchResult
 from services.contacts.sets import ContactSet, contact_at, spot_surface_gap
@@ -42,6 +42,8 @@ class PlanProblem:
     slope_k: float = 30.0
     search: SearchConfig = field(default_factory=SearchConfig)
     interpolation: InterpolationConfig | None = field(default_factory=InterpolationConfig)
+    # the arms' contact forces bounded by their joints' torques (limb_load.py; an extension of §2.2)
+    limb_load: bool = LIMB_LOAD
 
 
 @dataclass(frozen=True)
@@ -89,7 +91,7 @@ def build(
             raise InvalidRequestError(
                 f"unknown surface {surface!r}; surfaces of {problem.scene}: {sorted(known_surfaces)}"
             )
-    gen = PostureGenerator(robot, env, spots)
+    gen = PostureGenerator(robot, env, spots, posture_config(problem.limb_load))
     start = []
     for spot, surface in problem.start_pairs:
         T = gen.spot_pose(q_start, spot)

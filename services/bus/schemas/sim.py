@@ -86,6 +86,9 @@ class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_f
     # Objects any link may touch during the whole motion: the supports of a multi-contact motion (the
     # chair the robot gets up from, the table it leans on), chosen by the contact planner.
     supports: Names = []
+    # Joint name -> fraction in (0, 1] of its effort limit, for this execution only: a compliant limb in
+    # a closed kinematic loop (the arm of a hand on a table while a sole holds the robot). {}: full effort.
+    effort_scale: dict[str, float] = {}
     # Wall-clock limit of the execution [s]: past it the robot holds where it is and the reply is a
     # timeout error saying how much was played. None: the sim's execute_budget_s (300 s by default).
     time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] | None = None
