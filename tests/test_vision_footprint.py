@@ -12,7 +12,8 @@ import pytest
 
 from services.perception.locate import head_stereo, locate_object
 from services.perception.look_around import head_joints
-from vision.footprint import _consistent, _rectangle, _top, footprint
+from vision.camera import CameraIntrinsics, StereoRig
+from vision.footprint import _consistent, _rectangle, _top, footprint, outline_points
 from vision.histogram import load_models
 
 ROBOT = "hrp2_like"
@@ -74,6 +75,29 @@ def test_a_run_of_rows_occluded_in_one_image_is_dropped_and_border_edges_never_k
     keep = _consistent(disparity)
     assert not keep[30:40].any() and not keep[:3].any()
     assert keep[3:30].all() and keep[40:].all()
+
+
+def test_edges_next_to_another_objects_pixels_are_left_out():
+    """A table half behind a chair (fetch seeds 13, 21, 23): on the rows where the chair's pixels touch
+    the table's silhouette, its edge is the chair's contour, at the chair's disparity: those edges give
+    no point, the others do."""
+    rig = StereoRig(CameraIntrinsics.from_hfov(640, 480, math.radians(60.0)), 0.144)
+    h, w = 480, 640
+    left, right = np.zeros((h, w), bool), np.zeros((h, w), bool)
+    left[200:260, 300:400] = True
+    right[200:260, 280:380] = True  # 20 px of disparity
+    window = (0, 0, w, h)
+    chair_left = np.zeros((h, w), bool)
+    chair_left[220:240, 280:300] = True  # against the left edge on rows 220-239 (left image)
+    chair_right = np.zeros((h, w), bool)
+    chair_right[245:250, 380:390] = True  # against the right edge on rows 245-249 (right image)
+    T = np.eye(4)
+    every = outline_points(left, window, right, window, rig, T)
+    hidden = outline_points(left, window, right, window, rig, T, chair_left, chair_right)
+    assert len(every) == 2 * 60
+    assert len(hidden) == 2 * 60 - 20 - 5
+    depth = rig.intrinsics.fx * 0.144 / 20.0
+    assert np.allclose(hidden[:, 2], depth)  # the camera frame is the world here: z is the depth
 
 
 def test_the_top_is_the_highest_height_many_points_share_not_a_few_stray_ones():
