@@ -165,6 +165,7 @@ def test_a_goto_from_a_start_overlapping_a_box_walks_out_first_in_the_same_motio
 
         plan_path(scene, with_arms_of(body_model(ROBOT.name), ROBOT, q), Pose2D(x, y, yaw), goal)
     result = plan_goto(ROBOT, scene, q, goal)
+    assert result.path.curve.startswith("escape+")
     first = result.footsteps.sequence.steps[0].pose
     assert (first.x_m - x) * back[0] + (first.y_m - y) * back[1] < 0.0  # the first step away from the chair
     gx, gy, _ = ROBOT.mid_feet_pose(result.motion.q[-1])

@@ -141,7 +141,8 @@ def _escaped(
 def _joined(
     escape: tuple[SampledPath, PathFootsteps], path: SampledPath, steps: PathFootsteps
 ) -> tuple[SampledPath, PathFootsteps]:
-    """The escape walk followed by the path planned from its end: one path, one footstep sequence."""
+    """The escape walk followed by the path planned from its end: one path (its ``curve`` "escape+" the
+    path's), one footstep sequence."""
     first, first_steps = escape
     length = first.length_m
     theta = path.theta_rad + 2.0 * math.pi * round(
@@ -154,6 +155,7 @@ def _joined(
         s_m=np.concatenate([first.s_m, length + path.s_m[1:]]),
         forward=np.concatenate([first.forward, path.forward[1:]]),
         waypoints=np.vstack([first.waypoints, path.waypoints]),
+        curve=f"escape+{path.curve}",
     )
     sequence = FootstepSequence(
         first_steps.sequence.left_start,
