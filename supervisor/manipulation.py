@@ -585,7 +585,7 @@ class ManipulationActions:
         missed: np.ndarray | None = None  # where the object went down onto nothing
         for attempt in (1, 2):
             # Look at the place (again, on the second attempt: from nearer, with the object above it).
-            self.do_look_at(Step(step.line, "look_at", (place,)))
+            self.progress(self.do_look_at(Step(step.line, "look_at", (place,))).message)
             point = self._put_point(place, missed=missed)
             decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             if decided is None and self._walk_nearer(place, point, f"step up to {place}"):
