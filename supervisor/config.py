@@ -24,7 +24,7 @@ class SupervisorConfig:
 
     Locomotion:
         goto_distance_m: ``goto OBJECT`` stands this far from the object's face by default;
-        clearance_m: before turning on the spot, the robot steps back until the objects seen are
+        clearance_m: before turning or walking away, the robot steps back until the objects seen are
             this far from its mid-feet point; max_step_back_m: by at most this much at once;
         far_m, near_m: an object farther than far_m is first approached to near_m and localized again
             (near_face_m from a free face of it when there is no walk to the pose near_m short of it,

@@ -44,8 +44,10 @@ class LocomotionActions:
         pose = parse_point(target, 3, "goto target")
         self.body.straighten()
         self._survey(exclude={target})
-        # No step back first: a start whose footprint overlaps an object of the map is navigation's
-        # to leave (it walks to the nearest free pose first, computed from the overlap).
+        # Room to start the car-like path (without it, a 4.7 m Reeds-Shepp path started beside the chair
+        # and the arm brushed it: fetch seed 23). A start still overlapping an object of the map is
+        # navigation's to leave: it walks to the nearest free pose first, computed from the overlap.
+        self._make_room(f"room to walk to {target}")
         if pose is None:
             sighting = self.memory.get(target)
             if not is_obstacle(sighting):
@@ -81,9 +83,9 @@ class LocomotionActions:
         raise AssertionError("unreachable")
 
     def _make_room(self, what: str) -> None:
-        """Step back before turning on the spot when an object seen is closer than ``clearance_m`` to the
-        robot: the turn would sweep the arms into it. (A walk needs none: navigation leaves a start
-        inside an obstacle's margin by itself.)"""
+        """Step back when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
+        would sweep the arms into it, and a car-like path needs room to turn at its start (a start
+        inside an obstacle's margin is navigation's to leave: it computes the way out)."""
         x, y, _yaw = self.body.base_xy_yaw()
         near = [(distance_to_box(box, x, y), box.name) for box in boxes(self.memory)]
         if not near:
@@ -133,6 +135,7 @@ class LocomotionActions:
         self.eyes.look_at(self.memory.get(name).position_m, f"look at {name}")
         self.eyes.locate(name)
         self._survey(exclude={name})
+        self._make_room(f"room to walk to {name}")  # seen nearer now than from afar
 
     def _survey(self, exclude: set[str]) -> None:
         """Put the big objects in view on the map (not ``exclude``, not what the hands hold)."""

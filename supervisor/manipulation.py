@@ -121,6 +121,7 @@ class ManipulationActions:
     do_look_at: Callable[[Step], ActionReport]
     _back_off: Callable[[str, list[str]], None]
     _goto_object: Callable[[str, float], Plan]
+    _make_room: Callable[[str], None]
 
     def _heading(self) -> float:
         return self.body.base_xy_yaw()[2]
@@ -479,6 +480,7 @@ class ManipulationActions:
         if far <= self.config.nearer_beyond_m:
             return False
         self.body.straighten()
+        self._make_room(f"room to walk nearer to {name}")
         u = to / far
         stop = np.asarray(point[:2], dtype=float) - u * self.config.nearer_m
         try:
