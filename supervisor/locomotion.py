@@ -44,9 +44,8 @@ class LocomotionActions:
         pose = parse_point(target, 3, "goto target")
         self.body.straighten()
         self._survey(exclude={target})
-        # Room to start the car-like path (without it, a 4.7 m Reeds-Shepp path started beside the chair
-        # and the arm brushed it: fetch seed 23). A start still overlapping an object of the map is
-        # navigation's to leave: it walks to the nearest free pose first, computed from the overlap.
+        # Room to start the car-like path. A start still overlapping an object of the map is navigation's
+        # to leave: it walks to the nearest free pose first, computed from the overlap (fetch seed 49).
         self._make_room(f"room to walk to {target}")
         if pose is None:
             sighting = self.memory.get(target)
