@@ -60,7 +60,11 @@ class SupervisorConfig:
             put_edge_deg, put_edge_shift_m, put_edge_tries: a lowered object whose every contact with
             the place is more than put_edge_deg [deg] off straight below the hand's grasp frame
             touched an edge on its side (it hangs over the edge and would fall off): it is raised,
-            moved put_edge_shift_m toward the contacts and lowered again, at most put_edge_tries times;
+            moved put_edge_shift_m toward the contacts and lowered again, at most put_edge_tries times
+            (an arm touching the place instead of the object: moved that far further along the
+            approach, once); put_view_m: after a put that touched nothing, navigation walks back to
+            this far from the point that missed and perception maps the place again from there (its
+            whole outline in view, beyond perception's footprint depth);
         approach_m: the hand first goes this far above a reach or put point, then down;
         lift_m: a grasped object (or an emptied hand) is raised by this first;
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
@@ -120,6 +124,7 @@ class SupervisorConfig:
     put_edge_deg: float = 45.0
     put_edge_shift_m: float = 0.12
     put_edge_tries: int = 2
+    put_view_m: float = 1.6
     approach_m: float = 0.12
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
