@@ -11,6 +11,7 @@ from collections import OrderedDict
 import numpy as np
 import pinocchio as pin
 
+from services.footsteps.arm_obstacles import arm_obstacle_tasks
 from services.footsteps.chain import VirtualChain, footprint_frame
 from services.footsteps.constraints import (
     FootprintDisksTask,
@@ -26,6 +27,7 @@ from services.ik.level import Level
 from services.ik.task import Task
 from services.ik.tasks.com_support_polygon import ComSupportPolygonTask
 from services.ik.tasks.feet_flat import FeetFlatTask
+from services.ik.tasks.frame_orientation import FrameOrientationTask
 from services.ik.tasks.frame_pose import FramePoseTask
 from services.ik.tasks.frame_position import FramePositionTask
 from services.ik.tasks.gaze import GazeTask
@@ -103,6 +105,7 @@ def constraint_tasks(
             )
     if opts.self_collision and robot.collision_pairs:
         tasks.append(self_collision_task(chain, opts.collision_margin_m, gain))
+    tasks.extend(arm_obstacle_tasks(chain, request))  # the arm out of the hand obstacles (eqs. 12-13)
     return tasks
 
 
@@ -187,6 +190,16 @@ def desired_task(chain: VirtualChain, task: FootstepTask, gain: float, max_rate:
         inner = FramePositionTask(
             model, robot.frames.grasp(task.hand), chain.model_point(task.target_m), gain=gain, name=task.name
         )
+    elif task.kind == "orient":
+        # the grasp frame's world orientation, brought into the model's frame (that of F_0)
+        R_world = pin.Quaternion(np.array(task.orientation, dtype=float)).normalized().matrix()
+        inner = FrameOrientationTask(
+            model,
+            robot.frames.grasp(task.hand),
+            chain.T_root_world.rotation @ R_world,
+            gain=gain,
+            name=task.name,
+        )
     elif task.kind == "gaze":
         inner = GazeTask(
             model,
@@ -222,7 +235,7 @@ def build_levels(
     """
     gain = request.options.gain
     o = request.options
-    rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad}
+    rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad, "orient": o.max_rate_rad}
     front = FrontRelativePose(chain)
     lm = {"damping": o.damping, "error_damping": o.error_damping}
     levels = [Level(tuple(constraint_tasks(chain, request, front)), name="constraints", **lm)]
