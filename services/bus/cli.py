@@ -469,17 +469,10 @@ def cmd_echo(args: argparse.Namespace) -> int:
                         print(f"error: {exc.args[0]}", file=sys.stderr)
                         return EXIT_USAGE
                 if args.json:
-                    doc = (
-                        content
-                        if args.field
-                        else {
-                            "key": sample_key,
-                            "time_s": round(time.time(), 6),
-                            "size_b": len(data),
-                            "request_id": rid,
-                            "message": content,
-                        }
-                    )
+                    doc = content if args.field else {
+                        "key": sample_key, "time_s": round(time.time(), 6), "size_b": len(data),
+                        "request_id": rid, "message": content,
+                    }
                     print(json.dumps(doc, default=str), flush=True)
                     continue
                 if args.field:
@@ -606,11 +599,7 @@ def _add_replay(subparsers: Any) -> None:
     )
     p.add_argument("file", help="MCAP file written by `humanoid record`")
     p.add_argument(
-        "--rate",
-        "--speed",
-        dest="speed",
-        type=float,
-        default=1.0,
+        "--rate", "--speed", dest="speed", type=float, default=1.0,
         help="playback speed factor (2 = twice as fast; --speed is the same)",
     )
     p.add_argument("--start", type=float, default=0.0, help="start this many seconds into the log (0)")

@@ -269,7 +269,9 @@ class ReachTracker:
         Q[0] = q
         violation = None
         for i in range(1, len(knots)):
-            budget.check(f"the reaching IK, knot {i} of {len(knots)}", {"knots_done": i, "knots": len(knots)})
+            budget.check(
+                f"the reaching IK, knot {i} of {len(knots)}", {"knots_done": i, "knots": len(knots)}
+            )
             k = knots[i]
             t_k = float(spec.times_s[k])
             for side, soles in (("left", spec.left_sole), ("right", spec.right_sole)):
