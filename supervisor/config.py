@@ -83,8 +83,8 @@ class SupervisorConfig:
             (they can lie beside the wrist too: fetch seed 37, where no walk around clears them) the
             hand goes down onto it fingers down, its yaw the heading turned by the one of
             jaws_turns_deg [deg] (either way) that puts the touched points nearest the hand's x axis,
-            clear of the jaws (empty: off). With jaws_planned that hand (on the object, fingers down at
-            that yaw) is a task of footsteps/plan, which chooses the stance for it, and reaching
+            clear of the jaws (empty: off). With jaws_planned that hand (above the object, fingers down
+            at that yaw) is a task of footsteps/plan, which chooses the stance for it, and reaching
             executes the planned posture from there without stepping (above the object, then straight
             down); none found, or reaching refusing it: reaching is asked for it in motions of at most
             turn_piece_deg, then position only as without it (fetch5: without the planned stance
@@ -94,10 +94,10 @@ class SupervisorConfig:
             again farther than this [m] from where the last lowering aimed, less confidently, is taken
             where it was aimed; jaws_lag_m: reaching then accepts the hand this far [m] behind its
             reference on the way to that planned posture (its default, the paper's 4e-5 m, is a
-            trigger for stepping; the hand 0.24 mm behind refused it on seed 37).
-            felt_obstacle_radius_m: the felt points near an object
-            to grasp also go to footsteps/plan as spheres of this radius [m] that the arm (forearm,
-            upper arm) keeps out of, with the object itself.
+            trigger for stepping; the hand 0.24 mm behind refused it on seed 37); from that stance
+            reaching does not step (seed 6: 8 steps into the box). felt_obstacle_radius_m: the felt
+            points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
+            that the arm (forearm, upper arm) keeps out of, with the object itself.
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
