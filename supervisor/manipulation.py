@@ -137,15 +137,19 @@ class ManipulationActions:
         yaw_rad: float | None,
         upright: bool = False,
         orientation: list[float] | None = None,
+        lag_m: float | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
         reaching refuses that (or ``config.upright_hand`` is off); ``orientation``: the grasp frame at
         that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
-        posture, or fingers down), position only when reaching refuses it; else position only."""
+        posture, or fingers down), position only when reaching refuses it; else position only.
+        ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m]."""
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
-                plan = self.planners.reach(hand, point, orientation=orientation, allow_stepping=stepping)
+                plan = self.planners.reach(
+                    hand, point, orientation=orientation, allow_stepping=stepping, ee_error_threshold_m=lag_m
+                )
             except InfeasibleError as exc:
                 self.progress(f"{what}: keeping the hand's orientation refused ({exc.message})")
             else:
@@ -262,12 +266,44 @@ class ManipulationActions:
         yaw = self._heading()
         point = self._grasp_point(hand, target, yaw)
         allowed = [target, *self._support(target)] if parse_point(target, 3, "reach target") is None else []
-        # Walked around what the hand felt ahead of the fingers, then fingers down, the jaws' yaw clear
-        # of it (it can be beside the wrist too: fetch seed 37).
-        self._clear_of_felt(point, f"step around {target}")
+        keep_out = self._grasp_obstacles(target)
+        # Something felt near it (a ball perception has no model of): fingers down, the jaws' yaw clear
+        # of it (it can be beside the wrist: fetch seed 37). That hand is a task of the footstep IK
+        # (paper 000 §4: the tasks decide where the feet go), the hand on the object, so that the
+        # stance suits the posture: approach direction and wrist yaw chosen from the neighbours.
         near = self._felt_near(point)
         turns = self.config.jaws_turns_deg
-        jaws = jaws_clear_of(point, near, self._heading(), turns) if near and turns else None
+        if near and turns and parse_point(target, 3, "reach target") is None:
+            self._where_it_was_aimed(target)
+            point = self._grasp_point(hand, target, self._heading())
+        centre = self._centre(target, point)
+        jaws = jaws_clear_of(centre, near, self._heading(), turns) if near and turns else None
+        jaws_quat = None
+        decided = None
+        if jaws is not None and self.config.jaws_planned:
+            jaws_quat = Rotation.from_euler("z", jaws).as_quat().tolist()
+            point = self._grasp_point(hand, target, jaws)
+            # planned above it: the posture reaching goes to first; the lowering keeps its orientation
+            over = point + np.array([0.0, 0.0, self.config.approach_m])
+            felt = ", ".join(
+                f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near
+            )
+            decided = self._last_steps(
+                hand,
+                over,
+                point,
+                f"step up to {target}, the jaws at {math.degrees(jaws):.0f} deg (felt at {felt} deg from it)",
+                hand_obstacles=keep_out,
+                orientation=jaws_quat,
+                step_region_scale=self.config.jaws_step_region_scale,
+            )
+        if decided is None:
+            # Planned without it (none found with it): walked around what the hand felt ahead of the
+            # fingers first.
+            jaws_quat = None
+            self._clear_of_felt(point, f"step around {target}")
+            if jaws is not None:
+                jaws = jaws_clear_of(centre, near, self._heading(), turns)
         yaw = self._heading() if jaws is None else jaws
         point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
@@ -276,10 +312,11 @@ class ManipulationActions:
         # object itself, the stance moved and the position-only lowering brought the wrist onto the
         # neighbouring ball in fetch seed 12, which it grasps without a retry when planned above.
         hand_at = point if "grasp" in self.config.last_steps_posture else above
-        decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
+        if decided is None:
+            decided = self._last_steps(hand, hand_at, point, f"step up to {target}", hand_obstacles=keep_out)
         support = self._support(target)
         if decided is None and support and self._walk_nearer(support[0], point, f"step up to {target}"):
-            decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
+            decided = self._last_steps(hand, hand_at, point, f"step up to {target}", hand_obstacles=keep_out)
             walked = True
         else:
             walked = decided is not None and decided.walk is not None
@@ -298,22 +335,33 @@ class ManipulationActions:
         # planner decided the stance and the posture together; reaching executes that hand pose), or,
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
-        final = self._final_hand(decided, target, "grasp")
-        steps = None if jaws is None else self._fingers_down(hand, above, f"reach above {target}", jaws)
+        final = self._final_hand(decided, target, "grasp", planned=jaws_quat is not None)
+        # The jaws' posture: its stance was planned for it, the hand's lag on the way is no reason to
+        # refuse it (reaching's 4e-5 m is the paper's trigger for stepping; 0.2 mm refused it on seed 37)
+        lag = self.config.jaws_lag_m if jaws_quat is not None else None
+        steps = self._as_planned(hand, above, f"reach above {target}", [], final, target, lag_m=lag)
+        if steps is None and jaws is not None:
+            steps = self._fingers_down(hand, above, f"reach above {target}", jaws)
         if steps is None:
-            steps = self._as_planned(hand, above, f"reach above {target}", [], final, target)
-        if steps is None:
+            # From the stance planned for the jaws, no reaching steps (fetch seed 6: 8 steps into the box)
             steps = self._move_hand(
-                hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
+                hand,
+                above,
+                f"reach above {target}",
+                allowed=[],
+                stepping=jaws_quat is None,
+                yaw_rad=yaw,
+                upright=True,
             )
         upright = None
         if jaws is not None or self.config.upright_hand:
             upright = Rotation.from_euler("z", self._heading() if jaws is None else jaws).as_quat().tolist()
         keep = next((quat for quat in (final, upright) if quat and self._hand_at(hand, quat)), None)
-        yaw = (
-            jaws if jaws is not None and keep is upright else self._heading()
-        )  # the steps may have turned it
+        jaws_kept = jaws is not None and keep is not None and (keep is upright or jaws_quat is not None)
+        yaw = jaws if jaws_kept else self._heading()  # the steps may have turned it
         point = self._grasp_point(hand, target, yaw)
+        if parse_point(target, 3, "reach target") is None:
+            self.memory.aimed[target] = self.memory.get(target)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
@@ -322,6 +370,7 @@ class ManipulationActions:
             stepping=False,
             yaw_rad=yaw,
             orientation=keep,
+            lag_m=lag,
         )
         self.last_reach = (hand, target)
         return ActionReport(
@@ -330,6 +379,48 @@ class ManipulationActions:
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
+
+    def _where_it_was_aimed(self, target: str) -> None:
+        """Before choosing the jaws' yaw from what the hand felt beside ``target``: when the sighting of
+        ``target`` the last lowering aimed at (localized from near just before it; ``Memory.aimed``) was
+        more confident than the latest one and lies more than ``relocalized_jump_m`` from it, the
+        latest is not kept (fetch seed 37: seen again from where the hand had backed off, the ball
+        was put 0.13 m off and 0.12 m low, and the jaws were turned for a neighbour on the wrong
+        side). Seen again (and kept) otherwise."""
+        aimed = self.memory.aimed.get(target)
+        latest = self.memory.get(target)
+        jump = float(np.linalg.norm(latest.position_m - aimed.position_m)) if aimed is not None else 0.0
+        if (
+            aimed is not None
+            and jump > self.config.relocalized_jump_m
+            and aimed.confidence > latest.confidence
+        ):
+            self.progress(
+                f"{target} seen again {jump:.2f} m from where the hand went down on it (confidence "
+                f"{latest.confidence:.2f} against {aimed.confidence:.2f}): keeping that one"
+            )
+            self.memory.remember(aimed)
+
+    def _centre(self, target: str, point: np.ndarray) -> np.ndarray:
+        """The centre of the object ``target`` as perception saw it (``point`` for an 'x,y,z' target)."""
+        if parse_point(target, 3, "reach target") is not None:
+            return point
+        return np.asarray(self.memory.get(target).position_m, dtype=float)
+
+    def _grasp_obstacles(self, target: str) -> list[tuple[np.ndarray, float]]:
+        """What the reaching arm (forearm, upper arm) keeps out of in footsteps/plan's final posture for a
+        grasp of ``target``: the object itself (its sighting: centre, half its largest seen size) and
+        what the hand felt near it (memory's felt points within ``felt_radius_m``, spheres of
+        ``felt_obstacle_radius_m``: a ball beside it that perception has no model of), as (centre [m]
+        world, radius [m]). The footstep IK then chooses the stance and the arm's posture clear of them
+        (paper 000: obstacles as inequalities, eq. 13)."""
+        if parse_point(target, 3, "reach target") is not None:
+            return []
+        sighting = self.memory.get(target)
+        radius = float(np.clip(max(sighting.size_m) / 2.0, 0.01, 0.06))
+        spheres = [(np.asarray(sighting.position_m, dtype=float), radius)]
+        r_felt = self.config.felt_obstacle_radius_m
+        return spheres + [(f, r_felt) for f in self._felt_near(sighting.position_m)]
 
     def _felt_near(self, point: np.ndarray) -> list[np.ndarray]:
         """Memory's felt points within ``felt_radius_m`` of ``point`` (horizontally) [m]."""
@@ -392,12 +483,15 @@ class ManipulationActions:
             return True
         return False
 
-    def _final_hand(self, decided: LastSteps | None, target: str, approach: str) -> list[float] | None:
+    def _final_hand(
+        self, decided: LastSteps | None, target: str, approach: str, planned: bool = False
+    ) -> list[float] | None:
         """The grasp frame's world orientation in footsteps/plan's final posture ([qx, qy, qz, qw]), when
-        it decided the last steps and ``approach`` ("grasp" or "put") is in ``last_steps_posture``,
-        unless an approach to ``target`` in that orientation touched something before
-        (``Memory.posture_touched``); else None."""
-        if decided is None or approach not in self.config.last_steps_posture or not decided.hand_quat:
+        it decided the last steps and ``approach`` ("grasp" or "put") is in ``last_steps_posture`` (or
+        ``planned``: the orientation was one of its tasks), unless an approach to ``target`` in that
+        orientation touched something before (``Memory.posture_touched``); else None."""
+        wanted = planned or approach in self.config.last_steps_posture
+        if decided is None or not wanted or not decided.hand_quat:
             return None
         if target in self.memory.posture_touched:
             self.progress(
@@ -414,17 +508,21 @@ class ManipulationActions:
         allowed: list[str],
         quat: list[float] | None,
         target: str,
+        lag_m: float | None = None,
     ) -> int | None:
         """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
         stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
         where the feet go for this posture; reaching's stepping would walk away from that stance when
         its manipulability trigger fires on the way, paper 001 Fig. 4). The steps taken (0), or None
         when ``quat`` is None or reaching refuses it (the caller then reaches position only, stepping
-        if it must: the object moved)."""
+        if it must: the object moved). ``lag_m``: the hand's lag behind its reference reaching accepts
+        [m] (None: its default)."""
         if quat is None:
             return None
         try:
-            plan = self.planners.reach(hand, point, orientation=quat, allow_stepping=False)
+            plan = self.planners.reach(
+                hand, point, orientation=quat, allow_stepping=False, ee_error_threshold_m=lag_m
+            )
         except InfeasibleError as exc:
             self.progress(f"{what}: the hand as in footsteps/plan's final posture refused ({exc.message})")
             return None
@@ -442,12 +540,22 @@ class ManipulationActions:
         return float((Rotation.from_quat(quat).inv() * Rotation.from_matrix(R)).magnitude()) < tolerance_rad
 
     def _last_steps(
-        self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray, what: str, allowed: list[str] | None = None
+        self,
+        hand: str,
+        target_m: np.ndarray,
+        gaze_m: np.ndarray,
+        what: str,
+        allowed: list[str] | None = None,
+        hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
+        orientation: list[float] | None = None,
+        step_region_scale: float | None = None,
     ) -> LastSteps | None:
-        """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` and the
-        gaze on ``gaze_m`` (paper 000 §7: the fine-tuner of the end of the locomotion) and walked; what
-        it decided (its final posture included), None when it found no steps (reaching steps then if
-        it must)."""
+        """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` (turned
+        to the world ``orientation`` [qx, qy, qz, qw] if given) and the gaze on ``gaze_m`` (paper 000
+        §7: the fine-tuner of the end of the locomotion), the arm out of ``hand_obstacles`` ((centre,
+        radius) spheres [m]), with footsteps/plan's step region scaled by ``step_region_scale`` (None:
+        its default), and walked; what it decided (its final posture included), None when it found no
+        steps (reaching steps then if it must)."""
         if not self.config.last_steps:
             return None
         # Upright first: the walk is planned from the posture the robot will be in when it starts
@@ -455,7 +563,9 @@ class ManipulationActions:
         # played after straightening starts 0.25 rad away from the chest's position).
         self.body.straighten()
         try:
-            decided = self.planners.last_steps(hand, target_m, gaze_m)
+            decided = self.planners.last_steps(
+                hand, target_m, gaze_m, hand_obstacles, orientation, step_region_scale
+            )
         except (InfeasibleError, RequestTimeoutError) as exc:  # none found, or none within its budget
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")
             return None

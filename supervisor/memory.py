@@ -64,6 +64,9 @@ class Memory:
     #: final posture (that orientation swept the forearm into them): their next approaches are
     #: position only.
     posture_touched: set[str] = field(default_factory=set)
+    #: The sighting of each object a hand was last lowered onto (localized from near, just before): the
+    #: reference for where the points a hand felt there lie from it.
+    aimed: dict[str, Sighting] = field(default_factory=dict)
 
     def clear(self) -> None:
         """Forget everything (a new scene)."""
@@ -71,6 +74,7 @@ class Memory:
         self.holding.clear()
         self.felt.clear()
         self.posture_touched.clear()
+        self.aimed.clear()
 
     def remember(self, sighting: Sighting) -> None:
         """Keep ``sighting`` as the latest of its object. Seen without a footprint (cut by the image

@@ -11,6 +11,7 @@ from collections import OrderedDict
 import numpy as np
 import pinocchio as pin
 
+from services.footsteps.arm_obstacles import arm_obstacle_tasks
 from services.footsteps.chain import VirtualChain, footprint_frame
 from services.footsteps.constraints import (
     FootprintDisksTask,
@@ -27,6 +28,7 @@ from services.ik.level import Level
 from services.ik.task import Task
 from services.ik.tasks.com_support_polygon import ComSupportPolygonTask
 from services.ik.tasks.feet_flat import FeetFlatTask
+from services.ik.tasks.frame_orientation import FrameOrientationTask
 from services.ik.tasks.frame_pose import FramePoseTask
 from services.ik.tasks.frame_position import FramePositionTask
 from services.ik.tasks.gaze import GazeTask
@@ -108,6 +110,7 @@ def constraint_tasks(
         ground_z = float(chain.model_point(np.zeros(3))[2])
         tasks.append(hand_floor_task(robot, model, opts.hand_floor_margin_m, ground_z, gain))
     tasks.append(grippers_held(chain, request, gain))
+    tasks.extend(arm_obstacle_tasks(chain, request))  # the arm out of the hand obstacles (eqs. 12-13)
     return tasks
 
 
@@ -212,6 +215,16 @@ def desired_task(chain: VirtualChain, task: FootstepTask, gain: float, max_rate:
         inner = FramePositionTask(
             model, robot.frames.grasp(task.hand), chain.model_point(task.target_m), gain=gain, name=task.name
         )
+    elif task.kind == "orient":
+        # the grasp frame's world orientation, brought into the model's frame (that of F_0)
+        R_world = pin.Quaternion(np.array(task.orientation, dtype=float)).normalized().matrix()
+        inner = FrameOrientationTask(
+            model,
+            robot.frames.grasp(task.hand),
+            chain.T_root_world.rotation @ R_world,
+            gain=gain,
+            name=task.name,
+        )
     elif task.kind == "gaze":
         inner = GazeTask(
             model,
@@ -247,7 +260,7 @@ def build_levels(
     """
     gain = request.options.gain
     o = request.options
-    rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad}
+    rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad, "orient": o.max_rate_rad}
     front = FrontRelativePose(chain)
     lm = {"damping": o.damping, "error_damping": o.error_damping}
     levels = [Level(tuple(constraint_tasks(chain, request, front)), name="constraints", **lm)]
