@@ -15,7 +15,9 @@ the robot: how long the robot stands still thinking), ``footsteps_plan_calls`` (
 ``footsteps/plan`` per fetch, counted in the recorded log: the stack's recorder writes every
 ``footsteps/**`` message to an MCAP file beside ``--out`` and each fetch's requests are those logged
 between its start and end; in ``--worker`` mode, the supervisor's requests as they go out), and per run: seed,
-ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure.
+ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure,
+sim_by_phase_s (simulated seconds per phase from the transcript: :func:`sim_by_phase`), and
+``median_sim_by_phase_s`` over the runs.
 The supervisor's transcript of each fetch goes to ``LOG_DIR/transcript_<seed>.txt``.
 Goals (issues 10, 15): success >= 95 %, wall time <= sim time, median think <= 1 s, >= 2 footstep
 plans per fetch.
@@ -25,7 +27,9 @@ of the commit to compare with, its own ``.venv`` made by its ``scripts/_venv.sh`
 tree's stack runs in its own worker process (this file with ``--worker``, under that tree's Python and
 ``PYTHONPATH``); the seeds alternate between the two (this tree first on even seeds, the baseline first on
 odd ones) so that the machine's load hits both alike. Adds ``baseline`` (the baseline's figures and runs),
-``baseline_median_wall_s`` and ``wall_ratio`` (this tree's median wall time / the baseline's) to the JSON.
+``baseline_median_wall_s`` and ``wall_ratio`` (this tree's median wall time / the baseline's),
+``baseline_median_sim_s`` and ``sim_ratio`` (the same for simulated time: independent of the load) to the
+JSON.
 Neither stack has a subscriber on ``hrp/**`` (timings compare only under the same subscriber conditions).
 
 Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--baseline DIR]
