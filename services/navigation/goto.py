@@ -13,6 +13,7 @@ ground truth) and the robot's starting configuration come with every request.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -33,13 +34,17 @@ from services.navigation.stage2 import Stage2Options, WholeBodyMotion, plan_moti
 from services.navigation.straight import StraightWalkOptions, straight_walk
 from services.navigation.upper_body import CarriedBar, SweepResult, sweep_carried_object
 from services.walking.footsteps import FootstepLimits, FootstepSequence, SolePose
+from services.walking.timing import WalkTiming, build_schedule
 
 REPLAN_EXTRA_MARGIN_M = 0.02
 """Margin [m] added, beyond the clearance missing, when stage 2 sends stage 1 back for a new path."""
 SLOW_WALK_FACTOR = 1.5
-"""Single supports this much longer, once, when stage 2's walk moves a joint faster than its limit."""
+"""Single supports this much longer when stage 2's walk moves a joint faster than its limit: first those
+of the steps moving while it does, then (once more too fast) every step's."""
 ESCAPE_EXTRA_MARGIN_M = 0.02
 """A start overlapping an obstacle escapes to a pose this much clearer [m] than stage 1 requires."""
+log = logging.getLogger("humanoid.navigation")
+
 MAX_START_SOLE_HEIGHT_M = 0.005
 """The starting configuration must have both soles on the floor (flat ground z = 0) within this [m]."""
 
@@ -76,6 +81,20 @@ class GotoResult:
     def goal(self) -> Pose2D:
         """The base pose reached (for an object goal: the approach pose chosen)."""
         return self.path.goal
+
+
+def _steps_too_fast(
+    footsteps: FootstepSequence, timing: WalkTiming, details: dict[str, Any]
+) -> tuple[int, ...]:
+    """The steps moving while a joint is faster than its limit (``details["over_limit_s"]``, the time
+    stretches [s] of the walking planner's error; else its ``time_s``) on the schedule of ``timing``."""
+    schedule = build_schedule([s.side for s in footsteps.steps], timing)
+    stretches = details.get("over_limit_s") or [[details.get("time_s", -1.0)] * 2]
+    out: set[int] = set()
+    for t0, t1 in stretches:
+        for t in np.arange(float(t0), float(t1) + schedule.dt_s, schedule.dt_s):
+            out.update(schedule.steps_at(float(t)))
+    return tuple(sorted(out))
 
 
 def _yaw(R: np.ndarray) -> float:
@@ -200,6 +219,7 @@ def plan_goto(
     timings = {"path_s": 0.0, "footsteps_s": 0.0, "stage2_s": 0.0}
     replans = 0
     slowed = False
+    slowed_steps: tuple[int, ...] = ()
     start_now = start_pose(robot, q_start)
     straight_options = options.straight if bar is None else None
     while True:
@@ -263,18 +283,36 @@ def plan_goto(
         except InfeasibleError as error:
             timings["stage2_s"] += time.perf_counter() - t3
             if "joint" in error.details and not slowed:
-                # a joint faster than its limit (a knee on a turning step): the same footsteps walked with
-                # slower single supports (the second stage's pattern and whole-body IK again, once)
+                # a joint faster than its limit (a knee on a turning step): the same footsteps with slower
+                # single supports (the second stage's pattern and whole-body IK again), first of the
+                # steps moving while it is too fast, then (a second time) of every step
                 timing = options.stage2.timing
-                slow = replace(timing, single_support_s=timing.single_support_s * SLOW_WALK_FACTOR)
+                too_fast = () if slowed_steps else _steps_too_fast(steps.sequence, timing, error.details)
+                if too_fast:
+                    slow = replace(timing, slow_steps=too_fast, slow_step_factor=SLOW_WALK_FACTOR)
+                    slowed_steps = too_fast
+                else:
+                    slow = replace(
+                        timing, single_support_s=timing.single_support_s * SLOW_WALK_FACTOR, slow_steps=()
+                    )
+                    slowed = True
+                log.info(
+                    "stage 2: %s; walking %s of the %d steps slower",
+                    error.message,
+                    f"steps {list(too_fast)}" if too_fast else "every one",
+                    n_steps,
+                )
                 options = replace(options, stage2=replace(options.stage2, timing=slow))
-                slowed = True
                 continue
             # "the planner goes back to the first stage": the body's boxes were too small for the
             # dynamic motion (sway, swing); plan the path again with the margin grown by what was missing
             if error.details.get("reason") != nav_msg.REASON_BODY_COLLISION or replans >= options.max_replans:
                 raise
             straight_options = None  # the straight line came too near: stage 1's path, with more margin
+            if slowed_steps:  # step indices of the old footsteps: the new ones start at full speed
+                timing = replace(options.stage2.timing, slow_steps=())
+                options = replace(options, stage2=replace(options.stage2, timing=timing))
+                slowed_steps = ()
             missing = options.stage2.reshape.required_clearance_m - float(error.details["distance_m"])
             body = body.with_margin(body.margin_m + missing + REPLAN_EXTRA_MARGIN_M)
             replans += 1
