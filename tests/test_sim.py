@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from services.errors import InvalidRequestError, NotFoundError
+from services.footsteps import scenarios
 from sim import motions
 from sim.cameras import Intrinsics, look_at, project, projection_matrix, view_matrix
 from sim.config import SimConfig
@@ -80,8 +81,9 @@ def test_footstep_scenes_match_the_paper_set_ups():
     assert 0.6 < ball.position[2] < 0.9  # table height
     assert 0.3 < disk.position[0] < ball.position[0] - 0.3  # the disk lies between robot and ball
     pickup = layout(load_scene("footsteps_pickup"))
-    obj, disk = pickup.object("orange_ball"), pickup.object("obstacle_disk")
-    assert abs(obj.position[1]) < 0.01 and abs(obj.position[0]) < 0.05  # between the feet
+    obj, disk = pickup.object("orange_block"), pickup.object("obstacle_disk")
+    assert abs(obj.position[1]) < 0.01 and abs(obj.position[0]) < 0.1  # between the feet (soles +-0.12 m)
+    np.testing.assert_allclose(obj.position, scenarios.PICKUP_OBJECT_M, atol=1e-9)  # the planner's target
     assert disk.position[:2] == obj.position[:2]
     bar = layout(load_scene("bar_carry")).object("bar").spec
     assert (bar.length_m, 2 * bar.radius_m, bar.mass_kg) == (1.8, 0.024, 0.5)  # motion autonomy paper §2

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from services import budget
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
 from services.contacts.limb_load import limb_joints
 from services.contacts.posture import ARM_SPOTS, Floating, PostureConfig, PostureGenerator
@@ -148,7 +149,8 @@ def regenerate_witness(
     addition) lets the posture generator place the new contact within ``FLOAT_HALF`` of its planned
     place (§2.6's floating contact); when all fail, the planned sets and witness are returned with the
     reason (the transition then drags the
-    slid supports back, as the open-loop replay does)."""
+    slid supports back, as the open-loop replay does). The request's time budget
+    (:mod:`services.budget`) is checked before each posture generation (RequestTimeoutError)."""
     s1 = measured_contacts(gen, s1_planned, q_measured)
     by_pair = {c.pair: c for c in s1}
     s2 = tuple(by_pair.get(c.pair, c) for c in s2_planned)
@@ -158,7 +160,8 @@ def regenerate_witness(
     reference = PostureTask(gen.model, q2_planned)
     reasons = []
     relaxed = _relaxed(gen)
-    for start in (q_measured, q2_planned):
+    for k, start in enumerate((q_measured, q2_planned)):
+        budget.check(f"the witness's regeneration, try {k + 1}")
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
@@ -167,6 +170,7 @@ def regenerate_witness(
         new = added[0]
         volume = around((new.x, new.y, new.theta), FLOAT_HALF)
         floating = Floating(new.spot, new.surface, volume)
+        budget.check("the witness's regeneration, try 3 (the new contact moved)")
         result = gen.generate(s1, s1, q_measured, reference, floating, config=relaxed)
         if result.ok and result.contact is not None:
             return s1, tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""

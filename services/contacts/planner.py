@@ -24,6 +24,7 @@ from services.model import RobotModel
 from sim.scene import layout, load_scene
 
 START_TOLERANCE_M = 0.01  # a start contact's spot must be this close to its surface [m]
+MAX_KEY_POSTURES = 1000  # postures of the rough trajectory T a request may give (§2.7; the chair's: 4)
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,14 @@ def build(
         start.append(contact_at(gen.spots[spot], surface, env, T))
     if problem.key_postures is not None:
         keys = np.asarray(problem.key_postures, float)
+        if keys.ndim != 2 or not 1 <= len(keys) <= MAX_KEY_POSTURES or keys.shape[1] != robot.nq:
+            raise InvalidRequestError(
+                f"key_postures must be (k, nq={robot.nq}) with 1 <= k <= {MAX_KEY_POSTURES}, got shape "
+                f"{keys.shape}",
+                {"field": "key_postures"},
+            )
+        if not np.all(np.isfinite(keys)):
+            raise InvalidRequestError("key_postures has a non-finite value", {"field": "key_postures"})
     elif load_scene(problem.scene).name == "chair_egress":
         keys = np.array(chair_egress.key_postures(robot, env, q_start))
     else:

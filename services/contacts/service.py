@@ -5,7 +5,9 @@ Run: ``python -m services.contacts.service [--model hrp2_like]`` (plus the commo
 
 Endpoint ``contacts/plan`` (:mod:`services.bus.schemas.contacts`): a stateless planner (the reply is a
 function of the request). Endpoint ``contacts/transition``: one transition of a plan re-planned from
-the measured configuration (executing set by set, ``closed_loop.py``). Every node selected during the
+the measured configuration (executing set by set, ``closed_loop.py``), within its own
+``time_budget_s`` (``timeout`` naming the step reached: the witness's regeneration or the
+interpolation's posture, re-planning try or collision check). Every node selected during the
 search is published on ``contacts/progress``.
 Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` of the wrong
 size, a start contact that does not hold at ``q_start``), ``infeasible`` (the search tree was exhausted,
@@ -102,9 +104,16 @@ class ContactsService(Service):
 
     @handles(msg.TRANSITION)
     def transition(self, request: msg.TransitionRequest) -> msg.TransitionReply:
-        """One transition re-planned from the measured configuration (``closed_loop``)."""
+        """One transition re-planned from the measured configuration (``closed_loop``) within its
+        ``time_budget_s`` (the whole request: the witness regenerated, the interpolation with its
+        re-planning and collision checks; issue 16)."""
+        with budget.within(request.time_budget_s):
+            return self._transition(request)
+
+    def _transition(self, request: msg.TransitionRequest) -> msg.TransitionReply:
         t0 = time.perf_counter()
         gen = self._generator(request.scene, request.limb_load)
+        budget.check("the transition's set-up (the scene's posture generator)")
         nq = self.robot.nq
         q = np.asarray(request.q_measured, float).reshape(-1)
         witness = np.asarray(request.witness, float).reshape(-1)

@@ -88,7 +88,8 @@ class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
     ``q_measured``, the witness of ``to_set`` (a son of ``from_set``: one contact more or less, §2.3) is
     generated again for them near ``witness`` (its planned posture), and the motion to it interpolated
     (§3.3). ``released``: the contacts removed at the previous transition, still touched at
-    ``q_measured`` (their bodies leave now)."""
+    ``q_measured`` (their bodies leave now). ``time_budget_s`` bounds the whole request: past it the
+    reply is ``timeout`` naming the step reached (issue 16)."""
 
     scene: SceneName
     q_measured: np.ndarray  # (nq,) float64
@@ -97,6 +98,8 @@ class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
     witness: np.ndarray  # (nq,) the planned witness of to_set
     released: ContactList = msgspec.field(default_factory=list)
     n_interpolation: Annotated[int, Meta(ge=2, le=100)] = 10  # bounded work: <= 7 tries of 2n postures
+    # the whole request (witness regeneration, interpolation, its re-planning and collision checks) [s]
+    time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] = 60.0
     limb_load: bool = False  # as in PlanRequest: the arms' contact forces bounded by their joints
 
 
