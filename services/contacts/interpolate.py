@@ -39,7 +39,7 @@ import pinocchio as pin
 
 from services import budget
 from services.contacts.hold import hold_spots
-from services.contacts.posture import PostureConfig, PostureGenerator
+from services.contacts.posture import ARM_SPOTS, PostureConfig, PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
 from services.contacts.timing import ZMP_SLOWDOWNS, interval_times, knots, time_segment, zmp_shift
 from services.errors import InfeasibleError, RequestTimeoutError
@@ -284,11 +284,14 @@ def transition(
         and np.linalg.norm(gen.spot_pose(q2, c.spot).translation - gen.contact_pose(c).translation) < 5e-3
     )
     stable = tuple(c for c in s1 if c in held) or held
-    # every body that moves gets its path (the one moving most may be bent by a detour): a hand released
-    # at the previous transition moves while another comes onto the table, and unguided it went 2 cm
-    # into the table's underside
+    # the body moving most gets its path (bent by a detour if asked), and so does an arm's spot moving
+    # besides it: a hand released at the previous transition leaves the table while the other comes
+    # onto it, and unguided it went 2 cm into the table's underside. (A released thigh rises with the
+    # whole body: a path of its own changed the rise, and the rise fell.)
     paths: dict[str, list[pin.SE3]] = {}
     for spot in _moving_spots(gen, candidates, q1, q2):
+        if spot != moving and spot not in ARM_SPOTS:
+            continue
         T1, T2 = gen.spot_pose(q1, spot), gen.spot_pose(q2, spot)
         bend = detour_m if spot == moving else (0.0, 0.0)
         paths[spot] = spot_path(gen, T1, T2, config.n, config.lift_m, bend)
