@@ -31,8 +31,10 @@ class SupervisorConfig:
             and not at all when there is none to a face either);
         retry_budget_s, retry_turning_radius_m: when navigation finds no path in its default budget,
             the second search's budget and turning radius (the first's is navigation's 0.5 m);
-        walk_double_support_s: double support between the steps of a walk (with 0.1 s the simulated
-            robot fell in about half of the 60-90 deg turns; 0.3 s turned every time).
+        walk_double_support_s: double support between the steps of a walk (before the sims's
+            spring-damper soles, with 0.1 s the simulated robot fell in about half of the 60-90 deg
+            turns and 0.3 s turned every time; with them 0.2 s, the fetch's walks shorter by 0.1 s a
+            step).
     Manipulation:
         last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
             the end of the approach) for the last steps, within last_steps_max steps and
@@ -60,7 +62,11 @@ class SupervisorConfig:
             put_edge_deg, put_edge_shift_m, put_edge_tries: a lowered object whose every contact with
             the place is more than put_edge_deg [deg] off straight below the hand's grasp frame
             touched an edge on its side (it hangs over the edge and would fall off): it is raised,
-            moved put_edge_shift_m toward the contacts and lowered again, at most put_edge_tries times;
+            moved put_edge_shift_m toward the contacts and lowered again, at most put_edge_tries times
+            (an arm touching the place instead of the object: moved that far further along the
+            approach, once); put_view_m: after a put that touched nothing, navigation walks back to
+            this far from the point that missed and perception maps the place again from there (its
+            whole outline in view, beyond perception's footprint depth);
         approach_m: the hand first goes this far above a reach or put point, then down;
         lift_m: a grasped object (or an emptied hand) is raised by this first;
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
@@ -114,7 +120,7 @@ class SupervisorConfig:
     near_face_m: float = 1.0
     retry_budget_s: float = 4.0
     retry_turning_radius_m: float = 0.3
-    walk_double_support_s: float = 0.3
+    walk_double_support_s: float = 0.2
     last_steps: bool = True
     last_steps_max: int = 6
     last_steps_budget_s: float = 5.0
@@ -131,6 +137,7 @@ class SupervisorConfig:
     put_edge_deg: float = 45.0
     put_edge_shift_m: float = 0.12
     put_edge_tries: int = 2
+    put_view_m: float = 1.6
     approach_m: float = 0.12
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
 from services.errors import (
     CollisionError,
@@ -77,6 +78,13 @@ def toward_edge(centre: np.ndarray, contacts: list[np.ndarray], edge_deg: float)
         sideways += offset[:2] / max(across, 1e-9)
     norm = float(np.linalg.norm(sideways))
     return sideways / norm if norm > 1e-9 else None
+
+
+def arm_only(collisions: Sequence[sim_msg.Contact], obj: str) -> bool:
+    """Whether a lowering that stopped on the place was stopped by the robot's own links only, not by
+    the held object ``obj`` (its contacts' ``robot_link`` is ``held:<obj>``): a wrist force sensor
+    feels both alike, but only the object's contact says it stands on the place."""
+    return bool(collisions) and all(c.robot_link != f"held:{obj}" for c in collisions)
 
 
 def jaws_clear_of(
@@ -690,7 +698,7 @@ class ManipulationActions:
         missed: np.ndarray | None = None  # where the object went down onto nothing
         for attempt in (1, 2):
             # Look at the place (again, on the second attempt: from nearer, with the object above it).
-            self.do_look_at(Step(step.line, "look_at", (place,)))
+            self.progress(self.do_look_at(Step(step.line, "look_at", (place,))).message)
             point = self._put_point(place, missed=missed)
             decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             if decided is None and self._walk_nearer(place, point, f"step up to {place}"):
@@ -719,14 +727,15 @@ class ManipulationActions:
                 f"lowered {obj} down to {low_z:.2f} m without touching {place}: raising it and "
                 f"localizing {place} again"
             )
-            # Measured: the place's map rectangle holds a point with nothing under it. Seen from here
-            # (nearer), the place is mapped anew from its silhouette.
+            # Measured: the place's map rectangle holds a point with nothing under it.
             self.memory.drop_footprint(place)
             missed = point
             self._move_hand(hand, point, f"raise {obj} again", allowed=allowed, stepping=False, yaw_rad=yaw)
             self._move_hand(  # carried again for the next last steps
                 hand, self._carry_point(hand), f"carry {obj}", allowed=allowed, stepping=False, yaw_rad=yaw
             )
+            if self._view_again(place, point):
+                missed = None  # mapped anew from a whole view: the put point comes from that rectangle
         robot = self.body.robot
         at = robot.grasp_position(executed.q, hand)
         reply = self.body.gripper(hand, "open")
@@ -751,6 +760,38 @@ class ManipulationActions:
             details={"point": at.tolist(), "on": place, "hand": hand},
         )
 
+    def _view_again(self, place: str, missed: np.ndarray) -> bool:
+        """After a put at ``missed`` (world [m]) touched nothing: see ``place`` again from where its
+        whole outline is in view. From beside it (nearer than perception's footprint depth, cut by the
+        image borders, the arm and the held object in front) it has no floor rectangle, and the middle
+        of its silhouette was no better (fetch seeds 21, 23). Navigation walks back to ``put_view_m``
+        from the point that missed (checked against the map), facing it; there perception maps it
+        from its outline again (occluded edges left out). Whether it got a floor rectangle (else the
+        retry goes toward the middle of its silhouette, as before)."""
+        x, y, _yaw = self.body.base_xy_yaw()
+        away = np.array([x, y]) - missed[:2]
+        u = away / max(float(np.linalg.norm(away)), 1e-6)
+        stand = missed[:2] + u * self.config.put_view_m
+        what = f"view {place} again"
+        self.body.straighten()
+        try:
+            plan = self.planners.goto_pose(float(stand[0]), float(stand[1]), math.atan2(-u[1], -u[0]))
+        except InfeasibleError as exc:
+            self.progress(f"{what}: no walk back to {self.config.put_view_m:.1f} m from it ({exc.message})")
+            return False
+        self.progress(
+            f"{what}: from {self.config.put_view_m:.1f} m, its whole outline in view ({plan.describe()})"
+        )
+        self.body.execute(plan.q, what=what, progress=self.progress)
+        self.body.straighten()
+        with contextlib.suppress(NotFoundError):
+            self.eyes.look_at(missed, f"look at {place}")
+            self.eyes.localize(place, turn=lambda *_: None, progress=self.progress, look_around=False)
+        sighting = self.memory.sightings.get(place)
+        if sighting is not None:
+            self.progress(f"{what}: {sighting.describe()}")
+        return sighting is not None and sighting.footprint is not None
+
     @staticmethod
     def _contacts(executed: Executed) -> str:
         """The contacts that stopped ``executed``, for the transcript: link (x, y, z) m, ..."""
@@ -761,8 +802,8 @@ class ManipulationActions:
 
     def _beside_edge(self, hand: str, obj: str, executed: Executed) -> np.ndarray | None:
         """:func:`toward_edge` of the contacts of the held ``obj`` that stopped ``executed``, seen from
-        the ``hand``'s grasp frame; None when only the hand touched (the hand can reach below the
-        object: the put goes on as before)."""
+        the ``hand``'s grasp frame; None when it stands on the top, or when only the arm touched
+        (:func:`arm_only`, :meth:`_onto_the_top`)."""
         held = [c.position for c in executed.reply.collisions if c.robot_link == f"held:{obj}"]
         if not held:
             return None
@@ -778,30 +819,50 @@ class ManipulationActions:
         allowed: list[str],
         final: list[float] | None,
     ) -> Executed:
-        """After a lowering stopped on touching ``place``: while the object touched it only on its side
-        (:meth:`_beside_edge`: hanging over an edge; released there it falls off, fetch seed 5), raise it
-        by ``put_height_m``, move it ``put_edge_shift_m`` toward the contacts (onto the top) and lower it
-        again until it touches, at most ``put_edge_tries`` times. The last lowering's execution."""
+        """After a lowering stopped on touching ``place``, until the held object itself stands on it:
+
+        * only the arm touched (:func:`arm_only`: the wrist below the object came onto the top, the
+          object hanging beside or above it; released there it rolled off the near edge, fetch seed
+          52): a collision, not a put. The touch measured the top there; the object is lifted by
+          ``put_height_m``, moved ``put_edge_shift_m`` further along the approach (from the robot's
+          mid-feet point toward the object: the arm reaches over the near edge, the top lies ahead)
+          and lowered again, once; an arm touch after that move is taken as the object on the top;
+        * the object touched only on its side (:meth:`_beside_edge`: hanging over an edge; released
+          there it falls off, fetch seed 5): raised by ``put_height_m``, moved ``put_edge_shift_m``
+          toward the contacts (onto the top) and lowered again.
+
+        At most ``put_edge_tries`` such moves. The last lowering's execution."""
         c = self.config
+        moved_for_arm = False
         for _ in range(c.put_edge_tries):
-            inward = self._beside_edge(hand, obj, executed)
-            if inward is None:
-                return executed
             here = self.body.robot.grasp_position(executed.q, hand)
-            self.progress(
-                f"{obj} touched {place} on its side (over an edge): moving it "
-                f"{c.put_edge_shift_m:.2f} m onto the top and lowering it again"
-            )
+            if arm_only(executed.reply.collisions, obj) and not moved_for_arm:
+                x, y, _yaw = self.body.base_xy_yaw(executed.q)
+                ahead = here[:2] - (x, y)
+                inward = ahead / max(float(np.linalg.norm(ahead)), 1e-6)
+                moved_for_arm = True
+                self.progress(
+                    f"the arm, not {obj}, touched {place}: lifting it and moving it "
+                    f"{c.put_edge_shift_m:.2f} m further onto the top"
+                )
+            else:
+                inward = self._beside_edge(hand, obj, executed)
+                if inward is None:
+                    return executed
+                self.progress(
+                    f"{obj} touched {place} on its side (over an edge): moving it "
+                    f"{c.put_edge_shift_m:.2f} m onto the top and lowering it again"
+                )
             up = here + np.array([0.0, 0.0, c.put_height_m])
-            off = [*allowed, place]  # it starts on the edge
-            self._move_hand(hand, up, f"lift {obj} off the edge", allowed=off, stepping=False, yaw_rad=None)
+            off = [*allowed, place]  # it starts on the top or its edge
+            self._move_hand(hand, up, f"lift {obj} off {place}", allowed=off, stepping=False, yaw_rad=None)
             over = up + np.array([inward[0], inward[1], 0.0]) * c.put_edge_shift_m
             self._move_hand(hand, over, f"{obj} over the top", allowed=allowed, stepping=False, yaw_rad=None)
             what = f"lower {obj} onto {place} again"
             executed, low_z = self._lower_onto(hand, over, place, final, allowed, what)
             if not executed.touched:
                 raise NotFoundError(
-                    f"moved {obj} {c.put_edge_shift_m:.2f} m from an edge of {place} onto its top and "
+                    f"moved {obj} {c.put_edge_shift_m:.2f} m onto the top of {place} and "
                     f"lowered it to {low_z:.2f} m without touching it",
                     {"object": place, "reason": "no_surface"},
                 )
@@ -822,7 +883,10 @@ class ManipulationActions:
         low = above.copy()
         low[2] = max(self.config.put_lowest_m, above[2] - self.config.put_depth_m)
         plan = self._lowering(hand, low, final)
-        self.progress(f"{what}: {plan.describe()}, until it touches")
+        self.progress(
+            f"{what} from ({above[0]:.2f}, {above[1]:.2f}, {above[2]:.2f}) m: {plan.describe()}, "
+            "until it touches"
+        )
         executed = self.body.execute(
             plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
         )

@@ -7,6 +7,7 @@ reply, with the sim time it was made at. The robot's own pose comes from its pro
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -40,7 +41,14 @@ class Sighting:
 
     def describe(self) -> str:
         x, y, z = self.position_m
-        return f"{self.name} at ({x:.2f}, {y:.2f}, {z:.2f}) m, {self.distance_m:.2f} m away"
+        text = f"{self.name} at ({x:.2f}, {y:.2f}, {z:.2f}) m, {self.distance_m:.2f} m away"
+        fp = self.footprint
+        if fp is not None:
+            text += (
+                f" (floor rectangle {fp.size[0]:.2f} x {fp.size[1]:.2f} m at ({fp.center[0]:.2f}, "
+                f"{fp.center[1]:.2f}), yaw {math.degrees(fp.yaw):.0f} deg)"
+            )
+        return text
 
 
 @dataclass

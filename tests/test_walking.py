@@ -37,7 +37,7 @@ from services.walking.preview_control import (
 )
 from services.walking.support_polygon import distances_to_support, sole_polygon
 from services.walking.swing import swing_trajectory
-from services.walking.timing import DOUBLE, LEFT, RIGHT, WalkTiming
+from services.walking.timing import DOUBLE, LEFT, RIGHT, WalkTiming, build_schedule
 
 DT = 0.005
 
@@ -379,6 +379,31 @@ def test_straight_walk_timing_and_phases():
     assert p.phase_names()[0] == "double"
     # First moving foot is the right one: the left sole supports first.
     assert p.phase[np.argmax(p.phase != DOUBLE)] == LEFT
+
+
+def test_slow_steps_lengthen_only_their_single_supports_and_are_found_by_time():
+    seq = straight_walk(4, 0.2)
+    base = WalkTiming()
+    slow = WalkTiming(slow_steps=(1, 2), slow_step_factor=1.5)
+    fast = build_schedule([s.side for s in seq.steps], base)
+    sched = build_schedule([s.side for s in seq.steps], slow)
+    assert sched.duration_s == pytest.approx(fast.duration_s + 2 * 0.5 * base.single_support_s)
+    swings = {seg.step_index: seg.n for seg in sched.segments if seg.role == "swing"}
+    n_ss = base.samples(base.single_support_s)
+    assert swings == {0: n_ss, 1: base.samples(1.5 * base.single_support_s), 2: swings[1], 3: n_ss}
+    for seg in sched.segments:
+        t_mid = (seg.start + seg.n // 2) * sched.dt_s
+        expected = {
+            "swing": (seg.step_index,),
+            "transfer": (seg.step_index, seg.step_index + 1),
+            "initial": (0,),
+            "final": (3,),
+        }.get(seg.role, ())
+        assert sched.steps_at(t_mid) == expected, seg
+    with pytest.raises(InvalidRequestError):
+        build_schedule(["left"], WalkTiming(slow_step_factor=0.5))
+    with pytest.raises(InvalidRequestError):
+        build_schedule(["left"], WalkTiming(slow_steps=(-1,)))
 
 
 # ------------------------------------------------------------------------------------ multibody ZMP

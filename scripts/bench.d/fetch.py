@@ -15,7 +15,9 @@ the robot: how long the robot stands still thinking), ``footsteps_plan_calls`` (
 ``footsteps/plan`` per fetch, counted in the recorded log: the stack's recorder writes every
 ``footsteps/**`` message to an MCAP file beside ``--out`` and each fetch's requests are those logged
 between its start and end; in ``--worker`` mode, the supervisor's requests as they go out), and per run: seed,
-ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure.
+ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure,
+sim_by_phase_s (simulated seconds per phase from the transcript: :func:`sim_by_phase`), and
+``median_sim_by_phase_s`` over the runs.
 The supervisor's transcript of each fetch goes to ``LOG_DIR/transcript_<seed>.txt``.
 Goals (issues 10, 15): success >= 95 %, wall time <= sim time, median think <= 1 s, >= 2 footstep
 plans per fetch.
@@ -25,7 +27,9 @@ of the commit to compare with, its own ``.venv`` made by its ``scripts/_venv.sh`
 tree's stack runs in its own worker process (this file with ``--worker``, under that tree's Python and
 ``PYTHONPATH``); the seeds alternate between the two (this tree first on even seeds, the baseline first on
 odd ones) so that the machine's load hits both alike. Adds ``baseline`` (the baseline's figures and runs),
-``baseline_median_wall_s`` and ``wall_ratio`` (this tree's median wall time / the baseline's) to the JSON.
+``baseline_median_wall_s`` and ``wall_ratio`` (this tree's median wall time / the baseline's),
+``baseline_median_sim_s`` and ``sim_ratio`` (the same for simulated time: independent of the load) to the
+JSON.
 Neither stack has a subscriber on ``hrp/**`` (timings compare only under the same subscriber conditions).
 
 Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--baseline DIR]
@@ -37,6 +41,7 @@ import argparse
 import json
 import os
 import platform
+import re
 import socket
 import statistics
 import subprocess
@@ -53,6 +58,36 @@ def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+#: Motion announcements of the supervisor's transcript: "<what>: 11.2 s motion, 9 steps (navigation/goto".
+_MOTION = re.compile(r"([0-9.]+) s motion(?:, [0-9]+ steps?)? \(([a-z_]+/[a-z_]+)")
+
+PHASES = {
+    "navigation/goto": "walk",
+    "footsteps/plan": "last_steps",
+    "walking/goal": "step_back_turn",
+    "walking/plan": "walk_other",
+    "reaching/reach": "arm",
+}
+"""Phase of a motion by the planner that made it (the first endpoint named in its announcement)."""
+
+
+def sim_by_phase(transcript: str, sim_s: float) -> dict[str, float]:
+    """Simulated seconds per phase of one fetch, from its transcript: the motions announced as
+    "<what>: X s motion[, N steps] (planner/endpoint ...)" summed by :data:`PHASES` (the "ok:" lines,
+    which repeat the last walk's announcement, are skipped), ``other`` the rest of ``sim_s`` (head
+    motions, looking, standing). A motion stopped early (collision) counts its planned duration."""
+    out = dict.fromkeys(PHASES.values(), 0.0)
+    for line in transcript.splitlines():
+        message = line.split("]", 1)[-1].strip()
+        match = _MOTION.search(message)
+        if match is None or message.startswith("ok:"):
+            continue
+        phase = PHASES.get(match.group(2), "walk_other")
+        out[phase] += float(match.group(1))
+    out["other"] = sim_s - sum(out.values())
+    return {k: round(v, 2) for k, v in out.items()}
 
 
 class CallWatch:
@@ -134,6 +169,7 @@ def main(argv: list[str]) -> int:
                 finally:
                     sup.out = None
             windows.append((start_ns, time.time_ns()))
+            transcript_text = (Path(args.log_dir) / f"transcript_{seed}.txt").read_text()
             gt = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
             on_table, why = ball_on_table(gt)
             run = {
@@ -148,6 +184,7 @@ def main(argv: list[str]) -> int:
                 "think_samples_s": [round(t, 2) for t in watch.think_s],
                 "footsteps_plan_calls": watch.footsteps_plans,
                 "failure": summary.failure or why,
+                "sim_by_phase_s": sim_by_phase(transcript_text, summary.sim_s),
             }
             runs.append(run)
             print(
@@ -203,6 +240,12 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
         if any(r["think_samples_s"] for r in runs)
         else None,
         "footsteps_plan_calls": statistics.median(r["footsteps_plan_calls"] for r in runs) if runs else None,
+        "median_sim_by_phase_s": {
+            phase: round(statistics.median(r["sim_by_phase_s"][phase] for r in runs), 2)
+            for phase in runs[0]["sim_by_phase_s"]
+        }
+        if runs and all("sim_by_phase_s" in r for r in runs)
+        else None,
     }
 
 
@@ -220,6 +263,9 @@ def print_table(result: dict[str, Any]) -> None:
         f"{result['retries']:>8} {result['real_time_factor']:>9.2f} "
         f"{result['median_think_s'] or 0.0:>10.2f} {result['footsteps_plan_calls'] or 0:>15}"
     )
+    if result.get("median_sim_by_phase_s"):
+        phases = ", ".join(f"{k} {v:.1f}" for k, v in result["median_sim_by_phase_s"].items())
+        print(f"median sim per phase [s]: {phases}")
 
 
 def write(result: dict[str, Any], out: Path) -> int:
@@ -312,6 +358,10 @@ def side_by_side(args: argparse.Namespace, baseline: Path) -> int:
             "wall_ratio": round(result["median_wall_s"] / base["median_wall_s"], 3)
             if result["median_wall_s"] and base["median_wall_s"]
             else None,
+            "baseline_median_sim_s": base["median_sim_s"],
+            "sim_ratio": round(result["median_sim_s"] / base["median_sim_s"], 3)
+            if result["median_sim_s"] and base["median_sim_s"]
+            else None,
             "goals": {
                 "success_rate": 0.95,
                 "wall_ratio": 0.7,
@@ -339,6 +389,7 @@ def side_by_side(args: argparse.Namespace, baseline: Path) -> int:
         print(f"\n{name}:", end="")
         print_table(figures)
     print(f"\nwall ratio (this / baseline, medians): {result['wall_ratio']}")
+    print(f"sim ratio (this / baseline, medians): {result['sim_ratio']}")
     return write(result, Path(args.out))
 
 

@@ -22,6 +22,7 @@ from services.footsteps.constraints import (
     RootSoleOnFootprintTask,
 )
 from services.footsteps.geometry import relative_pose, se3_of
+from services.footsteps.hand_floor import hand_floor_task
 from services.footsteps.request import FootstepPlanRequest, FootstepTask
 from services.ik.level import Level
 from services.ik.task import Task
@@ -105,8 +106,28 @@ def constraint_tasks(
             )
     if opts.self_collision and robot.collision_pairs:
         tasks.append(self_collision_task(chain, opts.collision_margin_m, gain))
+    if opts.hand_floor:
+        ground_z = float(chain.model_point(np.zeros(3))[2])
+        tasks.append(hand_floor_task(robot, model, opts.hand_floor_margin_m, ground_z, gain))
+    tasks.append(grippers_held(chain, request, gain))
     tasks.extend(arm_obstacle_tasks(chain, request))  # the arm out of the hand obstacles (eqs. 12-13)
     return tasks
+
+
+def grippers_held(chain: VirtualChain, request: FootstepPlanRequest, gain: float) -> PostureTask:
+    """The grippers at their start value, an equality: they are not part of the IK (the paper's HRP-2
+    model has 28 degrees of freedom, its 30 without the two grippers, §4.1). Free, the IK closed the
+    reaching gripper and tilted the closed fingers away from the floor, its grasp point then between no
+    fingers."""
+    robot = chain.robot
+    q_start = request.q_start if request.q_start is not None else robot.q_half_sitting
+    return PostureTask(
+        chain.model,
+        chain_q_rest(chain, np.asarray(q_start, dtype=float)),
+        joint_names=[robot.gripper_joint(side) for side in ("left", "right")],
+        gain=gain,
+        name="grippers_held",
+    )
 
 
 def self_collision_task(chain: VirtualChain, margin_m: float, gain: float) -> SelfCollisionTask:
@@ -144,9 +165,13 @@ def joint_limits(chain: VirtualChain, request: FootstepPlanRequest) -> tuple[np.
     model, opts = chain.model, request.options
     lower = np.array(model.lowerPositionLimit)
     upper = np.array(model.upperPositionLimit)
+    # (nor the grippers: held at their start value, which may be at a limit, see grippers_held)
+    grippers = {int(model.getJointId(chain.robot.gripper_joint(side))) for side in ("left", "right")}
     for jid in range(1, model.njoints):
         joint = model.joints[jid]
         # the margin applies to the robot's revolute joints (not the chain, not the grippers' slides)
+        if jid in grippers:
+            continue
         if joint.idx_q >= chain.chain_nq and joint.nq == 1 and joint.shortname().startswith("JointModelR"):
             lower[joint.idx_q] += opts.joint_margin_rad
             upper[joint.idx_q] -= opts.joint_margin_rad

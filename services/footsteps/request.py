@@ -129,6 +129,10 @@ class PlannerOptions:
             V_i) (the paper asks epsilon_i < lambda V_i); ``math.inf``: epsilon_i as written.
         polish_iterations: iterations without new steps after Algorithm 1 stops on a stall (the
             level-0 equalities settle); 0: Algorithm 1 as written.
+        hand_floor: keep the corners of both hands' collision boxes ``hand_floor_margin_m`` [m] above
+            the floor, a constraint in the form of eq. (13) (``services.footsteps.hand_floor``; an
+            extension: the paper's §3.2 has no ground under the hand, and §4.2's reach of an object on
+            the floor put the gripper into it).
     """
 
     gain: float = 1.0
@@ -148,6 +152,8 @@ class PlannerOptions:
     error_damping: float = 0.1
     relative_epsilon: float = 0.3
     polish_iterations: int = 30
+    hand_floor: bool = True
+    hand_floor_margin_m: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -224,6 +230,10 @@ class FootstepPlanRequest:
                 "options: need damping >= 0, error_damping >= 0, relative_epsilon > 0, "
                 f"polish_iterations >= 0, got {o.damping}, {o.error_damping}, {o.relative_epsilon}, "
                 f"{o.polish_iterations}"
+            )
+        if not (math.isfinite(o.hand_floor_margin_m) and o.hand_floor_margin_m >= 0):
+            raise InvalidRequestError(
+                f"options.hand_floor_margin_m must be >= 0 m, got {o.hand_floor_margin_m}"
             )
         if not 0 < o.step_region_scale <= 1:
             raise InvalidRequestError(

@@ -48,6 +48,9 @@ class WalkTiming:
     falls. With 0.3 s every walk of the tests ended on its footsteps under +-60 um perturbations
     (README, "In the simulation"). Kajita's 0.1 s (and the benchmark's 12.5 % of the step) remain a
     parameter away.
+
+    ``slow_steps`` are indices of steps whose single support lasts ``slow_step_factor`` times longer
+    (a step that would move a joint faster than its limit is walked slower, not the whole walk).
     """
 
     single_support_s: float = 0.7
@@ -57,6 +60,8 @@ class WalkTiming:
     final_hold_s: float = 0.4
     initial_hold_s: float = 0.6
     dt_s: float = 0.005
+    slow_steps: tuple[int, ...] = ()
+    slow_step_factor: float = 1.5
 
     def validate(self) -> None:
         """Raise InvalidRequestError for a non-finite, zero or negative duration, or one below dt_s."""
@@ -75,6 +80,10 @@ class WalkTiming:
                 raise InvalidRequestError(
                     f"{name}={value} s is shorter than one sample (dt_s={self.dt_s} s); use at least dt_s"
                 )
+        if not (math.isfinite(self.slow_step_factor) and self.slow_step_factor >= 1.0):
+            raise InvalidRequestError(f"slow_step_factor must be >= 1, got {self.slow_step_factor}")
+        if any(i < 0 for i in self.slow_steps):
+            raise InvalidRequestError(f"slow_steps are step indices >= 0, got {list(self.slow_steps)}")
         for name in ("initial_hold_s", "final_hold_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -126,12 +135,29 @@ class Schedule:
         """Time of the last sample [s]."""
         return (self.n_samples - 1) * self.dt_s
 
+    def steps_at(self, t_s: float) -> tuple[int, ...]:
+        """The steps moving at time ``t_s`` [s]: the one swinging, or the two a double support joins
+        (the step just landed and the next one); () before the first transfer ends and in the hold."""
+        k = round(t_s / self.dt_s)
+        for seg in self.segments:
+            if seg.start <= k < seg.stop or (seg is self.segments[-1] and k >= seg.stop):
+                if seg.role == "swing":
+                    return (seg.step_index,)
+                if seg.role in ("transfer", "final", "initial"):
+                    n_steps = max(s.step_index for s in self.segments) + 1
+                    return tuple(i for i in (seg.step_index, seg.step_index + 1) if 0 <= i < n_steps)
+                return ()
+        return ()
+
 
 def build_schedule(step_sides: list[str], timing: WalkTiming) -> Schedule:
-    """Lay the phases of a walk whose steps move the feet ``step_sides`` (in order) on the grid."""
+    """Lay the phases of a walk whose steps move the feet ``step_sides`` (in order) on the grid (the
+    single supports of ``timing.slow_steps`` ``slow_step_factor`` times longer)."""
     timing.validate()
     n_init = timing.samples(timing.initial_double_support_s)
     n_ss = timing.samples(timing.single_support_s)
+    n_ss_slow = timing.samples(timing.single_support_s * timing.slow_step_factor)
+    slow = set(timing.slow_steps)
     n_ds = timing.samples(timing.double_support_s)
     n_final = timing.samples(timing.final_double_support_s)
     n_hold = timing.samples(timing.final_hold_s)
@@ -144,8 +170,9 @@ def build_schedule(step_sides: list[str], timing: WalkTiming) -> Schedule:
     k = n_start + n_init
     for i, side in enumerate(step_sides):
         support = RIGHT if side == "left" else LEFT
-        segments.append(Segment(support, k, k + n_ss, i, "swing"))
-        k += n_ss
+        n_swing = n_ss_slow if i in slow else n_ss
+        segments.append(Segment(support, k, k + n_swing, i, "swing"))
+        k += n_swing
         last = i == len(step_sides) - 1
         n = n_final if last else n_ds
         segments.append(Segment(DOUBLE, k, k + n, i, "final" if last else "transfer"))

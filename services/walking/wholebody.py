@@ -276,6 +276,10 @@ class WholeBodyPlanner:
         ratio = speed / robot.v_max[6:]
         k, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
         if ratio[k, j] > 1.0:
+            over = np.flatnonzero(ratio.max(axis=1) > 1.0)
+            breaks = np.flatnonzero(np.diff(over) > 1)
+            starts = np.concatenate([[over[0]], over[breaks + 1]])
+            stops = np.concatenate([over[breaks], [over[-1]]])
             hint = (
                 ": an upper-body target is probably out of reach (the arm stretches and flips); bring it "
                 "closer or hold it in the walk frame"
@@ -291,6 +295,10 @@ class WholeBodyPlanner:
                     "time_s": float(k * dt_s),
                     "speed": float(speed[k, j]),
                     "limit": float(robot.v_max[6 + j]),
+                    # every stretch of time [s] in which some joint is faster than its limit
+                    "over_limit_s": [
+                        [float(a * dt_s), float((b + 1) * dt_s)] for a, b in zip(starts, stops, strict=True)
+                    ],
                 },
             )
 
