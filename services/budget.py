@@ -9,6 +9,9 @@ trajectory, a reshaping iteration of navigation's stage 2). Past the budget, :fu
 far in ``details`` (``budget_s``, ``elapsed_s``, ``stage`` and the caller's partial results); the
 service base turns it into a typed ``timeout`` reply, and the endpoint serves the next request.
 
+A step that cannot be stopped once started (one call into a C library) is checked *before* it starts
+with :func:`check_fits` and its estimated cost: refused when it would end past the budget.
+
 The budget is per thread (a :mod:`contextvars` variable): each endpoint of a service runs its
 handler in its own worker thread, so two endpoints served at once keep their own budgets. Outside a
 handler (scripts, tests of the pure packages) no budget is open and :func:`check` does nothing.
@@ -69,6 +72,11 @@ def within(budget_s: float) -> Iterator[Deadline]:
         _CURRENT.reset(token)
 
 
+def within_if(budget_s: float | None) -> contextlib.AbstractContextManager[Deadline | None]:
+    """:func:`within` when a budget is given, else nothing (an optional ``time_budget_s`` field)."""
+    return within(budget_s) if budget_s is not None else contextlib.nullcontext()
+
+
 def current() -> Deadline | None:
     """The budget open in this thread, if any."""
     return _CURRENT.get()
@@ -104,4 +112,32 @@ def check(where: str, partial: dict[str, Any] | None = None) -> None:
         f"the time budget of {deadline.budget_s:.3g} s ran out after {deadline.elapsed():.2f} s, at {where}: "
         "give a larger time_budget_s or a smaller request",
         {"budget_s": deadline.budget_s, "elapsed_s": deadline.elapsed(), "stage": where, **(partial or {})},
+    )
+
+
+def check_fits(cost_s: float, where: str, partial: dict[str, Any] | None = None) -> None:
+    """Raise RequestTimeoutError, before a step that cannot be stopped once started (one call into a
+    C library: a pybullet render), when its estimated ``cost_s`` [s] would end it past the open budget
+    (nothing is done when no budget is open).
+
+    Args:
+        cost_s: the step's estimated wall time [s].
+        where: the step, for the message (``"the render of a 2048 x 2048 px image"``).
+        partial: what the work has so far, put in ``details``.
+    """
+    check(where, partial)
+    deadline = _CURRENT.get()
+    if deadline is None or cost_s <= deadline.remaining():
+        return
+    raise RequestTimeoutError(
+        f"the time budget of {deadline.budget_s:.3g} s would run out during {where} (about {cost_s:.2f} s, "
+        f"{max(deadline.remaining(), 0.0):.2f} s left after {deadline.elapsed():.2f} s): not started; "
+        "give a larger time_budget_s or a smaller request",
+        {
+            "budget_s": deadline.budget_s,
+            "elapsed_s": deadline.elapsed(),
+            "stage": where,
+            "estimated_s": cost_s,
+            **(partial or {}),
+        },
     )

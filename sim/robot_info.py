@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from services import budget
 from services.bus.limits import MAX_CONFIGURATIONS, MAX_FRAME_POSES
 from services.bus.schemas import sim as msg
 from services.errors import InvalidRequestError
 from services.model import RobotModel
 
+#: ``sim/kinematics`` looks at the request's time budget every this many configurations.
+BUDGET_CHECK_CONFIGURATIONS = 200
 #: Joints whose name starts with one of these are the chest's (hrp2_like: CHEST_JOINT*; talos: torso_*).
 CHEST_PREFIXES = ("CHEST", "TORSO")
 
@@ -48,6 +51,8 @@ def kinematics_reply(robot: RobotModel, request: msg.KinematicsRequest) -> msg.K
 
     Raises:
         InvalidRequestError: q not (nq,) or (k, nq), an unknown frame, ``place_at`` not [x, y, yaw].
+        RequestTimeoutError: the request's time budget (:mod:`services.budget`, opened by the service)
+            ran out (checked every ``BUDGET_CHECK_CONFIGURATIONS`` configurations).
     """
     Q = np.asarray(request.q, dtype=float)
     if Q.ndim == 1:
@@ -72,6 +77,8 @@ def kinematics_reply(robot: RobotModel, request: msg.KinematicsRequest) -> msg.K
     sole_z = np.zeros((k, 2))
     poses = np.zeros((k, len(request.frames), 4, 4))
     for i, q in enumerate(Q):
+        if i % BUDGET_CHECK_CONFIGURATIONS == 0:
+            budget.check(f"the forward kinematics, configuration {i} of {k}")
         mid[i] = robot.mid_feet_pose(q, data)  # runs the forward kinematics into data
         sole_z[i] = [robot.sole_pose(q, side, data).translation[2] for side in ("left", "right")]
         for j, name in enumerate(request.frames):

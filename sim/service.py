@@ -18,8 +18,10 @@ running execute to finish).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
+from services import budget
 from services.bus.schemas import sim as msg
 from services.bus.service import Service, config_with, handles, run_service
 from services.errors import HumanoidError, InvalidRequestError, NotFoundError, RequestTimeoutError
@@ -191,7 +194,8 @@ class SimService(Service):
 
     @handles(msg.KINEMATICS)
     def kinematics(self, request: msg.KinematicsRequest) -> msg.KinematicsReply:
-        return kinematics_reply(self.world.robot, request)
+        with budget.within_if(request.time_budget_s):
+            return kinematics_reply(self.world.robot, request)
 
     @handles(msg.EXECUTE)
     def execute(self, request: msg.ExecuteRequest) -> msg.ExecuteReply:
@@ -217,6 +221,7 @@ class SimService(Service):
                     request.hold_s,
                     tuple(request.leaving),
                     tuple(request.supports),
+                    dict(request.effort_scale),
                 )
             except _OverBudgetError:
                 played = self.world.sim_time_s - t0
@@ -255,7 +260,29 @@ class SimService(Service):
 
     @handles(msg.RENDER)
     def render(self, request: msg.RenderRequest) -> msg.RenderReply:
-        with self.lock:
+        """The images of a camera or stereo pair; with ``time_budget_s``, the wait for the world and
+        every draw are bounded by it (a draw that would end past it is not started: ``timeout``)."""
+        with budget.within_if(request.time_budget_s):
+            return self._render(request)
+
+    @contextlib.contextmanager
+    def _locked(self, where: str) -> Iterator[None]:
+        """The world's lock, waited for at most what is left of the request's budget (RequestTimeoutError
+        naming ``where`` past it), or as long as it takes when no budget is open."""
+        deadline = budget.current()
+        if deadline is None:
+            with self.lock:
+                yield
+            return
+        while not self.lock.acquire(timeout=max(deadline.remaining(), 0.0)):
+            budget.check(where)
+        try:
+            yield
+        finally:
+            self.lock.release()
+
+    def _render(self, request: msg.RenderRequest) -> msg.RenderReply:
+        with self._locked("the wait for the world (the sim busy with another request)"):
             w = self.world
             images = w.render(
                 request.camera,
@@ -365,12 +392,17 @@ class SimService(Service):
 
     @handles(msg.SNAPSHOT)
     def snapshot(self, request: msg.SnapshotRequest) -> msg.SnapshotReply:
+        """A PNG from an external viewpoint; ``time_budget_s`` bounds it as :meth:`render`'s."""
+        with budget.within_if(request.time_budget_s):
+            return self._snapshot(request)
+
+    def _snapshot(self, request: msg.SnapshotRequest) -> msg.SnapshotReply:
         eye = tuple(request.eye) if request.eye is not None else None
         target = tuple(request.target) if request.target is not None else None
         for name, value in (("eye", eye), ("target", target)):
             if value is not None and len(value) != 3:
                 raise InvalidRequestError(f"snapshot {name} must be [x, y, z] in metres, got {list(value)}")
-        with self.lock:
+        with self._locked("the wait for the world (the sim busy with another request)"):
             png = self.world.snapshot(request.viewpoint, request.width_px, request.height_px, eye, target)
             t = self.world.sim_time_s
         return msg.SnapshotReply(sim_time_s=t, png=np.frombuffer(png, dtype=np.uint8))

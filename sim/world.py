@@ -21,7 +21,7 @@ import contextlib
 import math
 import os
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -362,6 +362,45 @@ class World:
         hold_s: float = 0.0,
         leaving: tuple[str, ...] = (),
         supports: tuple[str, ...] = (),
+        effort_scale: Mapping[str, float] | None = None,
+    ) -> ExecutionResult:
+        """Play a joint trajectory through position control; ``effort_scale`` (joint name -> a fraction
+        in (0, 1] of its effort limit) caps those joints' motors during this execution only: a compliant
+        limb in a closed kinematic loop (a hand on a table while a sole is on the floor: under full
+        effort the rigid loop's internal forces drove the arm to its torque limits, sim/README.md).
+        Other arguments: :meth:`_execute`."""
+        forces = list(self._body_force)
+        for name, scale in (effort_scale or {}).items():
+            if name not in self._body_joint_names:
+                raise InvalidRequestError(
+                    f"effort_scale names {name!r}, not a body joint of {self.robot.name}",
+                    {"field": "effort_scale"},
+                )
+            if not 0.0 < float(scale) <= 1.0:
+                raise InvalidRequestError(
+                    f"effort_scale of {name} must be in (0, 1], got {scale}", {"field": "effort_scale"}
+                )
+            i = self._body_joint_names.index(name)
+            forces[i] = self._body_force[i] * float(scale)
+        saved, self._body_force = self._body_force, forces
+        try:
+            return self._execute(
+                q_trajectory, dt_s, allowed_contacts, stop_on_collision, hold_s, leaving, supports
+            )
+        finally:
+            if effort_scale:  # the motors back at their full effort, holding the last command
+                self._body_force = saved
+                self._command_body(self.q_cmd, np.zeros(self.robot.nv))
+
+    def _execute(
+        self,
+        q_trajectory: np.ndarray,
+        dt_s: float | None,
+        allowed_contacts: tuple[str, ...],
+        stop_on_collision: bool,
+        hold_s: float,
+        leaving: tuple[str, ...],
+        supports: tuple[str, ...],
     ) -> ExecutionResult:
         """Play a joint trajectory through position control.
 

@@ -127,8 +127,10 @@ class Body:
         touch: str = "",
         leaving: Sequence[str] = (),
         supports: Sequence[str] = (),
+        effort_scale: Mapping[str, float] | None = None,
     ) -> Executed:
         """Play the (N, nq) trajectory ``Q`` in chunks; FellError | CollisionError | StoppedError.
+        ``effort_scale``: joints played with a fraction of their effort limits (sim/execute's).
 
         ``touch``: an object the motion is expected to bump into (a guarded move: lowering a held object
         onto a table of uncertain height); stopping on contacts with it only is a success with
@@ -158,6 +160,7 @@ class Body:
                 hold_s=hold_s if last else 0.0,
                 leaving=list(leaving),
                 supports=list(supports),
+                effort_scale=dict(effort_scale or {}),
             )
             reply = self.bus.call(sim_msg.EXECUTE, request, EXECUTE_TIMEOUT_S)
             spent += reply.duration_s

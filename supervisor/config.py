@@ -62,7 +62,11 @@ class SupervisorConfig:
             put_edge_deg, put_edge_shift_m, put_edge_tries: a lowered object whose every contact with
             the place is more than put_edge_deg [deg] off straight below the hand's grasp frame
             touched an edge on its side (it hangs over the edge and would fall off): it is raised,
-            moved put_edge_shift_m toward the contacts and lowered again, at most put_edge_tries times;
+            moved put_edge_shift_m toward the contacts and lowered again, at most put_edge_tries times
+            (an arm touching the place instead of the object: moved that far further along the
+            approach, once); put_view_m: after a put that touched nothing, navigation walks back to
+            this far from the point that missed and perception maps the place again from there (its
+            whole outline in view, beyond perception's footprint depth);
         approach_m: the hand first goes this far above a reach or put point, then down;
         lift_m: a grasped object (or an emptied hand) is raised by this first;
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
@@ -81,14 +85,25 @@ class SupervisorConfig:
             not know (a ball beside the target: no model of it) within felt_radius_m of the next reach
             point makes the robot walk around that point by the smallest of felt_turns_deg [deg] that
             puts the touched points felt_clear_deg [deg] off its direction to the point (the fingers
-            point that way, past the object); jaws_turns_deg: then (they can lie beside the wrist too:
-            fetch seed 37, where no walk around clears them) the hand goes down onto it fingers down (no
-            stepping), its yaw the heading turned by the one of jaws_turns_deg [deg] (either way)
-            that puts the touched points nearest the hand's x axis, clear of the jaws; where reaching
-            refuses that, as without it. Empty (off) by default: on fetch seed 37 reaching refused
-            it; on seed 6 it was accepted in 4 motions of <= turn_piece_deg and the grasp then
-            closed on nothing (without it seed 6 grasps on its third attempt). Try
-            [15, 30, 45, 60, 75, 90].
+            point that way, past the object); jaws_turns_deg, jaws_planned: with such points near it
+            (they can lie beside the wrist too: fetch seed 37, where no walk around clears them) the
+            hand goes down onto it fingers down, its yaw the heading turned by the one of
+            jaws_turns_deg [deg] (either way) that puts the touched points nearest the hand's x axis,
+            clear of the jaws (empty: off). With jaws_planned that hand (above the object, fingers down
+            at that yaw) is a task of footsteps/plan, which chooses the stance for it, and reaching
+            executes the planned posture from there without stepping (above the object, then straight
+            down); none found, or reaching refusing it: reaching is asked for it in motions of at most
+            turn_piece_deg, then position only as without it (fetch5: without the planned stance
+            reaching refused it on seed 37); jaws_step_region_scale: footsteps/plan's step region
+            scaled by this for that stance (steps away from the corners of the bounds: walking refused
+            a 6-step plan there, a knee at 11 rad/s); relocalized_jump_m: before that, an object seen
+            again farther than this [m] from where the last lowering aimed, less confidently, is taken
+            where it was aimed; jaws_lag_m: reaching then accepts the hand this far [m] behind its
+            reference on the way to that planned posture (its default, the paper's 4e-5 m, is a
+            trigger for stepping; the hand 0.24 mm behind refused it on seed 37); from that stance
+            reaching does not step (seed 6: 8 steps into the box). felt_obstacle_radius_m: the felt
+            points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
+            that the arm (forearm, upper arm) keeps out of, with the object itself.
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
@@ -122,6 +137,7 @@ class SupervisorConfig:
     put_edge_deg: float = 45.0
     put_edge_shift_m: float = 0.12
     put_edge_tries: int = 2
+    put_view_m: float = 1.6
     approach_m: float = 0.12
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
@@ -131,7 +147,12 @@ class SupervisorConfig:
     felt_radius_m: float = 0.3
     felt_clear_deg: float = 60.0
     felt_turns_deg: tuple[float, ...] = (30.0, 45.0, 60.0)
-    jaws_turns_deg: tuple[float, ...] = ()
+    jaws_turns_deg: tuple[float, ...] = (15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
+    jaws_planned: bool = True
+    jaws_step_region_scale: float = 0.8
+    relocalized_jump_m: float = 0.05
+    jaws_lag_m: float = 0.001
+    felt_obstacle_radius_m: float = 0.03
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0

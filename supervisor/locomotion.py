@@ -44,6 +44,8 @@ class LocomotionActions:
         pose = parse_point(target, 3, "goto target")
         self.body.straighten()
         self._survey(exclude={target})
+        # Room to start the car-like path. A start still overlapping an object of the map is navigation's
+        # to leave: it walks to the nearest free pose first, computed from the overlap (fetch seed 49).
         self._make_room(f"room to walk to {target}")
         if pose is None:
             sighting = self.memory.get(target)
@@ -81,7 +83,8 @@ class LocomotionActions:
 
     def _make_room(self, what: str) -> None:
         """Step back when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
-        would sweep the arms into it, and navigation does not start from inside an obstacle's margin."""
+        would sweep the arms into it, and a car-like path needs room to turn at its start (a start
+        inside an obstacle's margin is navigation's to leave: it computes the way out)."""
         x, y, _yaw = self.body.base_xy_yaw()
         near = [(distance_to_box(box, x, y), box.name) for box in boxes(self.memory)]
         if not near:

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
 from services.errors import (
     CollisionError,
@@ -79,6 +80,13 @@ def toward_edge(centre: np.ndarray, contacts: list[np.ndarray], edge_deg: float)
     return sideways / norm if norm > 1e-9 else None
 
 
+def arm_only(collisions: Sequence[sim_msg.Contact], obj: str) -> bool:
+    """Whether a lowering that stopped on the place was stopped by the robot's own links only, not by
+    the held object ``obj`` (its contacts' ``robot_link`` is ``held:<obj>``): a wrist force sensor
+    feels both alike, but only the object's contact says it stands on the place."""
+    return bool(collisions) and all(c.robot_link != f"held:{obj}" for c in collisions)
+
+
 def jaws_clear_of(
     point: np.ndarray, felt: list[np.ndarray], heading_rad: float, turns_deg: tuple[float, ...]
 ) -> float:
@@ -129,15 +137,19 @@ class ManipulationActions:
         yaw_rad: float | None,
         upright: bool = False,
         orientation: list[float] | None = None,
+        lag_m: float | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
         reaching refuses that (or ``config.upright_hand`` is off); ``orientation``: the grasp frame at
         that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
-        posture, or fingers down), position only when reaching refuses it; else position only."""
+        posture, or fingers down), position only when reaching refuses it; else position only.
+        ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m]."""
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
-                plan = self.planners.reach(hand, point, orientation=orientation, allow_stepping=stepping)
+                plan = self.planners.reach(
+                    hand, point, orientation=orientation, allow_stepping=stepping, ee_error_threshold_m=lag_m
+                )
             except InfeasibleError as exc:
                 self.progress(f"{what}: keeping the hand's orientation refused ({exc.message})")
             else:
@@ -254,12 +266,44 @@ class ManipulationActions:
         yaw = self._heading()
         point = self._grasp_point(hand, target, yaw)
         allowed = [target, *self._support(target)] if parse_point(target, 3, "reach target") is None else []
-        # Walked around what the hand felt ahead of the fingers, then fingers down, the jaws' yaw clear
-        # of it (it can be beside the wrist too: fetch seed 37).
-        self._clear_of_felt(point, f"step around {target}")
+        keep_out = self._grasp_obstacles(target)
+        # Something felt near it (a ball perception has no model of): fingers down, the jaws' yaw clear
+        # of it (it can be beside the wrist: fetch seed 37). That hand is a task of the footstep IK
+        # (paper 000 §4: the tasks decide where the feet go), the hand on the object, so that the
+        # stance suits the posture: approach direction and wrist yaw chosen from the neighbours.
         near = self._felt_near(point)
         turns = self.config.jaws_turns_deg
-        jaws = jaws_clear_of(point, near, self._heading(), turns) if near and turns else None
+        if near and turns and parse_point(target, 3, "reach target") is None:
+            self._where_it_was_aimed(target)
+            point = self._grasp_point(hand, target, self._heading())
+        centre = self._centre(target, point)
+        jaws = jaws_clear_of(centre, near, self._heading(), turns) if near and turns else None
+        jaws_quat = None
+        decided = None
+        if jaws is not None and self.config.jaws_planned:
+            jaws_quat = Rotation.from_euler("z", jaws).as_quat().tolist()
+            point = self._grasp_point(hand, target, jaws)
+            # planned above it: the posture reaching goes to first; the lowering keeps its orientation
+            over = point + np.array([0.0, 0.0, self.config.approach_m])
+            felt = ", ".join(
+                f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near
+            )
+            decided = self._last_steps(
+                hand,
+                over,
+                point,
+                f"step up to {target}, the jaws at {math.degrees(jaws):.0f} deg (felt at {felt} deg from it)",
+                hand_obstacles=keep_out,
+                orientation=jaws_quat,
+                step_region_scale=self.config.jaws_step_region_scale,
+            )
+        if decided is None:
+            # Planned without it (none found with it): walked around what the hand felt ahead of the
+            # fingers first.
+            jaws_quat = None
+            self._clear_of_felt(point, f"step around {target}")
+            if jaws is not None:
+                jaws = jaws_clear_of(centre, near, self._heading(), turns)
         yaw = self._heading() if jaws is None else jaws
         point = self._grasp_point(hand, target, yaw)
         above = point + np.array([0.0, 0.0, self.config.approach_m])
@@ -268,10 +312,11 @@ class ManipulationActions:
         # object itself, the stance moved and the position-only lowering brought the wrist onto the
         # neighbouring ball in fetch seed 12, which it grasps without a retry when planned above.
         hand_at = point if "grasp" in self.config.last_steps_posture else above
-        decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
+        if decided is None:
+            decided = self._last_steps(hand, hand_at, point, f"step up to {target}", hand_obstacles=keep_out)
         support = self._support(target)
         if decided is None and support and self._walk_nearer(support[0], point, f"step up to {target}"):
-            decided = self._last_steps(hand, hand_at, point, f"step up to {target}")
+            decided = self._last_steps(hand, hand_at, point, f"step up to {target}", hand_obstacles=keep_out)
             walked = True
         else:
             walked = decided is not None and decided.walk is not None
@@ -290,22 +335,33 @@ class ManipulationActions:
         # planner decided the stance and the posture together; reaching executes that hand pose), or,
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
-        final = self._final_hand(decided, target, "grasp")
-        steps = None if jaws is None else self._fingers_down(hand, above, f"reach above {target}", jaws)
+        final = self._final_hand(decided, target, "grasp", planned=jaws_quat is not None)
+        # The jaws' posture: its stance was planned for it, the hand's lag on the way is no reason to
+        # refuse it (reaching's 4e-5 m is the paper's trigger for stepping; 0.2 mm refused it on seed 37)
+        lag = self.config.jaws_lag_m if jaws_quat is not None else None
+        steps = self._as_planned(hand, above, f"reach above {target}", [], final, target, lag_m=lag)
+        if steps is None and jaws is not None:
+            steps = self._fingers_down(hand, above, f"reach above {target}", jaws)
         if steps is None:
-            steps = self._as_planned(hand, above, f"reach above {target}", [], final, target)
-        if steps is None:
+            # From the stance planned for the jaws, no reaching steps (fetch seed 6: 8 steps into the box)
             steps = self._move_hand(
-                hand, above, f"reach above {target}", allowed=[], stepping=True, yaw_rad=yaw, upright=True
+                hand,
+                above,
+                f"reach above {target}",
+                allowed=[],
+                stepping=jaws_quat is None,
+                yaw_rad=yaw,
+                upright=True,
             )
         upright = None
         if jaws is not None or self.config.upright_hand:
             upright = Rotation.from_euler("z", self._heading() if jaws is None else jaws).as_quat().tolist()
         keep = next((quat for quat in (final, upright) if quat and self._hand_at(hand, quat)), None)
-        yaw = (
-            jaws if jaws is not None and keep is upright else self._heading()
-        )  # the steps may have turned it
+        jaws_kept = jaws is not None and keep is not None and (keep is upright or jaws_quat is not None)
+        yaw = jaws if jaws_kept else self._heading()  # the steps may have turned it
         point = self._grasp_point(hand, target, yaw)
+        if parse_point(target, 3, "reach target") is None:
+            self.memory.aimed[target] = self.memory.get(target)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
@@ -314,6 +370,7 @@ class ManipulationActions:
             stepping=False,
             yaw_rad=yaw,
             orientation=keep,
+            lag_m=lag,
         )
         self.last_reach = (hand, target)
         return ActionReport(
@@ -322,6 +379,48 @@ class ManipulationActions:
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
+
+    def _where_it_was_aimed(self, target: str) -> None:
+        """Before choosing the jaws' yaw from what the hand felt beside ``target``: when the sighting of
+        ``target`` the last lowering aimed at (localized from near just before it; ``Memory.aimed``) was
+        more confident than the latest one and lies more than ``relocalized_jump_m`` from it, the
+        latest is not kept (fetch seed 37: seen again from where the hand had backed off, the ball
+        was put 0.13 m off and 0.12 m low, and the jaws were turned for a neighbour on the wrong
+        side). Seen again (and kept) otherwise."""
+        aimed = self.memory.aimed.get(target)
+        latest = self.memory.get(target)
+        jump = float(np.linalg.norm(latest.position_m - aimed.position_m)) if aimed is not None else 0.0
+        if (
+            aimed is not None
+            and jump > self.config.relocalized_jump_m
+            and aimed.confidence > latest.confidence
+        ):
+            self.progress(
+                f"{target} seen again {jump:.2f} m from where the hand went down on it (confidence "
+                f"{latest.confidence:.2f} against {aimed.confidence:.2f}): keeping that one"
+            )
+            self.memory.remember(aimed)
+
+    def _centre(self, target: str, point: np.ndarray) -> np.ndarray:
+        """The centre of the object ``target`` as perception saw it (``point`` for an 'x,y,z' target)."""
+        if parse_point(target, 3, "reach target") is not None:
+            return point
+        return np.asarray(self.memory.get(target).position_m, dtype=float)
+
+    def _grasp_obstacles(self, target: str) -> list[tuple[np.ndarray, float]]:
+        """What the reaching arm (forearm, upper arm) keeps out of in footsteps/plan's final posture for a
+        grasp of ``target``: the object itself (its sighting: centre, half its largest seen size) and
+        what the hand felt near it (memory's felt points within ``felt_radius_m``, spheres of
+        ``felt_obstacle_radius_m``: a ball beside it that perception has no model of), as (centre [m]
+        world, radius [m]). The footstep IK then chooses the stance and the arm's posture clear of them
+        (paper 000: obstacles as inequalities, eq. 13)."""
+        if parse_point(target, 3, "reach target") is not None:
+            return []
+        sighting = self.memory.get(target)
+        radius = float(np.clip(max(sighting.size_m) / 2.0, 0.01, 0.06))
+        spheres = [(np.asarray(sighting.position_m, dtype=float), radius)]
+        r_felt = self.config.felt_obstacle_radius_m
+        return spheres + [(f, r_felt) for f in self._felt_near(sighting.position_m)]
 
     def _felt_near(self, point: np.ndarray) -> list[np.ndarray]:
         """Memory's felt points within ``felt_radius_m`` of ``point`` (horizontally) [m]."""
@@ -384,12 +483,15 @@ class ManipulationActions:
             return True
         return False
 
-    def _final_hand(self, decided: LastSteps | None, target: str, approach: str) -> list[float] | None:
+    def _final_hand(
+        self, decided: LastSteps | None, target: str, approach: str, planned: bool = False
+    ) -> list[float] | None:
         """The grasp frame's world orientation in footsteps/plan's final posture ([qx, qy, qz, qw]), when
-        it decided the last steps and ``approach`` ("grasp" or "put") is in ``last_steps_posture``,
-        unless an approach to ``target`` in that orientation touched something before
-        (``Memory.posture_touched``); else None."""
-        if decided is None or approach not in self.config.last_steps_posture or not decided.hand_quat:
+        it decided the last steps and ``approach`` ("grasp" or "put") is in ``last_steps_posture`` (or
+        ``planned``: the orientation was one of its tasks), unless an approach to ``target`` in that
+        orientation touched something before (``Memory.posture_touched``); else None."""
+        wanted = planned or approach in self.config.last_steps_posture
+        if decided is None or not wanted or not decided.hand_quat:
             return None
         if target in self.memory.posture_touched:
             self.progress(
@@ -406,17 +508,21 @@ class ManipulationActions:
         allowed: list[str],
         quat: list[float] | None,
         target: str,
+        lag_m: float | None = None,
     ) -> int | None:
         """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
         stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
         where the feet go for this posture; reaching's stepping would walk away from that stance when
         its manipulability trigger fires on the way, paper 001 Fig. 4). The steps taken (0), or None
         when ``quat`` is None or reaching refuses it (the caller then reaches position only, stepping
-        if it must: the object moved)."""
+        if it must: the object moved). ``lag_m``: the hand's lag behind its reference reaching accepts
+        [m] (None: its default)."""
         if quat is None:
             return None
         try:
-            plan = self.planners.reach(hand, point, orientation=quat, allow_stepping=False)
+            plan = self.planners.reach(
+                hand, point, orientation=quat, allow_stepping=False, ee_error_threshold_m=lag_m
+            )
         except InfeasibleError as exc:
             self.progress(f"{what}: the hand as in footsteps/plan's final posture refused ({exc.message})")
             return None
@@ -434,12 +540,22 @@ class ManipulationActions:
         return float((Rotation.from_quat(quat).inv() * Rotation.from_matrix(R)).magnitude()) < tolerance_rad
 
     def _last_steps(
-        self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray, what: str, allowed: list[str] | None = None
+        self,
+        hand: str,
+        target_m: np.ndarray,
+        gaze_m: np.ndarray,
+        what: str,
+        allowed: list[str] | None = None,
+        hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
+        orientation: list[float] | None = None,
+        step_region_scale: float | None = None,
     ) -> LastSteps | None:
-        """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` and the
-        gaze on ``gaze_m`` (paper 000 §7: the fine-tuner of the end of the locomotion) and walked; what
-        it decided (its final posture included), None when it found no steps (reaching steps then if
-        it must)."""
+        """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` (turned
+        to the world ``orientation`` [qx, qy, qz, qw] if given) and the gaze on ``gaze_m`` (paper 000
+        §7: the fine-tuner of the end of the locomotion), the arm out of ``hand_obstacles`` ((centre,
+        radius) spheres [m]), with footsteps/plan's step region scaled by ``step_region_scale`` (None:
+        its default), and walked; what it decided (its final posture included), None when it found no
+        steps (reaching steps then if it must)."""
         if not self.config.last_steps:
             return None
         # Upright first: the walk is planned from the posture the robot will be in when it starts
@@ -447,7 +563,9 @@ class ManipulationActions:
         # played after straightening starts 0.25 rad away from the chest's position).
         self.body.straighten()
         try:
-            decided = self.planners.last_steps(hand, target_m, gaze_m)
+            decided = self.planners.last_steps(
+                hand, target_m, gaze_m, hand_obstacles, orientation, step_region_scale
+            )
         except (InfeasibleError, RequestTimeoutError) as exc:  # none found, or none within its budget
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")
             return None
@@ -579,7 +697,7 @@ class ManipulationActions:
         missed: np.ndarray | None = None  # where the object went down onto nothing
         for attempt in (1, 2):
             # Look at the place (again, on the second attempt: from nearer, with the object above it).
-            self.do_look_at(Step(step.line, "look_at", (place,)))
+            self.progress(self.do_look_at(Step(step.line, "look_at", (place,))).message)
             point = self._put_point(place, missed=missed)
             decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
             if decided is None and self._walk_nearer(place, point, f"step up to {place}"):
@@ -608,14 +726,15 @@ class ManipulationActions:
                 f"lowered {obj} down to {low_z:.2f} m without touching {place}: raising it and "
                 f"localizing {place} again"
             )
-            # Measured: the place's map rectangle holds a point with nothing under it. Seen from here
-            # (nearer), the place is mapped anew from its silhouette.
+            # Measured: the place's map rectangle holds a point with nothing under it.
             self.memory.drop_footprint(place)
             missed = point
             self._move_hand(hand, point, f"raise {obj} again", allowed=allowed, stepping=False, yaw_rad=yaw)
             self._move_hand(  # carried again for the next last steps
                 hand, self._carry_point(hand), f"carry {obj}", allowed=allowed, stepping=False, yaw_rad=yaw
             )
+            if self._view_again(place, point):
+                missed = None  # mapped anew from a whole view: the put point comes from that rectangle
         robot = self.body.robot
         at = robot.grasp_position(executed.q, hand)
         reply = self.body.gripper(hand, "open")
@@ -640,6 +759,38 @@ class ManipulationActions:
             details={"point": at.tolist(), "on": place, "hand": hand},
         )
 
+    def _view_again(self, place: str, missed: np.ndarray) -> bool:
+        """After a put at ``missed`` (world [m]) touched nothing: see ``place`` again from where its
+        whole outline is in view. From beside it (nearer than perception's footprint depth, cut by the
+        image borders, the arm and the held object in front) it has no floor rectangle, and the middle
+        of its silhouette was no better (fetch seeds 21, 23). Navigation walks back to ``put_view_m``
+        from the point that missed (checked against the map), facing it; there perception maps it
+        from its outline again (occluded edges left out). Whether it got a floor rectangle (else the
+        retry goes toward the middle of its silhouette, as before)."""
+        x, y, _yaw = self.body.base_xy_yaw()
+        away = np.array([x, y]) - missed[:2]
+        u = away / max(float(np.linalg.norm(away)), 1e-6)
+        stand = missed[:2] + u * self.config.put_view_m
+        what = f"view {place} again"
+        self.body.straighten()
+        try:
+            plan = self.planners.goto_pose(float(stand[0]), float(stand[1]), math.atan2(-u[1], -u[0]))
+        except InfeasibleError as exc:
+            self.progress(f"{what}: no walk back to {self.config.put_view_m:.1f} m from it ({exc.message})")
+            return False
+        self.progress(
+            f"{what}: from {self.config.put_view_m:.1f} m, its whole outline in view ({plan.describe()})"
+        )
+        self.body.execute(plan.q, what=what, progress=self.progress)
+        self.body.straighten()
+        with contextlib.suppress(NotFoundError):
+            self.eyes.look_at(missed, f"look at {place}")
+            self.eyes.localize(place, turn=lambda *_: None, progress=self.progress, look_around=False)
+        sighting = self.memory.sightings.get(place)
+        if sighting is not None:
+            self.progress(f"{what}: {sighting.describe()}")
+        return sighting is not None and sighting.footprint is not None
+
     @staticmethod
     def _contacts(executed: Executed) -> str:
         """The contacts that stopped ``executed``, for the transcript: link (x, y, z) m, ..."""
@@ -650,8 +801,8 @@ class ManipulationActions:
 
     def _beside_edge(self, hand: str, obj: str, executed: Executed) -> np.ndarray | None:
         """:func:`toward_edge` of the contacts of the held ``obj`` that stopped ``executed``, seen from
-        the ``hand``'s grasp frame; None when only the hand touched (the hand can reach below the
-        object: the put goes on as before)."""
+        the ``hand``'s grasp frame; None when it stands on the top, or when only the arm touched
+        (:func:`arm_only`, :meth:`_onto_the_top`)."""
         held = [c.position for c in executed.reply.collisions if c.robot_link == f"held:{obj}"]
         if not held:
             return None
@@ -667,30 +818,50 @@ class ManipulationActions:
         allowed: list[str],
         final: list[float] | None,
     ) -> Executed:
-        """After a lowering stopped on touching ``place``: while the object touched it only on its side
-        (:meth:`_beside_edge`: hanging over an edge; released there it falls off, fetch seed 5), raise it
-        by ``put_height_m``, move it ``put_edge_shift_m`` toward the contacts (onto the top) and lower it
-        again until it touches, at most ``put_edge_tries`` times. The last lowering's execution."""
+        """After a lowering stopped on touching ``place``, until the held object itself stands on it:
+
+        * only the arm touched (:func:`arm_only`: the wrist below the object came onto the top, the
+          object hanging beside or above it; released there it rolled off the near edge, fetch seed
+          52): a collision, not a put. The touch measured the top there; the object is lifted by
+          ``put_height_m``, moved ``put_edge_shift_m`` further along the approach (from the robot's
+          mid-feet point toward the object: the arm reaches over the near edge, the top lies ahead)
+          and lowered again, once; an arm touch after that move is taken as the object on the top;
+        * the object touched only on its side (:meth:`_beside_edge`: hanging over an edge; released
+          there it falls off, fetch seed 5): raised by ``put_height_m``, moved ``put_edge_shift_m``
+          toward the contacts (onto the top) and lowered again.
+
+        At most ``put_edge_tries`` such moves. The last lowering's execution."""
         c = self.config
+        moved_for_arm = False
         for _ in range(c.put_edge_tries):
-            inward = self._beside_edge(hand, obj, executed)
-            if inward is None:
-                return executed
             here = self.body.robot.grasp_position(executed.q, hand)
-            self.progress(
-                f"{obj} touched {place} on its side (over an edge): moving it "
-                f"{c.put_edge_shift_m:.2f} m onto the top and lowering it again"
-            )
+            if arm_only(executed.reply.collisions, obj) and not moved_for_arm:
+                x, y, _yaw = self.body.base_xy_yaw(executed.q)
+                ahead = here[:2] - (x, y)
+                inward = ahead / max(float(np.linalg.norm(ahead)), 1e-6)
+                moved_for_arm = True
+                self.progress(
+                    f"the arm, not {obj}, touched {place}: lifting it and moving it "
+                    f"{c.put_edge_shift_m:.2f} m further onto the top"
+                )
+            else:
+                inward = self._beside_edge(hand, obj, executed)
+                if inward is None:
+                    return executed
+                self.progress(
+                    f"{obj} touched {place} on its side (over an edge): moving it "
+                    f"{c.put_edge_shift_m:.2f} m onto the top and lowering it again"
+                )
             up = here + np.array([0.0, 0.0, c.put_height_m])
-            off = [*allowed, place]  # it starts on the edge
-            self._move_hand(hand, up, f"lift {obj} off the edge", allowed=off, stepping=False, yaw_rad=None)
+            off = [*allowed, place]  # it starts on the top or its edge
+            self._move_hand(hand, up, f"lift {obj} off {place}", allowed=off, stepping=False, yaw_rad=None)
             over = up + np.array([inward[0], inward[1], 0.0]) * c.put_edge_shift_m
             self._move_hand(hand, over, f"{obj} over the top", allowed=allowed, stepping=False, yaw_rad=None)
             what = f"lower {obj} onto {place} again"
             executed, low_z = self._lower_onto(hand, over, place, final, allowed, what)
             if not executed.touched:
                 raise NotFoundError(
-                    f"moved {obj} {c.put_edge_shift_m:.2f} m from an edge of {place} onto its top and "
+                    f"moved {obj} {c.put_edge_shift_m:.2f} m onto the top of {place} and "
                     f"lowered it to {low_z:.2f} m without touching it",
                     {"object": place, "reason": "no_surface"},
                 )
@@ -711,7 +882,10 @@ class ManipulationActions:
         low = above.copy()
         low[2] = max(self.config.put_lowest_m, above[2] - self.config.put_depth_m)
         plan = self._lowering(hand, low, final)
-        self.progress(f"{what}: {plan.describe()}, until it touches")
+        self.progress(
+            f"{what} from ({above[0]:.2f}, {above[1]:.2f}, {above[2]:.2f}) m: {plan.describe()}, "
+            "until it touches"
+        )
         executed = self.body.execute(
             plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
         )

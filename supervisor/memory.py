@@ -7,6 +7,7 @@ reply, with the sim time it was made at. The robot's own pose comes from its pro
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -40,7 +41,14 @@ class Sighting:
 
     def describe(self) -> str:
         x, y, z = self.position_m
-        return f"{self.name} at ({x:.2f}, {y:.2f}, {z:.2f}) m, {self.distance_m:.2f} m away"
+        text = f"{self.name} at ({x:.2f}, {y:.2f}, {z:.2f}) m, {self.distance_m:.2f} m away"
+        fp = self.footprint
+        if fp is not None:
+            text += (
+                f" (floor rectangle {fp.size[0]:.2f} x {fp.size[1]:.2f} m at ({fp.center[0]:.2f}, "
+                f"{fp.center[1]:.2f}), yaw {math.degrees(fp.yaw):.0f} deg)"
+            )
+        return text
 
 
 @dataclass
@@ -56,6 +64,9 @@ class Memory:
     #: final posture (that orientation swept the forearm into them): their next approaches are
     #: position only.
     posture_touched: set[str] = field(default_factory=set)
+    #: The sighting of each object a hand was last lowered onto (localized from near, just before): the
+    #: reference for where the points a hand felt there lie from it.
+    aimed: dict[str, Sighting] = field(default_factory=dict)
 
     def clear(self) -> None:
         """Forget everything (a new scene)."""
@@ -63,6 +74,7 @@ class Memory:
         self.holding.clear()
         self.felt.clear()
         self.posture_touched.clear()
+        self.aimed.clear()
 
     def remember(self, sighting: Sighting) -> None:
         """Keep ``sighting`` as the latest of its object. Seen without a footprint (cut by the image

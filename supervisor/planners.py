@@ -157,26 +157,47 @@ class Planners:
         )
 
     # footsteps ----------------------------------------------------------------------------------------
-    def last_steps(self, hand: str, target_m: np.ndarray, gaze_m: np.ndarray) -> LastSteps:
+    def last_steps(
+        self,
+        hand: str,
+        target_m: np.ndarray,
+        gaze_m: np.ndarray,
+        hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
+        orientation: list[float] | None = None,
+        step_region_scale: float | None = None,
+    ) -> LastSteps:
         """``footsteps/plan`` for the last steps before the ``hand`` reaches ``target_m`` [m] (tasks, by
         priority: the hand at the target, the gaze on ``gaze_m``, the rest posture; the map's boxes, which
-        no footprint may enter; paper 000 §7), then ``walking/plan`` of its footsteps. Returns the
+        no footprint may enter; ``hand_obstacles``, (centre [m] world, radius [m]) spheres the arm keeps
+        out of; ``orientation``, the hand's world orientation [qx, qy, qz, qw] as a task below the
+        reach; ``step_region_scale``, footsteps/plan's option (None: its default); paper 000 §7), then
+        ``walking/plan`` of its footsteps. Returns the
         walk (None when no step is needed), what the planner found and its final posture with the
         hand's orientation in it (:class:`LastSteps`). Raises the planners' typed errors
         (``infeasible`` when the tasks cannot be met)."""
         q = self.body.plan_q()
         c = self.config
+        orient = (
+            [] if orientation is None else [fs_msg.Task(kind="orient", orientation=orientation, hand=hand)]
+        )
+        options = None if step_region_scale is None else fs_msg.Options(step_region_scale=step_region_scale)
         request = fs_msg.PlanRequest(
             tasks=[
                 fs_msg.Task(kind="reach", target=[float(v) for v in target_m], hand=hand),
+                *orient,
                 fs_msg.Task(kind="gaze", target=[float(v) for v in gaze_m]),
                 fs_msg.Task(kind="posture"),
             ],
             model=self.body.robot.name,
             q_start=q,
             boxes=obstacles(self.memory),  # the footstep service covers each box by disks (paper 000 §4.1)
+            hand_obstacles=[
+                fs_msg.Sphere(center=[float(v) for v in centre], radius=float(radius))
+                for centre, radius in hand_obstacles or []
+            ],
             max_steps=c.last_steps_max,
             time_budget_s=c.last_steps_budget_s,
+            options=options,
         )
         reply = self.bus.call(fs_msg.PLAN, request, c.plan_timeout_s)
         found = (
@@ -224,10 +245,12 @@ class Planners:
         allow_stepping: bool = True,
         gaze: bool = True,
         orientation: list[float] | None = None,
+        ee_error_threshold_m: float | None = None,
     ) -> Plan:
         """``reaching/reach``: the ``hand`` grasp frame to ``target_m`` [m], from above: the grasp frame
         upright (fingers down, jaws closing sideways) turned by ``yaw_rad`` (None: position only), or
-        at ``orientation`` ([qx, qy, qz, qw] in the world) when given."""
+        at ``orientation`` ([qx, qy, qz, qw] in the world) when given; ``ee_error_threshold_m``: the
+        lag of the hand behind its reference [m] reaching accepts (None: its default)."""
         if orientation is None and yaw_rad is not None:
             orientation = [0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)]
         q = self.body.plan_q()
@@ -238,6 +261,7 @@ class Planners:
             orientation=orientation,
             gaze=gaze,
             allow_stepping=allow_stepping,
+            ee_error_threshold_m=ee_error_threshold_m,
         )
         reply = self.bus.call(reach_msg.REACH, request, self.config.plan_timeout_s)
         return Plan(

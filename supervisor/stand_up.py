@@ -34,7 +34,10 @@ GOAL_AXIS, GOAL_VALUE_M = "y", 0.6
 PLAN_BUDGET_S = 300.0
 SUPPORTS = ("chair", "table")
 N_INTERPOLATION = 10  # posture generations per transition (§3.3's n)
-TRANSITION_TIMEOUT_S = 120.0
+TRANSITION_BUDGET_S = 60.0  # contacts/transition's time budget [s] (the whole re-planning of a transition)
+# the wait for a reply past the request's own budget [s]: the reply (a timeout at the latest) comes
+# within the budget plus about a second; the rest covers a planner restarted by the launcher
+REPLY_MARGIN_S = 60.0
 
 
 def stand_up(
@@ -59,7 +62,7 @@ def stand_up(
         time_budget_s=budget,
         interpolate=False,  # each transition is interpolated from the measured state
     )
-    plan = bus.call(contacts_msg.PLAN, request, budget + 60.0)
+    plan = bus.call(contacts_msg.PLAN, request, budget + REPLY_MARGIN_S)
     for k, (change, contacts) in enumerate(zip(plan.changes, plan.sets, strict=True)):
         progress(f"  set {k}: {change} -> {len(contacts)} contacts")
     progress(f"stand up: {len(plan.sets)} sets, {plan.nodes_generated} nodes in {plan.plan_s:.0f} s")
@@ -76,8 +79,9 @@ def stand_up(
                 witness=plan.witnesses[k],
                 released=released,
                 n_interpolation=N_INTERPOLATION,
+                time_budget_s=TRANSITION_BUDGET_S,
             ),
-            TRANSITION_TIMEOUT_S,
+            TRANSITION_BUDGET_S + REPLY_MARGIN_S,
         )
         progress(
             f"  transition {k}/{len(plan.sets) - 1} ({plan.changes[k]}): supports off the plan by "
@@ -91,6 +95,7 @@ def stand_up(
             progress=progress,
             hold_s=1.0 if k == len(plan.sets) - 1 else 0.0,
             supports=SUPPORTS,
+            effort_scale=step.effort_scale,
         )
         played += executed.duration_s
     return ActionReport(

@@ -46,6 +46,16 @@ def seated_q() -> np.ndarray:
     return start_configuration(load_robot("hrp2_like"), layout(load_scene("chair_egress")))
 
 
+def seated_contacts(q_seated: np.ndarray) -> list[contacts.ContactMsg]:
+    """The contacts of :data:`SEATED` where the spots are at ``q_seated`` (the planner's start set)."""
+    from services.contacts.planner import build, default_problem
+    from services.model import load_robot
+
+    robot = load_robot("hrp2_like")
+    _gen, _trajectory, start, _pairs = build(robot, default_problem(robot, q_seated))
+    return [contacts.ContactMsg(spot=c.spot, surface=c.surface, x=c.x, y=c.y, theta=c.theta) for c in start]
+
+
 def expensive(service: str, q: np.ndarray, budget_s: float, q_seated: np.ndarray | None = None) -> list[Case]:
     """The cases of ``service`` with a ``budget_s`` [s] budget; ``q`` is the robot standing in the sim's
     scene, ``q_seated`` (contacts only) the robot on the chair (:func:`seated_q`)."""
@@ -113,6 +123,15 @@ def expensive(service: str, q: np.ndarray, budget_s: float, q_seated: np.ndarray
         }
         # cheap: the start set is the goal (reached at the first expansion), no motion
         cheap = contacts.PlanRequest(**{**removal, "final_contacts": SEATED}, interpolate=False)
+        seated = seated_contacts(q_seated)
+        # the right thigh leaves the seat, re-planned from the seated configuration (executing set by set)
+        leave = {
+            "scene": "chair_egress",
+            "q_measured": q_seated,
+            "from_set": seated,
+            "to_set": [c for c in seated if c.spot != "right_thigh"],
+            "witness": q_seated,
+        }
         return [
             Case(  # the chair egress (minutes of search): the search is cut
                 "contacts/plan chair egress",
@@ -128,6 +147,12 @@ def expensive(service: str, q: np.ndarray, budget_s: float, q_seated: np.ndarray
                 contacts.PLAN,
                 contacts.PlanRequest(**removal, n_interpolation=1000, time_budget_s=budget_s),
                 cheap,
+            ),
+            Case(  # one transition with the most postures (100): 3.1 s in-process at load 2.5
+                "contacts/transition n=100",
+                contacts.TRANSITION,
+                contacts.TransitionRequest(**leave, n_interpolation=100, time_budget_s=budget_s),
+                contacts.TransitionRequest(**leave, n_interpolation=2),
             ),
         ]
     raise ValueError(f"no expensive request for {service!r}; services: {', '.join(SERVICES)}")

@@ -214,6 +214,32 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
         {"object": "green_box", "camera": "narrow", "width_px": 320, "height_px": 240},
     ],
     "perception/look_around": [{"camera": "wide"}, {"model": "hrp2_like", "camera": "narrow"}],
+    "contacts/plan": [
+        {
+            "scene": "chair_egress",
+            "q_start": "$q",
+            "start_contacts": [["left_sole", "floor"], ["right_sole", "floor"]],
+            "goal_axis": "x",
+            "goal_value_m": 0.3,
+            "max_nodes": 20,
+            "n_interpolation": 2,
+            "time_budget_s": 2.0,
+        }
+    ],
+    "contacts/transition": [
+        {
+            "scene": "chair_egress",
+            "q_measured": "$q",
+            "from_set": [
+                {"spot": "left_sole", "surface": "floor", "x": 0.0, "y": 0.1, "theta": 0.0},
+                {"spot": "right_sole", "surface": "floor", "x": 0.0, "y": -0.1, "theta": 0.0},
+            ],
+            "to_set": [{"spot": "left_sole", "surface": "floor", "x": 0.0, "y": 0.1, "theta": 0.0}],
+            "witness": "$q",
+            "n_interpolation": 2,
+            "time_budget_s": 2.0,
+        }
+    ],
     "diag/stream": [{"count": 3, "width": 64, "height": 48}],
     "diag/raise": [{"code": "bug", "message": "x"}, {"code": "infeasible", "message": "x"}],
 }

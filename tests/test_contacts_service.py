@@ -1,6 +1,6 @@
 """The contacts service over the bus (services/contacts/service.py): a short plan (one contact removed:
 goal reached after one expansion) with its interpolated motion and progress messages, its transition
-re-planned from a measured state (``contacts/transition``), the typed errors
+re-planned from a measured state (``contacts/transition``, with its own time budget), the typed errors
 (an unknown spot, a start contact that does not hold, a budget too small: ``timeout`` with the partial
 plan), and the seated chair scene in the sim (it holds the robot, not reported fallen)."""
 
@@ -78,6 +78,7 @@ def test_a_one_removal_plan_with_its_motion_and_progress(services, q_seated):
             to_set=reply.sets[1],
             witness=reply.witnesses[1],
             n_interpolation=4,
+            limb_load=True,  # the arms' load bound (limb_load.py): no arm holds here, the same witness
         ),
         timeout_s=120,
     )
@@ -85,6 +86,23 @@ def test_a_one_removal_plan_with_its_motion_and_progress(services, q_seated):
     np.testing.assert_allclose(step.q[-1], step.witness, atol=1e-9)
     assert step.support_error_m == pytest.approx(0.02, abs=1e-3) and step.collision == ""
     assert abs(step.witness[0] - reply.witnesses[1][0] - 0.02) < 5e-3  # it sits where it was measured
+    # its own time budget (issue 16): a budget no re-planning fits in ends in a typed timeout naming
+    # the step reached, and the endpoint serves the next request (the unknown spot below)
+    with pytest.raises(RequestTimeoutError, match=r"time budget of 0\.001 s ran out") as late:
+        services.client.call(
+            msg.TRANSITION,
+            msg.TransitionRequest(
+                scene="chair_egress",
+                q_measured=measured,
+                from_set=reply.sets[0],
+                to_set=reply.sets[1],
+                witness=reply.witnesses[1],
+                n_interpolation=4,
+                time_budget_s=1e-3,
+            ),
+            timeout_s=60,
+        )
+    assert late.value.details["budget_s"] == 1e-3 and late.value.details["stage"]
     bad = msg.ContactMsg(spot="left_elbow", surface="floor", x=0.0, y=0.0, theta=0.0)
     with pytest.raises(InvalidRequestError, match="unknown contact spot 'left_elbow'"):
         services.client.call(
@@ -119,6 +137,11 @@ def test_typed_errors(services, q_seated):
             msg.PlanRequest(scene="chair_egress", q_start=np.zeros(5), start_contacts=SEATED),
             timeout_s=60,
         )
+    flat = msg.PlanRequest(  # one posture, not (k, nq): found by the fuzz (was internal)
+        scene="chair_egress", q_start=q_seated, start_contacts=SEATED, key_postures=q_seated
+    )
+    with pytest.raises(InvalidRequestError, match=r"key_postures must be \(k, nq=37\)"):
+        client.call(msg.PLAN, flat, timeout_s=60)
     short = msg.PlanRequest(scene="chair_egress", q_start=q_seated, start_contacts=SEATED, time_budget_s=3.0)
     with pytest.raises(RequestTimeoutError, match="before reaching the goal") as err:
         client.call(msg.PLAN, short, timeout_s=120)

@@ -12,10 +12,11 @@ from services.contacts.environment import environment_of
 from services.contacts.interpolate import InterpolationConfig, moving_candidates, timed_segment
 from services.contacts.plan_file import load_plan, save_plan
 from services.contacts.posture import PostureGenerator
-from services.contacts.sets import Contact
+from services.contacts.sets import Contact, contact_at
 from services.contacts.spots import robot_spots
 from services.contacts.timing import interval_times, knots, time_segment, zmp_shift
 from services.errors import InvalidRequestError
+from services.ik import PostureTask
 from services.model import load_robot
 from sim.scene import layout, load_scene
 
@@ -72,6 +73,38 @@ def test_a_timed_segment_stays_quasi_static(gen):
     assert np.allclose(q[0], q0) and np.allclose(q[-1], waypoints[-1])
     com = np.array([pin.centerOfMass(gen.model, gen.data, s)[0] for s in q])
     assert np.all(np.diff(com) > -1e-6)  # no overshoot back and forth
+
+
+def test_held_soles_stay_in_place_between_the_postures(gen):
+    """A crouch on both soles: the postures match the soles, the spline between them does not; with
+    the held frames (hold.py) every sample keeps them in place."""
+    q0 = gen.robot.half_sitting_at(0.0, 0.0, 0.0)
+    soles = tuple(
+        contact_at(gen.spots[s], "floor", gen.env, gen.spot_pose(q0, s)) for s in ("left_sole", "right_sole")
+    )
+    waypoints = [q0]
+    for dz, dx in ((-0.06, 0.03), (-0.12, -0.02)):
+        q_ref = q0.copy()
+        q_ref[0] += dx
+        q_ref[2] += dz
+        result = gen.generate(soles, soles, waypoints[-1], PostureTask(gen.model, q_ref))
+        assert result.ok, result.reason
+        waypoints.append(result.q)
+    frames = [gen.spots[c.spot].frame_name for c in soles]
+    v_max = np.asarray(gen.robot.v_max, float)
+
+    def drift(samples: np.ndarray) -> float:
+        return max(
+            float(np.linalg.norm(gen.spot_pose(q, c.spot).translation - gen.contact_pose(c).translation))
+            for q in samples[::5]
+            for c in soles
+        )
+
+    free = timed_segment(gen, np.array(waypoints), InterpolationConfig(hold_contacts=False), v_max, frames)
+    held = timed_segment(gen, np.array(waypoints), InterpolationConfig(), v_max, frames)
+    assert drift(free) > 5e-4  # the spline alone leaves the floor between the postures
+    assert drift(held) < max(2e-4, gen.config.tol)  # within the postures' own match
+    assert np.allclose(held[0], waypoints[0]) and np.allclose(held[-1], waypoints[-1])
 
 
 def test_a_saved_plan_reads_back(tmp_path):

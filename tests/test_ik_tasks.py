@@ -27,6 +27,7 @@ from services.ik import (
     compute_kinematics,
 )
 from services.ik.geometry import closest_points_segments, unit_clip
+from services.ik.tasks.ground_clearance import GroundClearanceTask
 from services.model import load_robot
 
 ROBOTS = ("hrp2_like", "talos")
@@ -118,6 +119,12 @@ def tasks_for(robot, q: np.ndarray, rng: np.random.Generator) -> list:
         FootOutsideDiskTask(model, frames.left_sole, robot.sole_size_m, near_disk, 0.1),
         FootOutsideDiskTask(model, frames.left_sole, robot.sole_size_m, far_disk, 0.1),
         FeetFlatTask(model, (frames.left_sole, frames.right_sole), ground_height_m=0.01),
+        GroundClearanceTask(
+            model,
+            [(frames.right_grasp, (0.02, -0.03, 0.05)), (frames.left_sole, (0.1, 0.05, 0.0))],
+            clearance_m=0.02,
+            activation_m=100.0,
+        ),
     ]
 
 
@@ -321,3 +328,48 @@ def test_closest_points_of_segments_against_dense_sampling() -> None:
         step = (np.linalg.norm(p1[sl] - p0[sl], axis=1) + np.linalg.norm(q1[sl] - q0[sl], axis=1)) / 200
         assert np.all(found <= best + 1e-12)
         assert np.all(found >= best - step)
+
+
+def test_ground_clearance_rows_only_near_the_ground_and_the_solver_keeps_the_points_above_it() -> None:
+    """A point below its clearance has G > 0; a point farther than the activation distance has no
+    row; the solver's inequality (eq. 4 with eq. 13's form) keeps the points at the clearance while
+    a task pulls the hand into the floor."""
+    from services.ik import FramePositionTask, HierarchicalSolver, Level
+
+    robot = load_robot("hrp2_like")
+    model, data = robot.model, robot.new_data()
+    q = np.array(robot.q_half_sitting)
+    pin.framesForwardKinematics(model, data, q)
+    z_hand = data.oMf[model.getFrameId(robot.frames.right_grasp)].translation[2]
+    near = GroundClearanceTask(
+        model, [(robot.frames.right_grasp, (0.0, 0.0, 0.0))], clearance_m=z_hand + 0.01
+    )
+    compute_kinematics(model, data, q, False)
+    G, J = near.compute(q, data)
+    assert G.shape == (1,) and G[0] == pytest.approx(0.01) and J.shape == (1, model.nv)
+    far = GroundClearanceTask(model, [(robot.frames.right_grasp, (0.0, 0.0, 0.0))], clearance_m=0.01)
+    assert far.compute(q, data)[0].shape == (0,)
+    assert far.heights(data)[0] == pytest.approx(z_hand)
+    with pytest.raises(InvalidRequestError, match="needs at least one point"):
+        GroundClearanceTask(model, [])
+    # the hand pulled 0.2 m below the floor at the lower priority (1 cm per step, within the activation
+    # distance) stops at the clearance
+    corner = (robot.frames.right_grasp, (0.0, 0.0, -0.03))
+    clearance = GroundClearanceTask(model, [corner], clearance_m=0.05, gain=0.5)
+    feet = [
+        FramePoseTask(model, f, robot.frame_pose(q, f))
+        for f in (robot.frames.left_sole, robot.frames.right_sole)
+    ]
+    target = data.oMf[model.getFrameId(robot.frames.right_grasp)].translation + np.array([0.25, 0.0, -1.0])
+    levels = [
+        Level((*feet, clearance)),
+        Level((FramePositionTask(model, robot.frames.right_grasp, target, max_step=0.01),)),
+    ]
+    solver = HierarchicalSolver(model)
+    lowest = math.inf
+    for _ in range(150):
+        q = pin.integrate(model, q, solver.solve(levels, q))
+        pin.framesForwardKinematics(model, data, q)
+        lowest = min(lowest, float(clearance.heights(data)[0]))
+    # (the rows are linear: a step may overshoot by a few millimetres, then the damper pushes back)
+    assert lowest >= 0.05 - 3e-3 and float(clearance.heights(data)[0]) == pytest.approx(0.05, abs=2e-3)

@@ -31,7 +31,7 @@ from services.navigation.geometry import (
     body_model,
 )
 from services.navigation.goals import ObjectGoal
-from services.navigation.path import PlannerConfig, SampledPath, plan_path
+from services.navigation.path import PlannerConfig, SampledPath, escape_pose, plan_path, stage1_checker
 from services.navigation.upper_body import CarriedBar, sweep_carried_object
 from services.walking.footsteps import FootstepBounds, wrap_angle
 
@@ -209,6 +209,29 @@ def test_colliding_start_and_goal_and_bad_requests() -> None:
         PlannerConfig(curve="bezier")
     with pytest.raises(InvalidRequestError, match="turning_radius_m"):
         PlannerConfig(turning_radius_m=0.0)
+
+
+def test_a_start_overlapping_a_box_escapes_to_the_nearest_free_pose() -> None:
+    """Fetch seed 49: the robot stood beside the chair, its footprint (margin included) over it; stepping
+    back did not clear it. The way out is computed from the overlap: the nearest free pose, same
+    heading, is free for stage 1's checker, and no free pose is much nearer."""
+    chair = BoxObstacle("chair", (0.0, 0.0, 0.45), (0.45, 0.45, 0.9), 0.3)
+    scene = Scene((chair,), (-3.0, 3.0, -3.0, 3.0))
+    checker = stage1_checker(scene, BODY, PlannerConfig())
+    start = Pose2D(0.45, 0.1, -math.pi / 2)  # the chair on the robot's right, beside the arm
+    assert not checker.is_free(start.x_m, start.y_m, start.theta_rad)
+    free = escape_pose(checker, start)
+    assert free is not None and free.theta_rad == start.theta_rad
+    assert checker.is_free(free.x_m, free.y_m, free.theta_rad)
+    moved = math.hypot(free.x_m - start.x_m, free.y_m - start.y_m)
+    assert 0.0 < moved < 0.6
+    for angle in np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False):  # nothing free 3 cm nearer
+        d = moved - 0.03
+        assert not checker.is_free(
+            start.x_m + d * math.cos(angle), start.y_m + d * math.sin(angle), start.theta_rad
+        )
+    assert escape_pose(checker, free) == free  # a free start stays
+    assert escape_pose(checker, Pose2D(0.0, 0.0, 0.0)) is None  # inside the chair: nothing within reach
 
 
 def test_same_request_same_path() -> None:

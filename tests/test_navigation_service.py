@@ -140,3 +140,36 @@ def test_a_near_goal_beside_the_robot_is_walked_straight_and_planned_once() -> N
     soles = start_soles(ROBOT, q)
     assert straight_walk(ROBOT, blocked, soles, start, goal, StraightWalkOptions()) is None
     assert straight_walk(ROBOT, scene, soles, start, goal, StraightWalkOptions()) is not None
+
+
+def test_a_goto_from_a_start_overlapping_a_box_walks_out_first_in_the_same_motion() -> None:
+    """Fetch seed 49: navigation refused a start whose footprint overlapped the chair. Now its footsteps
+    begin with a straight walk to the nearest free pose (computed from the overlap), then the path: one
+    stage-2 motion from the robot's configuration to the goal."""
+    import math
+
+    from services.navigation.geometry import Pose2D, Scene
+    from services.navigation.goto import plan_goto
+
+    q = np.array(ROBOT.q_half_sitting)
+    x, y, yaw = ROBOT.mid_feet_pose(q)
+    back = (-math.cos(yaw), -math.sin(yaw))
+    # the chair 8 cm into the footprint's margin behind the heels (clear in 3D), the goal 2 m ahead
+    chair = BoxObstacle("chair", (x + 0.45 * back[0], y + 0.45 * back[1], 0.45), (0.45, 0.45, 0.9), yaw)
+    scene = Scene((chair,), (x - 4.0, x + 4.0, y - 4.0, y + 4.0))
+    goal = Pose2D(x + 2.0 * math.cos(yaw), y + 2.0 * math.sin(yaw), yaw)
+    with pytest.raises(InfeasibleError, match="start pose"):  # stage 1 alone refuses that start
+        from services.navigation.body_extents import with_arms_of
+        from services.navigation.geometry import body_model
+        from services.navigation.path import plan_path
+
+        plan_path(scene, with_arms_of(body_model(ROBOT.name), ROBOT, q), Pose2D(x, y, yaw), goal)
+    result = plan_goto(ROBOT, scene, q, goal)
+    assert result.path.curve.startswith("escape+")
+    first = result.footsteps.sequence.steps[0].pose
+    assert (first.x_m - x) * back[0] + (first.y_m - y) * back[1] < 0.0  # the first step away from the chair
+    gx, gy, _ = ROBOT.mid_feet_pose(result.motion.q[-1])
+    assert math.hypot(gx - goal.x_m, gy - goal.y_m) < 0.05
+    assert result.path.start.x_m == pytest.approx(x, abs=0.01) and result.path.start.y_m == pytest.approx(
+        y, abs=0.01
+    )

@@ -194,6 +194,15 @@ def test_hand_orientation_is_reached_when_asked():
     assert result.hand_error_m < 1e-4
 
 
+def test_a_large_turn_of_the_hand_sets_the_reach_duration():
+    planner = planner_for("hrp2_like")
+    opt = planner.options
+    assert planner._reach_duration(0.05) == opt.min_reach_s  # a short travel, no turn
+    turn = 2.0 * opt.min_reach_s * opt.hand_turn_rad_s  # fingers down from a hand pointing forward
+    assert planner._reach_duration(0.05, turn) == pytest.approx(2.0 * opt.min_reach_s)
+    assert planner._reach_duration(0.05, 100.0) == opt.max_reach_s
+
+
 def test_weighted_pseudo_inverse_moves_the_light_arm_more_and_the_heavy_legs_less():
     robot = load_robot("talos")
     request = _request(robot, (0.5, 0.3, 0.9), gaze=False)

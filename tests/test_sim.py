@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from services.errors import InvalidRequestError, NotFoundError
+from services.footsteps import scenarios
 from sim import motions
 from sim.cameras import Intrinsics, look_at, project, projection_matrix, view_matrix
 from sim.config import SimConfig
@@ -80,8 +81,9 @@ def test_footstep_scenes_match_the_paper_set_ups():
     assert 0.6 < ball.position[2] < 0.9  # table height
     assert 0.3 < disk.position[0] < ball.position[0] - 0.3  # the disk lies between robot and ball
     pickup = layout(load_scene("footsteps_pickup"))
-    obj, disk = pickup.object("orange_ball"), pickup.object("obstacle_disk")
-    assert abs(obj.position[1]) < 0.01 and abs(obj.position[0]) < 0.05  # between the feet
+    obj, disk = pickup.object("orange_block"), pickup.object("obstacle_disk")
+    assert abs(obj.position[1]) < 0.01 and abs(obj.position[0]) < 0.1  # between the feet (soles +-0.12 m)
+    np.testing.assert_allclose(obj.position, scenarios.PICKUP_OBJECT_M, atol=1e-9)  # the planner's target
     assert disk.position[:2] == obj.position[:2]
     bar = layout(load_scene("bar_carry")).object("bar").spec
     assert (bar.length_m, 2 * bar.radius_m, bar.mass_kg) == (1.8, 0.024, 0.5)  # motion autonomy paper §2
@@ -278,6 +280,26 @@ def test_trajectory_validation_messages():
             world.execute(q0[None, :], dt_s=0.0025)
         with pytest.raises(NotFoundError, match="no_such_object"):
             world.execute(q0[None, :], allowed_contacts=("no_such_object",))
+
+
+def test_a_joint_played_with_less_effort_yields_for_that_execution_only():
+    """The right arm held forward (its weight about 13 N m on the shoulder): with 5 % of the shoulder's
+    120 N m it sags; the next execution has the full effort again and lifts it back."""
+    with World("hrp2_like", "empty") as world:
+        shoulder = world.robot.joint_index("RARM_JOINT0").idx_q
+        lift = motions.joint_motion(world.robot, world.state().q, {"RARM_JOINT0": -1.5}, 1.0)
+        assert world.execute(lift).outcome == "completed"
+        held = np.repeat(lift[-1:], 200, axis=0)  # 1 s
+        assert world.execute(held, effort_scale={"RARM_JOINT0": 0.05}).outcome == "completed"
+        sagged = world.state().q
+        assert sagged[shoulder] - lift[-1][shoulder] > 0.1
+        back = motions.joint_motion(world.robot, sagged, {"RARM_JOINT0": -1.5}, 1.0)
+        assert world.execute(back, hold_s=0.5).outcome == "completed"
+        assert abs(world.state().q[shoulder] - lift[-1][shoulder]) < 0.02
+        with pytest.raises(InvalidRequestError, match="not a body joint"):
+            world.execute(held[:2], effort_scale={"RARM_GRIPPER": 0.5})
+        with pytest.raises(InvalidRequestError, match=r"in \(0, 1\]"):
+            world.execute(held[:2], effort_scale={"RARM_JOINT0": 0.0})
 
 
 # ------------------------------------------------------------------------------------------------ grasping

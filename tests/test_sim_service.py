@@ -8,6 +8,7 @@ import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -16,7 +17,7 @@ import pytest
 from services.bus.config import BusConfig
 from services.bus.schemas import sim as msg
 from services.bus.session import Client, TypedSubscriber, close_session, open_session
-from services.errors import InvalidRequestError, NotFoundError
+from services.errors import InvalidRequestError, NotFoundError, RequestTimeoutError
 from services.model import load_robot
 from sim import motions
 
@@ -133,6 +134,50 @@ def test_render_a_stereo_pair_over_the_bus(sim):
         p_cam = np.linalg.inv(im.T_world_camera) @ np.r_[truth["orange_ball"].position, 1.0]
         uv = (im.K @ p_cam[:3])[:2] / p_cam[2]
         assert np.hypot(cols.mean() + 0.5 - uv[0], rows.mean() + 0.5 - uv[1]) < 2.0
+
+
+def test_a_render_that_would_end_past_its_budget_is_not_started(sim):
+    """Issue 16: a draw is one pybullet call that cannot be stopped, so one estimated to end past the
+    request's budget is refused before it starts (the sim never renders for a caller that stopped
+    waiting), and the wait for the world busy with an execute is bounded by it; the endpoint serves on.
+    ``sim/kinematics`` checks its budget between configurations."""
+    client, session, bus = sim
+    huge = msg.RenderRequest(width_px=2048, height_px=2048, depth=True, segmentation=True, time_budget_s=0.01)
+    refused = "would run out during the render of a 2048 x 2048 px"
+    with pytest.raises(RequestTimeoutError, match=refused) as err:
+        client.call(msg.RENDER, huge)
+    assert err.value.details["estimated_s"] > 0.01
+    with pytest.raises(RequestTimeoutError, match="the render of a 2048 x 2048 px image"):
+        client.call(msg.SNAPSHOT, msg.SnapshotRequest(width_px=2048, height_px=2048, time_budget_s=0.01))
+    small = client.call(msg.RENDER, msg.RenderRequest(width_px=160, height_px=120, time_budget_s=30.0))
+    assert [im.rgb.shape for im in small.images] == [(120, 160, 3)] * 2
+    q = client.call(msg.STATE, msg.StateRequest()).q
+    # a render waits for the world (busy with an execute) at most its budget
+    hold = msg.ExecuteRequest(q=np.repeat(q[None, :], 4000, axis=0), time_budget_s=3.0)
+
+    def play() -> None:
+        with contextlib.suppress(RequestTimeoutError):  # the hold ends at its own budget
+            client.call(msg.EXECUTE, hold, timeout_s=60.0)
+
+    clocks = TypedSubscriber(session, bus.robot, msg.CLOCK, capacity=64)
+    playing = threading.Thread(target=play, daemon=True)
+    try:
+        time.sleep(0.3)  # let the subscription reach the service
+        playing.start()
+        clocks.recv(timeout_s=30.0)  # physics runs: the execute holds the world
+    finally:
+        clocks.undeclare()  # a full channel would hold back the session's replies
+    try:
+        with pytest.raises(RequestTimeoutError, match="the wait for the world"):
+            client.call(msg.RENDER, msg.RenderRequest(width_px=160, height_px=120, time_budget_s=0.2))
+    finally:
+        playing.join()
+    # the forward kinematics of many configurations stops at its budget too
+    many = msg.KinematicsRequest(q=np.repeat(q[None, :], 2000, axis=0), time_budget_s=1e-3)
+    with pytest.raises(RequestTimeoutError, match="the forward kinematics, configuration"):
+        client.call(msg.KINEMATICS, many)
+    one = client.call(msg.KINEMATICS, msg.KinematicsRequest(q=q, time_budget_s=30.0))
+    assert one.mid_feet.shape == (1, 3)
 
 
 def test_gripper_snapshot_and_reset(sim):

@@ -145,6 +145,25 @@ def test_a_lowered_ball_touching_only_an_edge_is_moved_toward_it():
     assert toward_edge(centre, [], 45.0) is None
 
 
+def test_a_lowering_stopped_by_the_wrist_alone_is_a_collision_not_a_put():
+    """Fetch seed 52: the wrist (RARM_LINK5) came onto the table's edge with the ball 5 cm above the top
+    and just inside it; released, the ball rolled off. Only a contact of the held object says it stands
+    on the place."""
+    from services.bus.schemas.sim import Contact
+    from supervisor.manipulation import arm_only
+
+    wrist = Contact(
+        robot_link="RARM_LINK5", other="yellow_table", position=[2.41, -2.44, 0.72], normal_force_n=5.0
+    )
+    ball = Contact(
+        robot_link="held:orange_ball", other="yellow_table", position=[2.38, -2.50, 0.72], normal_force_n=5.0
+    )
+    assert arm_only([wrist], "orange_ball")
+    assert not arm_only([ball], "orange_ball")
+    assert not arm_only([wrist, ball], "orange_ball")
+    assert not arm_only([], "orange_ball")
+
+
 def test_requests_in_a_recorded_log_are_counted_per_window(tmp_path):
     """scripts/bench fetch counts footsteps/plan calls in the recorder's MCAP log, per fetch window:
     requests only (not replies, not other endpoints), by log time, also in a log still being written."""

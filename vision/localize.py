@@ -233,10 +233,27 @@ def _edges_point(
     return point_from_pixel_disparity(rig, left.centre_px[0], left.centre_px[1], disparity), disparity
 
 
+def _occluder_mask(
+    hsv: np.ndarray, occluders: Sequence[ObjectModel], config: DetectionConfig
+) -> np.ndarray | None:
+    """Boolean (H, W) mask of the pixels of the ``occluders``' colours (back projection >= threshold),
+    None without occluders."""
+    mask = None
+    for other in occluders:
+        seen = back_project(hsv, other) >= config.threshold
+        mask = seen if mask is None else mask | seen
+    return mask
+
+
 def locate_in_frame(
-    model: ObjectModel, frame: StereoFrame, config: LocalizeConfig | None = None
+    model: ObjectModel,
+    frame: StereoFrame,
+    config: LocalizeConfig | None = None,
+    occluders: Sequence[ObjectModel] = (),
 ) -> ObjectLocation:
-    """Localize ``model``'s object in a prepared :class:`StereoFrame` (NotFoundError when not found)."""
+    """Localize ``model``'s object in a prepared :class:`StereoFrame` (NotFoundError when not found).
+    ``occluders``: the other objects' models, whose pixels next to its outline hide it there (its
+    footprint leaves those edges out: vision.footprint)."""
     config = config or LocalizeConfig()
     det_cfg = config.detection
     bp_left = back_project(frame.hsv_left, model)
@@ -280,6 +297,7 @@ def locate_in_frame(
     floor_rectangle = None
     cut = {"left", "right", "top"} & {*left.border_sides, *right.border_sides}
     if model.shape != "sphere" and not cut and z >= config.footprint_min_depth_m:
+        others = [other for other in occluders if other.name != model.name]
         points = outline_points(
             _silhouette(bp_left, left.window, det_cfg),
             left.window,
@@ -287,6 +305,8 @@ def locate_in_frame(
             right.window,
             rig,
             frame.T_world_left_camera,
+            _occluder_mask(frame.hsv_left, others, det_cfg),
+            _occluder_mask(frame.hsv_right, others, det_cfg),
         )
         floor_rectangle = footprint(points, p_world)
     return ObjectLocation(
@@ -311,6 +331,7 @@ def localize(
     T_world_left_camera: np.ndarray,
     config: LocalizeConfig | None = None,
     require_all: bool = True,
+    occluders: Sequence[ObjectModel] = (),
 ) -> list[ObjectLocation]:
     """Localize every model's object in a rectified stereo pair.
 
@@ -319,6 +340,7 @@ def localize(
     Returns one ObjectLocation per object found, in the order of ``models``. With ``require_all`` a
     missing object raises NotFoundError (``details["missing"]`` maps each missing name to its reason,
     ``details["found"]`` lists the names found); otherwise missing objects are left out.
+    ``occluders``: models of objects that may hide parts of them (:func:`locate_in_frame`).
     """
     config = config or LocalizeConfig()
     frame = StereoFrame(left_bgr, right_bgr, rig, T_world_left_camera)
@@ -328,7 +350,7 @@ def localize(
     for model in models:
         budget.check(f"the localization of {model.name}", {"found": [f.name for f in found]})
         try:
-            found.append(locate_in_frame(model, frame, config))
+            found.append(locate_in_frame(model, frame, config, occluders))
         except NotFoundError as e:
             missing[model.name] = str(e.details.get("reason", "not_found"))
             messages.append(e.message)
@@ -349,6 +371,7 @@ def locate(
     rig: StereoRig,
     T_world_left_camera: np.ndarray,
     config: LocalizeConfig | None = None,
+    occluders: Sequence[ObjectModel] = (),
 ) -> ObjectLocation:
     """Localize one object (see :func:`localize`); NotFoundError saying why when it is not found."""
-    return localize([model], left_bgr, right_bgr, rig, T_world_left_camera, config)[0]
+    return localize([model], left_bgr, right_bgr, rig, T_world_left_camera, config, occluders=occluders)[0]

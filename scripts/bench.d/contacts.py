@@ -9,7 +9,7 @@ the paper does ("about four times less"). Figures beside the paper's (81 sets, 2
 on a Pentium IV 3.4 GHz; interpolation about 90 s with n = 20). Writes bench/out/contacts.json and the
 plan found (bench/out/contacts_plan.npz: ``humanoid scenario chair-egress --plan`` plays it again).
 
-Usage: scripts/bench contacts [--budget S] [--n N] [--skip-off] [--help]
+Usage: scripts/bench contacts [--budget S] [--n N] [--skip-off] [--limb-load] [--help]
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ PAPER = {
 }
 
 
-def run(best_first: bool, budget_s: float, n: int, execute: bool) -> dict:
+def run(best_first: bool, budget_s: float, n: int, execute: bool, limb_load: bool) -> dict:
     from services.contacts.closed_loop import execute_set_by_set
     from services.contacts.interpolate import InterpolationConfig, interpolate_plan
     from services.contacts.planner import build, default_problem
@@ -50,9 +50,13 @@ def run(best_first: bool, budget_s: float, n: int, execute: bool) -> dict:
     robot = load_robot("hrp2_like")
     q0 = start_configuration(robot, layout(load_scene("chair_egress")))
     problem = default_problem(
-        robot, q0, search=SearchConfig(best_first_sons=best_first, time_budget_s=budget_s)
+        robot,
+        q0,
+        search=SearchConfig(best_first_sons=best_first, time_budget_s=budget_s),
+        limb_load=limb_load,
     )
     gen, trajectory, start, pairs = build(robot, problem)
+    weight_n = robot.total_mass_kg * 9.81
     planner = ContactPlanner(gen, trajectory, problem.goal, pairs, problem.search)
     result = planner.plan(start, q0)
     row = {
@@ -64,6 +68,8 @@ def run(best_first: bool, budget_s: float, n: int, execute: bool) -> dict:
         "posture_generations": result.posture_generations,
         "plan_s": round(result.plan_s, 1),
         "best_waist_y_m": round(float(result.best.q[1]), 3),
+        # |force| each bounded spot may carry (limb_load.py; {} when the bound is off)
+        "limb_load_n": {spot: round(v * weight_n, 1) for spot, v in gen.max_load.items()},
         "changes": [n.change for n in result.path],
     }
     print(
@@ -97,8 +103,8 @@ def run(best_first: bool, budget_s: float, n: int, execute: bool) -> dict:
     with World(robot, "chair_egress") as world:
         t0 = time.perf_counter()
 
-        def play(q_segment, dt):
-            executed = world.execute(q_segment, dt, supports=("chair", "table"))
+        def play(q_segment, dt, effort_scale):
+            executed = world.execute(q_segment, dt, supports=("chair", "table"), effort_scale=effort_scale)
             return executed.outcome, executed.message
 
         def report(r):
@@ -149,11 +155,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", type=float, default=300.0, help="search budget per run [s] (300)")
     parser.add_argument("--n", type=int, default=10, help="postures per transition in the interpolation (10)")
     parser.add_argument("--skip-off", action="store_true", help="do not run the search without §2.8")
+    parser.add_argument(
+        "--limb-load",
+        action="store_true",
+        help="bound the arms' contact forces (limb_load.py; off: the paper's)",
+    )
     args = parser.parse_args(argv)
     load = Path("/proc/loadavg").read_text().split()[:3]
-    rows = [run(True, args.budget, args.n, execute=True)]
+    limb_load = args.limb_load
+    rows = [run(True, args.budget, args.n, execute=True, limb_load=limb_load)]
     if not args.skip_off:
-        rows.append(run(False, args.budget, args.n, execute=False))
+        rows.append(run(False, args.budget, args.n, execute=False, limb_load=limb_load))
     report = {
         "runs": rows,
         "paper": PAPER,

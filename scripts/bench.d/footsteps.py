@@ -12,7 +12,9 @@ stack's default numerics). ``executed`` plays the reach and the pick-up (paper t
 settings, the CoM kept 3 cm inside the support polygon; both start at half-sitting, as the sim
 does) in the sim: the footsteps walked with ``services.walking.two_stage.executable_walk`` (the CoM
 lowered, then slower supports, until every joint stays within its speed limit), then the final reach
-(outcome, fall, foot slip, hand error; the pick-up stops when the gripper reaches the floor).
+(outcome, fall, foot slip, hand error, the hands' lowest collision-box corner above the floor, planned
+and executed); ``pickup_no_hand_floor`` is the pick-up with the hands-above-floor constraint off (the
+gripper planned into the floor: the execution stops on that contact).
 ``epsilon_study`` is Fig. 10's threshold study (reach > gaze > posture,
 every epsilon_i x0.1 / x1 / x5: steps, step additions, time). ``numerics`` runs the three paper
 scenarios with each of Algorithm 1's numerics that differ from eqs. 2/15 switched to the paper's
@@ -143,25 +145,37 @@ def bench_paper_tasks(robot) -> list[dict]:
     return rows
 
 
-def bench_executed(robot) -> list[dict]:
+def bench_executed(robot, names: tuple[str, ...] = ("reach", "pickup", "pickup_no_hand_floor")) -> list[dict]:
     """The reach and the pick-up with the paper's task sets executed (the posture scenario starts from
     a configuration the sim does not start in): the footsteps walked
     (``services.walking.two_stage.executable_walk``: the CoM height and timing derived so that the
-    joints stay within their speed limits), then the final reach, played open loop in the sim."""
+    joints stay within their speed limits), then the final reach, played open loop in the sim.
+    ``pickup_no_hand_floor``: the pick-up with the hands-above-the-floor constraint off (planner and
+    reach), the A/B of ``PlannerOptions.hand_floor``."""
     import numpy as np
+    import pinocchio as pin
 
     from services.footsteps.execution import execute_plan
+    from services.footsteps.hand_floor import hand_floor_task
     from sim.world import World
 
+    floor = hand_floor_task(robot, robot.model, 0.0)
     rows = []
-    for name in ("reach", "pickup"):
-        scenario = scenarios.SCENARIOS[name](robot.name)
+    for name in names:
+        base = name.removesuffix("_no_hand_floor")
+        scenario = scenarios.SCENARIOS[base](robot.name)
         request = scenario.request  # the paper's task set and settings (CoM margin d of eq. 11: 3 cm)
+        if name != base:
+            request = replace(request, options=replace(request.options, hand_floor=False))
         result = plan_footsteps(request, robot)
+        data = robot.new_data()
+        pin.framesForwardKinematics(robot.model, data, np.asarray(result.q_final))
         row: dict = {
             "name": name,
             "steps": len(result.footsteps),
             "com_margin_m": request.options.com_margin_m,
+            "hand_floor": request.options.hand_floor,
+            "planned_min_hand_floor_m": float(floor.heights(data).min()),
         }
         try:
             motion = execute_plan(robot, request, result)
@@ -176,6 +190,7 @@ def bench_executed(robot) -> list[dict]:
             slowdown=None if adjustment is None else adjustment.slowdown,
             duration_s=motion.duration_s,
             max_joint_speed_ratio=float(speed.max()),
+            reach_min_hand_floor_m=motion.reach_min_hand_floor_m,
         )
         with World(robot, "empty") as world:
             execution = world.execute(motion.q, motion.dt_s, hold_s=1.0)
@@ -286,7 +301,8 @@ def main(argv: list[str] | None = None) -> int:
             f"  {r['name']:8s} {r['steps']} steps, CoM lowered {100 * (r['com_lowering_m'] or 0):.0f} cm, "
             f"supports x{r['slowdown'] or 1:g}, joints <= {100 * r['max_joint_speed_ratio']:.0f} % of their "
             f"limits, {r['duration_s']:.1f} s: {r['outcome']}, fallen {r['fallen']}, foot slip "
-            f"{1e3 * r['foot_slip_m']:.1f} mm, hand "
+            f"{1e3 * r['foot_slip_m']:.1f} mm, lowest hand corner {1e3 * r['reach_min_hand_floor_m']:.0f} mm "
+            f"(planned {1e3 * r['planned_min_hand_floor_m']:.0f} mm), hand "
             + ", ".join(f"{k} {1e3 * v:.1f} mm" for k, v in r["hand_error_m"].items())
             + ("" if r["outcome"] == "completed" else f" ({r['message']})")
         )

@@ -7,7 +7,8 @@ vision.localize call; rendering excluded) for the default stereo method, and the
 method on the same images: centroid triangulation, the paper's pixel correlation ("bm" StereoBM, "sgbm"
 StereoSGBM on a crop around the object; "bm_full": StereoBM on the whole image, the paper's "dense 3D
 image of the current scene"), and silhouette edges. Footprints (``footprints``): the box, the table and
-the chair from 1.5, 2.5 and 4 m (centre, side length and yaw errors). Writes bench/out/perception.json.
+the chair from 1.5, 2.5 and 4 m (centre, side length and yaw errors); ``footprints_occluded``: the table
+with the chair in front of it, from 2.3 m. Writes bench/out/perception.json.
 
 Goals (issue 8): median <= 1 cm at 1.5 m, <= 3 cm at 2.5 m, <= 20 ms per pair.
 
@@ -75,6 +76,32 @@ FOOTPRINT_SCENE = {
             "back_height": 0.45,
             "colour": "brown",
             "xy": [0.0, 12.0],
+            "yaw": 2.0,
+        },
+    ],
+}
+#: The occluded case: the table with the chair 0.75 m in front of it (toward +y, where the robot is).
+OCCLUDED_SCENE = {
+    "name": "footprint_occluded",
+    "description": "the yellow table with the chair in front of it",
+    "robot": {"x": -6.0, "y": -6.0, "yaw": 0.0},
+    "floor": {"colour": "light_grey", "friction": 1.0},
+    "objects": [
+        {
+            "name": "yellow_table",
+            "kind": "table",
+            "size": [1.0, 0.6, 0.72],
+            "colour": "yellow",
+            "xy": [0.0, 0.0],
+            "yaw": 0.1,
+        },
+        {
+            "name": "chair",
+            "kind": "chair",
+            "size": [0.45, 0.45, 0.45],
+            "back_height": 0.45,
+            "colour": "brown",
+            "xy": [-0.35, 0.75],
             "yaw": 2.0,
         },
     ],
@@ -193,65 +220,55 @@ def _yaw_error(a: float, b: float, period: float) -> float:
     return min(d, period - d)
 
 
-def footprint_case(n_per_distance: int, seed: int, config: LocalizeConfig) -> dict:
-    """Footprints of the box, the table and the chair seen by the sim's wide pair from 1.5, 2.5 and 4 m
-    at ``n_per_distance`` seeded bearings each (the robot facing the object, the head tilted toward its
-    middle): centre error [cm], side errors [cm] (measured - true, longer and shorter side), yaw error
-    [deg], and how often no footprint came out."""
+def _footprint_errors(
+    world, models: dict, name: str, bearings, distance: float, config, cell, missing
+) -> None:
+    """Render the wide pair from ``distance`` [m] of object ``name``'s centre at each of ``bearings``
+    [rad] (world; the robot facing it, the head tilted toward its middle) and add its footprint's errors
+    to ``cell`` (centre [cm], long and short side measured - true [cm], yaw [deg]) or a line to
+    ``missing``."""
     import cv2
 
     from services.perception.locate import head_stereo, locate_object
     from services.perception.look_around import head_joints
-    from sim.scene import parse_scene
-    from sim.world import World
 
-    models = load_models()
-    rows: dict[str, dict[str, list[float]]] = {}
-    missing: dict[str, list[str]] = {}
-    with World("hrp2_like", parse_scene(FOOTPRINT_SCENE, "footprint_bench")) as world:
-        robot = world.robot
-        head = head_joints(robot, "wide")
-        q0 = world.state().q.copy()
-        for distance in FOOTPRINT_DISTANCES_M:
-            key = f"{distance:.1f}"
-            cell = rows.setdefault(key, {"centre_cm": [], "long_cm": [], "short_cm": [], "yaw_deg": []})
-            rng = np.random.default_rng([seed, round(distance * 1000)])
-            for name in ("green_box", "yellow_table", "chair"):
-                obj = world.layout.object(name)
-                sx, sy = obj.spec.size_m[:2]
-                true_yaw = obj.yaw_rad if sx >= sy else obj.yaw_rad + math.pi / 2
-                length, width = max(sx, sy), min(sx, sy)
-                period = math.pi / 2 if abs(sx - sy) < 0.05 else math.pi
-                for _ in range(n_per_distance):
-                    bearing = rng.uniform(-math.pi, math.pi)
-                    centre = np.asarray(obj.position[:2])
-                    base = centre + distance * np.array([math.cos(bearing), math.sin(bearing)])
-                    yaw = bearing + math.pi
-                    q = q0.copy()
-                    q[0:2] = base
-                    q[3:7] = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
-                    tilt = head.tilt_sign * math.atan2(1.0, distance)
-                    q[robot.joint_index(head.tilt).idx_q] = float(np.clip(tilt, *head.tilt_limits))
-                    world.pyrobot.reset(q)
-                    left, right = world.render("wide", 640, 480)
-                    stereo = head_stereo(robot, world.state().q, "wide", 640, 480)
-                    bgr = [cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in (left, right)]
-                    try:
-                        fp = locate_object(models, name, stereo, *bgr, config).footprint
-                    except NotFoundError as e:
-                        missing.setdefault(key, []).append(
-                            f"{name} at {math.degrees(bearing):.0f} deg: {e.message}"
-                        )
-                        continue
-                    if fp is None:
-                        missing.setdefault(key, []).append(
-                            f"{name} at {math.degrees(bearing):.0f} deg: no footprint"
-                        )
-                        continue
-                    cell["centre_cm"].append(100.0 * float(np.linalg.norm(np.subtract(fp.center_m, centre))))
-                    cell["long_cm"].append(100.0 * (fp.size_m[0] - length))
-                    cell["short_cm"].append(100.0 * (fp.size_m[1] - width))
-                    cell["yaw_deg"].append(math.degrees(_yaw_error(fp.yaw_rad, true_yaw, period)))
+    robot = world.robot
+    head = head_joints(robot, "wide")
+    q0 = world.state().q.copy()
+    obj = world.layout.object(name)
+    sx, sy = obj.spec.size_m[:2]
+    true_yaw = obj.yaw_rad if sx >= sy else obj.yaw_rad + math.pi / 2
+    length, width = max(sx, sy), min(sx, sy)
+    period = math.pi / 2 if abs(sx - sy) < 0.05 else math.pi
+    centre = np.asarray(obj.position[:2])
+    for bearing in bearings:
+        base = centre + distance * np.array([math.cos(bearing), math.sin(bearing)])
+        yaw = bearing + math.pi
+        q = q0.copy()
+        q[0:2] = base
+        q[3:7] = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+        tilt = head.tilt_sign * math.atan2(1.0, distance)
+        q[robot.joint_index(head.tilt).idx_q] = float(np.clip(tilt, *head.tilt_limits))
+        world.pyrobot.reset(q)
+        left, right = world.render("wide", 640, 480)
+        stereo = head_stereo(robot, world.state().q, "wide", 640, 480)
+        bgr = [cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in (left, right)]
+        try:
+            fp = locate_object(models, name, stereo, *bgr, config).footprint
+        except NotFoundError as e:
+            missing.append(f"{name} at {math.degrees(bearing):.0f} deg: {e.message}")
+            continue
+        if fp is None:
+            missing.append(f"{name} at {math.degrees(bearing):.0f} deg: no footprint")
+            continue
+        cell["centre_cm"].append(100.0 * float(np.linalg.norm(np.subtract(fp.center_m, centre))))
+        cell["long_cm"].append(100.0 * (fp.size_m[0] - length))
+        cell["short_cm"].append(100.0 * (fp.size_m[1] - width))
+        cell["yaw_deg"].append(math.degrees(_yaw_error(fp.yaw_rad, true_yaw, period)))
+    world.pyrobot.reset(q0)
+
+
+def _summary(rows: dict, missing: dict) -> dict:
     out: dict = {}
     for key, cell in rows.items():
         out[key] = {
@@ -264,6 +281,52 @@ def footprint_case(n_per_distance: int, seed: int, config: LocalizeConfig) -> di
         }
         out[key]["no_footprint"] = missing.get(key, [])
     return out
+
+
+def _cell() -> dict[str, list[float]]:
+    return {"centre_cm": [], "long_cm": [], "short_cm": [], "yaw_deg": []}
+
+
+def footprint_case(n_per_distance: int, seed: int, config: LocalizeConfig) -> dict:
+    """Footprints of the box, the table and the chair seen by the sim's wide pair from 1.5, 2.5 and 4 m
+    at ``n_per_distance`` seeded bearings each (the robot facing the object, the head tilted toward its
+    middle): centre error [cm], side errors [cm] (measured - true, longer and shorter side), yaw error
+    [deg], and how often no footprint came out."""
+    from sim.scene import parse_scene
+    from sim.world import World
+
+    models = load_models()
+    rows: dict[str, dict[str, list[float]]] = {}
+    missing: dict[str, list[str]] = {}
+    with World("hrp2_like", parse_scene(FOOTPRINT_SCENE, "footprint_bench")) as world:
+        for distance in FOOTPRINT_DISTANCES_M:
+            key = f"{distance:.1f}"
+            cell = rows.setdefault(key, _cell())
+            rng = np.random.default_rng([seed, round(distance * 1000)])
+            for name in ("green_box", "yellow_table", "chair"):
+                bearings = rng.uniform(-math.pi, math.pi, n_per_distance)
+                _footprint_errors(
+                    world, models, name, bearings, distance, config, cell, missing.setdefault(key, [])
+                )
+    return _summary(rows, missing)
+
+
+def occluded_case(n: int, seed: int, config: LocalizeConfig) -> dict:
+    """The table partly hidden by the chair in front of it (the fetch's table behind the chair: seeds
+    13, 21, 23): the chair 0.75 m from the table's centre toward the robot, the robot 2.3 m from the
+    table's centre at ``n`` seeded bearings within 25 deg of the chair's direction. Errors of the
+    table's footprint as :func:`footprint_case` (key "2.3")."""
+    from sim.scene import parse_scene
+    from sim.world import World
+
+    models = load_models()
+    rows = {"2.3": _cell()}
+    missing: dict[str, list[str]] = {"2.3": []}
+    with World("hrp2_like", parse_scene(OCCLUDED_SCENE, "footprint_occluded")) as world:
+        rng = np.random.default_rng([seed, 2300])
+        bearings = math.pi / 2 + rng.uniform(-math.radians(25.0), math.radians(25.0), n)
+        _footprint_errors(world, models, "yellow_table", bearings, 2.3, config, rows["2.3"], missing["2.3"])
+    return _summary(rows, missing)
 
 
 def _footprint_table(result: dict) -> str:
@@ -368,6 +431,9 @@ def main(argv: list[str] | None = None) -> int:
         )
     result = run(source, model, methods)
     footprints = footprint_case(args.footprints, args.seed, LocalizeConfig()) if args.footprints > 0 else None
+    occluded = (
+        occluded_case(args.footprints * 2, args.seed, LocalizeConfig()) if args.footprints > 0 else None
+    )
     default = result["methods"][DEFAULT_METHOD]
     doc = {
         "err_cm": default["err_cm"],
@@ -384,6 +450,7 @@ def main(argv: list[str] | None = None) -> int:
         "source": description,
         **{k: v for k, v in result.items()},
         "footprints": footprints,
+        "footprints_occluded": occluded,
     }
     print(f"source: {description}")
     print(_table(result))
@@ -397,6 +464,9 @@ def main(argv: list[str] | None = None) -> int:
             "measured - true, median / max |.|):"
         )
         print(_footprint_table(footprints))
+    if occluded is not None:
+        print(f"the table behind the chair ({2 * args.footprints} bearings, 2.3 m):")
+        print(_footprint_table(occluded))
     for name, m in result["methods"].items():
         for f in m["failures"][:3]:
             print(f"  {name} failure: {f}", file=sys.stderr)

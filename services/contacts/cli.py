@@ -40,6 +40,11 @@ def add_cli(subparsers: Any) -> None:
         "--plan", type=Path, help="execute a plan saved by --save-plan (no search, no interpolation)"
     )
     p.add_argument(
+        "--limb-load",
+        action="store_true",
+        help="bound the arms' contact forces by their joints' torques (limb_load.py; paper: friction only)",
+    )
+    p.add_argument(
         "--open-loop",
         action="store_true",
         help="play the planned motion as is (default: set by set, re-planned from the measured state)",
@@ -51,19 +56,19 @@ SUPPORTS = ("chair", "table")  # objects any link may touch during the motion (s
 
 
 def _closed_loop(
-    robot: Any, environment: Any, sets: list, witnesses: list, world: Any, n: int
+    robot: Any, environment: Any, sets: list, witnesses: list, world: Any, n: int, limb_load: bool
 ) -> tuple[str, str]:
     """Play the plan set by set in ``world``, each transition re-planned from the measured state
     (``services.contacts.closed_loop``); prints one line per transition; (outcome, message)."""
     from services.contacts.closed_loop import TransitionReport, execute_set_by_set
     from services.contacts.interpolate import InterpolationConfig
-    from services.contacts.posture import PostureGenerator
+    from services.contacts.posture import PostureGenerator, posture_config
     from services.contacts.spots import robot_spots
 
-    gen = PostureGenerator(robot, environment, robot_spots(robot))
+    gen = PostureGenerator(robot, environment, robot_spots(robot), posture_config(limb_load))
 
-    def play(q, dt):
-        executed = world.execute(q, dt, supports=SUPPORTS)
+    def play(q, dt, effort_scale):
+        executed = world.execute(q, dt, supports=SUPPORTS, effort_scale=effort_scale)
         return executed.outcome, executed.message
 
     def report(r: TransitionReport) -> None:
@@ -119,6 +124,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
         interpolation=InterpolationConfig(n=args.n)
         if (args.open_loop or args.no_execute) and not args.plan
         else None,
+        limb_load=args.limb_load,
     )
     motion = None
     if args.plan:
@@ -163,7 +169,9 @@ def cmd_scenario(args: argparse.Namespace) -> int:
             executed = world.execute(motion.q, motion.dt_s, supports=SUPPORTS, hold_s=1.0)
             outcome, message = executed.outcome, executed.message
         else:
-            outcome, message = _closed_loop(robot, environment, sets, witnesses, world, args.n)
+            outcome, message = _closed_loop(
+                robot, environment, sets, witnesses, world, args.n, args.limb_load
+            )
         q = world.state().q
         standing = all(
             abs(float(robot.sole_pose(q, side).translation[2])) < 0.01 for side in ("left", "right")

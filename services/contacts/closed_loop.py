@@ -12,6 +12,17 @@ is statically stable on the supports as they are, not as they were planned.
 
 The executor is given as callables (the sim in one process, or ``sim/execute`` over the bus), so this
 module imports neither pybullet nor zenoh.
+
+Each transition also names the joints to play with a reduced effort (``ReplannedTransition.
+effort_scale``): the limb of every hand or forearm in contact from the transition's start (a hand
+coming onto the table keeps its full effort: at 60 % the reaching arm, catching the table's edge,
+tipped the robot over in the rise), at
+``SUPPORT_EFFORT_SCALE`` of its effort limits. Position control makes the loop floor - stance leg -
+body - arm - table rigid: its internal forces are set by millimetre errors, not by the plan, and with
+full effort the arm pushed the table with 300-500 N (the plan needed about 120 N) until its shoulder and
+wrist reached their limits and the stance sole's centre of pressure ran to its heel
+(services/contacts/README.md, session 8). With the arm capped it yields first and the legs carry the
+rest, as the plan's equilibrium allows.
 """
 
 from __future__ import annotations
@@ -22,15 +33,18 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from services import budget
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
-from services.contacts.posture import Floating, PostureConfig, PostureGenerator
-from services.contacts.sets import ContactSet, contact_at
+from services.contacts.limb_load import limb_joints
+from services.contacts.posture import ARM_SPOTS, Floating, PostureConfig, PostureGenerator
+from services.contacts.sets import Contact, ContactSet, contact_at
 from services.contacts.volumes import around
 from services.errors import InfeasibleError
 from services.ik import PostureTask
 
-# plays (N, nq) samples every dt [s]; returns (outcome, message): outcome "completed" goes on
-PlaySegment = Callable[[np.ndarray, float], tuple[str, str]]
+# plays (N, nq) samples every dt [s] with the joints' effort scales (name -> fraction of the limit);
+# returns (outcome, message): outcome "completed" goes on
+PlaySegment = Callable[[np.ndarray, float, dict[str, float]], tuple[str, str]]
 Measure = Callable[[], np.ndarray]  # the measured configuration q (pinocchio layout, world base)
 StepHook = Callable[["TransitionReport"], None]
 
@@ -71,6 +85,8 @@ REREAD_M = 0.01  # a held contact is re-read where its spot is when it slid more
 # iterations (it starts from a measured posture a few cm off)
 REGENERATE_TOL_M = 5e-3
 REGENERATE_ITERS = 150
+# the effort of an arm in contact (hand or forearm) during a transition, as a fraction of its limits
+SUPPORT_EFFORT_SCALE = 0.6
 # a new contact the measured supports do not admit where it was planned is searched again in this
 # volume around its planned place (x [m], y [m], theta [rad] half sizes)
 FLOAT_HALF = (0.05, 0.05, 0.25)
@@ -89,6 +105,19 @@ def measured_contacts(
         slip = np.linalg.norm(gen.contact_pose(measured).translation - gen.contact_pose(c).translation)
         out.append(measured if slip > min_slip_m else c)
     return tuple(out)
+
+
+def support_effort_scale(gen: PostureGenerator, contacts: Sequence[Contact]) -> dict[str, float]:
+    """The joints of the limb (``limb_load.limb_joints``) of every hand or forearm among ``contacts``,
+    at ``SUPPORT_EFFORT_SCALE`` (module docstring)."""
+    out: dict[str, float] = {}
+    for c in contacts:
+        if c.spot not in ARM_SPOTS:
+            continue
+        frame = gen.model.frames[gen.model.getFrameId(gen.spots[c.spot].frame_name)]
+        for j in limb_joints(gen.model, frame.parentJoint):
+            out[gen.model.names[j]] = SUPPORT_EFFORT_SCALE
+    return out
 
 
 def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) -> float:
@@ -120,7 +149,8 @@ def regenerate_witness(
     addition) lets the posture generator place the new contact within ``FLOAT_HALF`` of its planned
     place (§2.6's floating contact); when all fail, the planned sets and witness are returned with the
     reason (the transition then drags the
-    slid supports back, as the open-loop replay does)."""
+    slid supports back, as the open-loop replay does). The request's time budget
+    (:mod:`services.budget`) is checked before each posture generation (RequestTimeoutError)."""
     s1 = measured_contacts(gen, s1_planned, q_measured)
     by_pair = {c.pair: c for c in s1}
     s2 = tuple(by_pair.get(c.pair, c) for c in s2_planned)
@@ -130,7 +160,8 @@ def regenerate_witness(
     reference = PostureTask(gen.model, q2_planned)
     reasons = []
     relaxed = _relaxed(gen)
-    for start in (q_measured, q2_planned):
+    for k, start in enumerate((q_measured, q2_planned)):
+        budget.check(f"the witness's regeneration, try {k + 1}")
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
@@ -139,6 +170,7 @@ def regenerate_witness(
         new = added[0]
         volume = around((new.x, new.y, new.theta), FLOAT_HALF)
         floating = Floating(new.spot, new.surface, volume)
+        budget.check("the witness's regeneration, try 3 (the new contact moved)")
         result = gen.generate(s1, s1, q_measured, reference, floating, config=relaxed)
         if result.ok and result.contact is not None:
             return s1, tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""
@@ -155,13 +187,15 @@ class ReplannedTransition:
     """A transition re-planned from the measured state: the samples (``q``, every ``dt_s``, the first
     at the measured configuration), the new ``witness``, the largest distance [m] between a held
     contact's measured and planned place, and a segment still colliding after local re-planning
-    or a fallback to the planned witness (``collision``: what was played anyway, "" if nothing)."""
+    or a fallback to the planned witness (``collision``: what was played anyway, "" if nothing), and
+    the joints to play with a reduced effort (``effort_scale``, module docstring)."""
 
     q: np.ndarray
     dt_s: float
     witness: np.ndarray
     support_error_m: float
     collision: str
+    effort_scale: dict[str, float] = field(default_factory=dict)  # joints played with less effort
 
 
 def replan_transition(
@@ -196,7 +230,8 @@ def replan_transition(
     if hit is not None and hit[0] > config.collision_tol_m:
         segment = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
         collision = f"{collision}; {segment}" if collision else segment
-    return ReplannedTransition(timed, config.dt_s, q2, error, collision)
+    scale = support_effort_scale(gen, s1)  # held from q1 (a contact made now: its arm still moves)
+    return ReplannedTransition(timed, config.dt_s, q2, error, collision, scale)
 
 
 def execute_set_by_set(
@@ -230,7 +265,7 @@ def execute_set_by_set(
             out.outcome, out.message = "infeasible", message
             return out
         replan_s = time.perf_counter() - t0
-        outcome, message = play(step.q, step.dt_s)
+        outcome, message = play(step.q, step.dt_s, step.effort_scale)
         report = TransitionReport(
             k, outcome, message, True, step.collision, step.support_error_m, len(step.q), replan_s
         )

@@ -19,10 +19,11 @@ sampled every ``dt_s`` (5 ms).
 Collisions (§4: "the interpolation must be checked for collisions"): every posture of the path is
 generated collision free (capsules against the scene's boxes and each other), and the timed segment
 between them is checked sample by sample (capsules against boxes, the pairs in contact excluded); a
-segment that goes more than ``collision_tol_m`` into a box is re-planned locally: twice as many
+segment that comes closer than ``clearance_m`` to a box is re-planned locally: twice as many
 posture generations (so with collision constraints between the former samples), then the moving
 body's path bent sideways or up around the obstacle (``DETOURS_M``), up to ``max_refinements`` tries;
-a segment still colliding is listed in ``Motion.collisions`` (never hidden).
+a segment still more than ``collision_tol_m`` into a box is listed in ``Motion.collisions`` (never
+hidden).
 A segment whose posture generation fails is reported (no hand correction).
 """
 
@@ -37,6 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 from services import budget
+from services.contacts.hold import hold_spots
 from services.contacts.posture import PostureConfig, PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
 from services.contacts.timing import ZMP_SLOWDOWNS, interval_times, knots, time_segment, zmp_shift
@@ -53,8 +55,9 @@ class InterpolationConfig:
     """``n`` postures per transition (the paper's n = 20), lift/approach height along the normal [m],
     quasi-static speed limits: base ``base_speed_m_s`` [m/s], moving spot ``spot_speed_m_s`` [m/s],
     joints ``joint_speed_ratio`` of their velocity limits, ``min_segment_s`` [s], sample ``dt_s`` [s],
-    collision check of the timed segments every ``check_every`` samples, a segment deeper than
-    ``collision_tol_m`` [m] into a box re-planned with 2x the postures at most ``max_refinements`` times,
+    collision check of the timed segments every ``check_every`` samples, a segment closer than
+    ``clearance_m`` [m] to a box re-planned with 2x the postures at most ``max_refinements`` times (one
+    still deeper than ``collision_tol_m`` [m] into a box reported),
     the largest distance ``zmp_shift_m`` [m] between the ZMP the timed motion needs and the CoM's
     projection (a quasi-static motion: ``services.contacts.timing``), the posture generator's settings
     ``posture`` (None: the generator's own). The request's time budget (:mod:`services.budget`) is
@@ -74,6 +77,12 @@ class InterpolationConfig:
     posture: PostureConfig | None = None  # the posture generator's settings (None: the generator's)
     max_refinements: int = 4
     check_every: int = 4
+    # a timed segment coming closer than this to a box it does not touch is re-planned locally (the
+    # n postures keep collision_margin_m; the spline between them cut a swinging foot to 1 mm of the
+    # chair's leg, and the executed foot struck it)
+    clearance_m: float = 0.01
+    # held contacts kept in place at every sample, not only at the n postures (hold.py)
+    hold_contacts: bool = True
 
 
 @dataclass(frozen=True)
@@ -123,6 +132,26 @@ def _moving_spot(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2
         if d > best_d:
             best, best_d = spot, d
     return best
+
+
+def held_frames(
+    gen: PostureGenerator,
+    s1: ContactSet,
+    s2: ContactSet,
+    released: ContactSet,
+    q1: np.ndarray,
+    q2: np.ndarray,
+) -> list[str]:
+    """The spot frames held in place during the transition from q1 to q2: every contact of S1 but the
+    moving body's, and only those whose spot moves less than 5 mm between q1 and q2 (``hold.py`` keeps
+    them in place at every sample)."""
+    moving = _moving_spot(gen, moving_candidates(s1, s2, released), q1, q2)
+
+    def still(spot: str) -> bool:
+        shift = gen.spot_pose(q1, spot).translation - gen.spot_pose(q2, spot).translation
+        return bool(np.linalg.norm(shift) < 5e-3)
+
+    return [gen.spots[c.spot].frame_name for c in s1 if c.spot != moving and still(c.spot)]
 
 
 def _on_surface(gen: PostureGenerator, T: pin.SE3) -> np.ndarray | None:
@@ -299,13 +328,18 @@ def transition(
 
 
 def timed_segment(
-    gen: PostureGenerator, waypoints: np.ndarray, config: InterpolationConfig, v_max: np.ndarray
+    gen: PostureGenerator,
+    waypoints: np.ndarray,
+    config: InterpolationConfig,
+    v_max: np.ndarray,
+    held: Sequence[str] = (),
 ) -> np.ndarray:
     """Samples every ``config.dt_s`` of the discrete path ``waypoints`` (``services.contacts.timing``):
     knots spaced by each interval's time at the quasi-static speed limits, the sinusoidal profile over
     twice their sum (at least ``min_segment_s``), slowed down while the needed ZMP leaves the CoM's
     projection by more than ``zmp_shift_m``; joints clipped to their limits (a cubic through postures
-    at a limit can overshoot it by a hair)."""
+    at a limit can overshoot it by a hair); the ``held`` spot frames kept in place at every sample
+    when ``config.hold_contacts`` (``hold.py``)."""
     times = interval_times(gen.model, waypoints, config.base_speed_m_s, config.joint_speed_ratio * v_max[6:])
     u = knots(times)
     duration = max(config.min_segment_s, 2.0 * float(times.sum()))
@@ -314,6 +348,8 @@ def timed_segment(
         budget.check(f"the interpolation's timing, try {attempt + 1}")
         q = time_segment(gen.model, waypoints, duration, config.dt_s, u)
         q[:, bound] = q[:, bound].clip(gen.solver.q_lower[bound], gen.solver.q_upper[bound])
+        if config.hold_contacts and held:
+            q, _ = hold_spots(gen.model, held, q, bound, gen.solver.q_lower, gen.solver.q_upper)
         shift = float(zmp_shift(gen.model, q, config.dt_s, config.check_every).max())
         if shift <= config.zmp_shift_m or attempt == ZMP_SLOWDOWNS:
             return q
@@ -346,8 +382,8 @@ def interpolate_transition(
     v_max: np.ndarray,
 ) -> tuple[np.ndarray, list[np.ndarray], tuple[float, str, str, int] | None, int]:
     """One transition, timed and checked (§3.3, §4): (samples every dt from q1 to q2, the discrete path,
-    the deepest collision of the samples or None, local re-plannings done). A segment deeper than
-    ``config.collision_tol_m`` into a box (or whose posture generation fails) is re-planned locally:
+    the deepest collision of the samples or None, local re-plannings done). A segment closer than
+    ``config.clearance_m`` to a box (or whose posture generation fails) is re-planned locally:
     with twice the postures, with the reference posture leading, then with the moving body's path bent
     around (``TRIES``), at most
     ``config.max_refinements`` times; the least colliding try is returned with its collision, or
@@ -371,12 +407,12 @@ def interpolate_transition(
             continue
         path = [q1, *generated[:-1], q2]
         segment = np.array(path)
-        timed = timed_segment(gen, segment, config, v_max)
-        hit = deepest_collision(gen, timed, touching, config.check_every, moving)
-        depth = 0.0 if hit is None else hit[0]
+        timed = timed_segment(gen, segment, config, v_max, held_frames(gen, s1, s2, removed, q1, q2))
+        hit = deepest_collision(gen, timed, touching, config.check_every, moving, config.clearance_m)
+        depth = -config.clearance_m if hit is None else hit[0]
         if best is None or depth < best[0]:
             best = (depth, timed, path, hit)
-        if depth <= config.collision_tol_m:
+        if depth <= -config.clearance_m:  # clear of every box by the clearance
             break
         refinements += 1
     if best is None:
@@ -437,11 +473,13 @@ def deepest_collision(
     touching: Sequence[tuple[str, str]],
     every: int = 1,
     moving: Sequence[tuple[str, str]] = (),
+    clearance_m: float = 0.0,
 ) -> tuple[float, str, str, int] | None:
-    """The deepest penetration (depth [m] > 0, capsule, box, sample index) of the robot's capsules into
-    the scene's boxes over the samples ``q[::every]`` (and the last one), the objects of the ``touching``
-    (spot, surface) pairs excluded for their spots, and for the ``moving`` pairs only the surface's own
-    box (:meth:`PostureGenerator.box_pairs`); None if no sample penetrates."""
+    """The deepest penetration (depth [m] > -``clearance_m``, capsule, box, sample index) of the robot's
+    capsules into the scene's boxes over the samples ``q[::every]`` (and the last one), the objects of
+    the ``touching`` (spot, surface) pairs excluded for their spots, and for the ``moving`` pairs only the
+    surface's own box (:meth:`PostureGenerator.box_pairs`); None if every sample stays ``clearance_m``
+    away (a negative depth: closer than the clearance, not into the box)."""
     pairs = gen.box_pairs(touching, moving)
     if not pairs:
         return None
@@ -455,7 +493,7 @@ def deepest_collision(
         pin.framesForwardKinematics(gen.model, data, q[i])
         d = task.distances(data)
         j = int(np.argmin(d))
-        if d[j] < 0.0 and (worst is None or -d[j] > worst[0]):
+        if d[j] < clearance_m and (worst is None or -d[j] > worst[0]):
             c, b = pairs[j]
             worst = (float(-d[j]), gen.capsules[c].name, gen.boxes[b].name, i)
     return worst

@@ -14,7 +14,7 @@ from services import budget
 from services.contacts import chair_egress
 from services.contacts.environment import Environment, environment_of
 from services.contacts.interpolate import InterpolationConfig, Motion, interpolate_plan
-from services.contacts.posture import PostureGenerator
+from services.contacts.posture import LIMB_LOAD, PostureGenerator, posture_config
 from services.contacts.potential import RoughTrajectory
 from services.contacts.search import ContactPlanner, Goal, ProgressHook, SearchConfig, SearchResult
 from services.contacts.sets import ContactSet, contact_at, spot_surface_gap
@@ -24,6 +24,7 @@ from services.model import RobotModel
 from sim.scene import layout, load_scene
 
 START_TOLERANCE_M = 0.01  # a start contact's spot must be this close to its surface [m]
+MAX_KEY_POSTURES = 1000  # postures of the rough trajectory T a request may give (§2.7; the chair's: 4)
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,8 @@ class PlanProblem:
     slope_k: float = 30.0
     search: SearchConfig = field(default_factory=SearchConfig)
     interpolation: InterpolationConfig | None = field(default_factory=InterpolationConfig)
+    # the arms' contact forces bounded by their joints' torques (limb_load.py; an extension of §2.2)
+    limb_load: bool = LIMB_LOAD
 
 
 @dataclass(frozen=True)
@@ -88,7 +91,7 @@ def build(
             raise InvalidRequestError(
                 f"unknown surface {surface!r}; surfaces of {problem.scene}: {sorted(known_surfaces)}"
             )
-    gen = PostureGenerator(robot, env, spots)
+    gen = PostureGenerator(robot, env, spots, posture_config(problem.limb_load))
     start = []
     for spot, surface in problem.start_pairs:
         T = gen.spot_pose(q_start, spot)
@@ -104,6 +107,14 @@ def build(
         start.append(contact_at(gen.spots[spot], surface, env, T))
     if problem.key_postures is not None:
         keys = np.asarray(problem.key_postures, float)
+        if keys.ndim != 2 or not 1 <= len(keys) <= MAX_KEY_POSTURES or keys.shape[1] != robot.nq:
+            raise InvalidRequestError(
+                f"key_postures must be (k, nq={robot.nq}) with 1 <= k <= {MAX_KEY_POSTURES}, got shape "
+                f"{keys.shape}",
+                {"field": "key_postures"},
+            )
+        if not np.all(np.isfinite(keys)):
+            raise InvalidRequestError("key_postures has a non-finite value", {"field": "key_postures"})
     elif load_scene(problem.scene).name == "chair_egress":
         keys = np.array(chair_egress.key_postures(robot, env, q_start))
     else:

@@ -17,6 +17,11 @@ It is solved as a prioritized IK on ``services.ik`` (hierarchical QP on proxsuit
 A posture is a success when levels 1 and 2 are met (values under ``tol``) and the force QP confirms
 static equilibrium at the final CoM. Contacts kept as geometry only (a removed contact, §2.3, or the
 new contact) are matched but do not enter the stability region.
+
+Extension (not in the paper, which checks friction only; off by default): the force a spot of
+``PostureConfig.limb_load_spots`` (the hands and forearms, ``posture_config(limb_load=True)``) may carry
+is bounded by what its limb's joints hold in any posture (``limb_load.py``), in the equilibrium region
+and the force QP alike.
 """
 
 from __future__ import annotations
@@ -31,10 +36,11 @@ import pinocchio as pin
 
 from services.contacts.contact_tasks import InVolumeTask, OnPlaneTask
 from services.contacts.environment import Environment
+from services.contacts.limb_load import GRAVITY_M_S2, force_cap_n
 from services.contacts.robot_geometry import belongs_to, planner_capsules
 from services.contacts.sets import Contact, ContactSet, contact_at, patch_of
 from services.contacts.spots import ContactSpot, model_with_spots
-from services.contacts.stability import equilibrium_region, is_statically_stable
+from services.contacts.stability import ContactPatch, equilibrium_region, is_statically_stable
 from services.contacts.volumes import SearchVolume
 from services.errors import InfeasibleError
 from services.ik import (
@@ -48,6 +54,8 @@ from services.ik import (
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox
 from services.model import RobotModel
 
+ARM_SPOTS = ("left_hand", "right_hand", "left_forearm", "right_forearm")
+LIMB_LOAD = False  # the limb-load bound off by default (services/contacts/README.md: why)
 GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in the best iterate's choice
 
 
@@ -65,6 +73,9 @@ class PostureConfig:
     self_margin_m: float = 0.005
     tol: float = 2e-3
     max_iters: int = 60
+    # spots whose force is bounded by their limb's joint torques (limb_load.py; an extension of §2.2,
+    # read when the generator is made: a per-call config does not change it)
+    limb_load_spots: tuple[str, ...] = ARM_SPOTS if LIMB_LOAD else ()
 
 
 @dataclass(frozen=True)
@@ -115,20 +126,31 @@ class PostureGenerator:
         )
         self._regions: dict[ContactSet, np.ndarray] = {}
         self.calls = 0
+        weight_n = robot.total_mass_kg * GRAVITY_M_S2
+        # |force| a spot may carry, as a fraction of the robot's weight (limb_load.py)
+        self.max_load = {
+            name: force_cap_n(self.model, self.spots[name]) / weight_n
+            for name in self.config.limb_load_spots
+            if name in self.spots
+        }
+
+    def patches(self, stable: Sequence[Contact]) -> list[ContactPatch]:
+        """The stability patches of the contacts ``stable`` (with their limbs' load bounds)."""
+        return [
+            patch_of(c, self.spots[c.spot], self.env, self.max_load.get(c.spot, math.inf)) for c in stable
+        ]
 
     # ------------------------------------------------------------------------------------ pieces
     def region(self, stable: ContactSet) -> np.ndarray:
         """Static-equilibrium CoM polygon of the contacts ``stable`` (cached per set)."""
         key = tuple(sorted(stable))
         if key not in self._regions:
-            patches = [patch_of(c, self.spots[c.spot], self.env) for c in key]
-            self._regions[key] = equilibrium_region(patches)
+            self._regions[key] = equilibrium_region(self.patches(key))
         return self._regions[key]
 
     def stable_at(self, stable: ContactSet, com: np.ndarray) -> bool:
         """The force QP (proxsuite) at a CoM position."""
-        patches = [patch_of(c, self.spots[c.spot], self.env) for c in stable]
-        return is_statically_stable(patches, com)[0]
+        return is_statically_stable(self.patches(stable), com)[0]
 
     def box_pairs(
         self, touching: Sequence[tuple[str, str]], moving: Sequence[tuple[str, str]] = ()
@@ -330,6 +352,12 @@ class PostureGenerator:
             return lambda q, systems: trajectory.value(q)
         weights = [GUIDE_WEIGHT if level.name == "guide" else 1.0 for level in levels[2:]]
         return lambda q, systems: sum(w * s.value for w, s in zip(weights, systems[2:], strict=True))
+
+
+def posture_config(limb_load: bool = LIMB_LOAD) -> PostureConfig:
+    """The default settings, with the arms' limb-load bound (``limb_load``) or without it (the paper's
+    friction-only stability)."""
+    return PostureConfig(limb_load_spots=ARM_SPOTS if limb_load else ())
 
 
 def pairs_allowed(spots: Sequence[ContactSpot], surfaces: Sequence[str]) -> list[tuple[str, str]]:

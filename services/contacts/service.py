@@ -5,7 +5,9 @@ Run: ``python -m services.contacts.service [--model hrp2_like]`` (plus the commo
 
 Endpoint ``contacts/plan`` (:mod:`services.bus.schemas.contacts`): a stateless planner (the reply is a
 function of the request). Endpoint ``contacts/transition``: one transition of a plan re-planned from
-the measured configuration (executing set by set, ``closed_loop.py``). Every node selected during the
+the measured configuration (executing set by set, ``closed_loop.py``), within its own
+``time_budget_s`` (``timeout`` naming the step reached: the witness's regeneration or the
+interpolation's posture, re-planning try or collision check). Every node selected during the
 search is published on ``contacts/progress``.
 Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` of the wrong
 size, a start contact that does not hold at ``q_start``), ``infeasible`` (the search tree was exhausted,
@@ -33,7 +35,7 @@ from services.contacts.closed_loop import replan_transition
 from services.contacts.environment import environment_of
 from services.contacts.interpolate import InterpolationConfig
 from services.contacts.planner import Plan, PlanProblem, plan
-from services.contacts.posture import PostureGenerator
+from services.contacts.posture import PostureGenerator, posture_config
 from services.contacts.search import Goal, Node, SearchConfig
 from services.contacts.sets import Contact, ContactSet
 from services.contacts.spots import robot_spots
@@ -68,7 +70,7 @@ class ContactsService(Service):
 
     def start(self) -> None:
         self.robot = load_robot(self.config.model)
-        self._generators: dict[str, PostureGenerator] = {}
+        self._generators: dict[tuple[str, bool], PostureGenerator] = {}
         self._progress = self.publisher(msg.PROGRESS)
         self.log.info("contacts planner ready for %s", self.robot.name)
 
@@ -102,9 +104,16 @@ class ContactsService(Service):
 
     @handles(msg.TRANSITION)
     def transition(self, request: msg.TransitionRequest) -> msg.TransitionReply:
-        """One transition re-planned from the measured configuration (``closed_loop``)."""
+        """One transition re-planned from the measured configuration (``closed_loop``) within its
+        ``time_budget_s`` (the whole request: the witness regenerated, the interpolation with its
+        re-planning and collision checks; issue 16)."""
+        with budget.within(request.time_budget_s):
+            return self._transition(request)
+
+    def _transition(self, request: msg.TransitionRequest) -> msg.TransitionReply:
         t0 = time.perf_counter()
-        gen = self._generator(request.scene)
+        gen = self._generator(request.scene, request.limb_load)
+        budget.check("the transition's set-up (the scene's posture generator)")
         nq = self.robot.nq
         q = np.asarray(request.q_measured, float).reshape(-1)
         witness = np.asarray(request.witness, float).reshape(-1)
@@ -121,14 +130,18 @@ class ContactsService(Service):
             support_error_m=step.support_error_m,
             collision=step.collision,
             replan_s=time.perf_counter() - t0,
+            effort_scale=step.effort_scale,
         )
 
-    def _generator(self, scene: str) -> PostureGenerator:
-        """The posture generator of a scene (every contact spot of the robot; cached)."""
-        if scene not in self._generators:
+    def _generator(self, scene: str, limb_load: bool) -> PostureGenerator:
+        """The posture generator of a scene (every contact spot of the robot; the arms' limb-load bound
+        on or off; cached)."""
+        key = (scene, limb_load)
+        if key not in self._generators:
             env = environment_of(layout(load_scene(scene)))
-            self._generators[scene] = PostureGenerator(self.robot, env, robot_spots(self.robot))
-        return self._generators[scene]
+            config = posture_config(limb_load)
+            self._generators[key] = PostureGenerator(self.robot, env, robot_spots(self.robot), config)
+        return self._generators[key]
 
 
 def to_contacts(gen: PostureGenerator, contacts: list[msg.ContactMsg]) -> ContactSet:
@@ -180,6 +193,7 @@ def to_problem(request: msg.PlanRequest) -> PlanProblem:
         slope_k=request.slope_k,
         search=search,
         interpolation=interpolation,
+        limb_load=request.limb_load,
     )
 
 

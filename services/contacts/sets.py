@@ -80,10 +80,13 @@ def clip_to_rectangle(polygon: np.ndarray, hx: float, hy: float) -> np.ndarray:
     return out
 
 
-def patch_of(contact: Contact, spot: ContactSpot, env: Environment) -> ContactPatch:
+def patch_of(
+    contact: Contact, spot: ContactSpot, env: Environment, max_load: float = math.inf
+) -> ContactPatch:
     """The stability patch of a contact: the spot's rectangle placed on the surface, clipped to the
-    surface's rectangle (a thigh on a seat bears only up to the seat's front edge), in the world.
-    Raises InfeasibleError when the patch lies off the surface."""
+    surface's rectangle (a thigh on a seat bears only up to the seat's front edge), in the world;
+    ``max_load`` bounds its force as a fraction of the robot's weight (``limb_load.py``; none by
+    default). Raises InfeasibleError when the patch lies off the surface."""
     surface = env.surface(contact.surface)
     c, s = math.cos(contact.theta), math.sin(contact.theta)
     R = np.array([[c, -s], [s, c]])
@@ -93,7 +96,7 @@ def patch_of(contact: Contact, spot: ContactSpot, env: Environment) -> ContactPa
         raise InfeasibleError(f"the patch of {contact.describe()} lies off the surface {surface.name}")
     corners = np.column_stack([clipped, np.zeros(len(clipped))])
     world = corners.dot(surface.T_world_surface.rotation.T) + surface.T_world_surface.translation
-    return ContactPatch(world, surface.T_world_surface.rotation[:, 2].copy(), surface.friction)
+    return ContactPatch(world, surface.T_world_surface.rotation[:, 2].copy(), surface.friction, max_load)
 
 
 def contact_at(spot: ContactSpot, surface_name: str, env: Environment, T_world_spot: pin.SE3) -> Contact:

@@ -18,6 +18,13 @@ to the current inner approximation's edges until inner and outer approximations 
 generator then keeps the CoM inside that polygon (a fixed polygon: the contacts taking part in the
 stability are fixed while a posture is generated, §2.3). A direct check of a given CoM is the force
 feasibility QP solved with proxsuite (:func:`is_statically_stable`).
+
+Extension (not in the paper, which checks friction only): a patch may bound the force it carries,
+``ContactPatch.max_load`` (|f| as a fraction of the robot's weight; what the limb's joints can hold,
+``limb_load.py``). A force in the linearized cone, f = sum_k lambda_k u_k, has |f| <= sqrt(1 + mu'^2)
+sum_k lambda_k (each edge u_k has length sqrt(1 + mu'^2) per unit normal force), so the bound enters as
+one linear inequality per patch, sum of its lambdas <= max_load / sqrt(1 + mu'^2): the LPs of the
+projection and the force QP keep it, and the region shrinks to the CoM positions the limbs can hold.
 """
 
 from __future__ import annotations
@@ -45,6 +52,12 @@ class ContactPatch:
     corners_world: np.ndarray
     normal_world: np.ndarray
     friction: float
+    max_load: float = math.inf  # largest |force| on the whole patch, as a fraction of the weight m g
+
+
+def _inscribed_mu(mu: float, n: int = N_GENERATORS) -> float:
+    """mu' of the polyhedral cone inscribed in the circular one (its section's inscribed polygon)."""
+    return mu * math.cos(math.pi / n)
 
 
 def cone_generators(normal: np.ndarray, mu: float, n: int = N_GENERATORS) -> np.ndarray:
@@ -55,7 +68,7 @@ def cone_generators(normal: np.ndarray, mu: float, n: int = N_GENERATORS) -> np.
     t1 = np.cross(normal, helper)
     t1 /= np.linalg.norm(t1)
     t2 = np.cross(normal, t1)
-    mu_in = mu * math.cos(math.pi / n)  # inscribed polygon of the cone's circular section
+    mu_in = _inscribed_mu(mu, n)
     angles = 2.0 * math.pi * np.arange(n) / n
     return normal + mu_in * (np.cos(angles)[:, None] * t1 + np.sin(angles)[:, None] * t2)
 
@@ -79,6 +92,23 @@ def _equilibrium_system(patches: Sequence[ContactPatch]) -> tuple[np.ndarray, np
     return np.hstack((A_force, A_com)), b
 
 
+def _load_rows(patches: Sequence[ContactPatch]) -> tuple[np.ndarray, np.ndarray]:
+    """(A_ub, b_ub) over the lambdas (columns in ``_equilibrium_system``'s order): one row per patch
+    with a finite ``max_load``, sum of the patch's lambdas <= max_load / sqrt(1 + mu'^2)."""
+    sizes = [len(p.corners_world) * N_GENERATORS for p in patches]
+    rows, bounds = [], []
+    start = 0
+    for patch, size in zip(patches, sizes, strict=True):
+        if math.isfinite(patch.max_load):
+            row = np.zeros(sum(sizes))
+            row[start : start + size] = 1.0
+            rows.append(row)
+            mu_in = _inscribed_mu(patch.friction)
+            bounds.append(max(patch.max_load, 0.0) / math.sqrt(1.0 + mu_in * mu_in))
+        start += size
+    return np.array(rows).reshape(-1, sum(sizes)), np.array(bounds)
+
+
 def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max_lps: int = 60) -> np.ndarray:
     """The static-equilibrium CoM region (k x 2 counter-clockwise polygon [m]) by Bretl and Lall's
     projection: ``tol_m`` is the largest distance between the inner and outer approximations.
@@ -87,6 +117,9 @@ def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max
     """
     A, b = _equilibrium_system(patches)
     n = A.shape[1]
+    A_load, b_load = _load_rows(patches)
+    A_ub = np.hstack((A_load, np.zeros((A_load.shape[0], 2)))) if A_load.shape[0] else None
+    b_ub = b_load if A_load.shape[0] else None
     corners = np.vstack([np.asarray(p.corners_world, dtype=float) for p in patches])
     centre = corners[:, :2].mean(axis=0)
     bounds = [(0.0, None)] * (n - 2) + [
@@ -100,7 +133,7 @@ def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max
         lps += 1
         cost = np.zeros(n)
         cost[-2:] = -direction
-        res = linprog(cost, A_eq=A, b_eq=b, bounds=bounds, method="highs")
+        res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A, b_eq=b, bounds=bounds, method="highs")
         return None if res.status != 0 else res.x[-2:]
 
     vertices = []
@@ -142,17 +175,30 @@ def is_statically_stable(
     patches: Sequence[ContactPatch], com_world: np.ndarray, tol: float = 1e-6
 ) -> tuple[bool, float]:
     """Whether forces in the linearized cones balance gravity with the CoM at ``com_world``: the QP
-    min ||lambda||^2 s.t. A_f lambda = b - A_c c, lambda >= 0 solved with proxsuite (§2.2).
-    Returns (feasible, primal residual of the equalities per unit weight)."""
+    min ||lambda||^2 s.t. A_f lambda = b - A_c c, lambda >= 0 (and the patches' load bounds) solved
+    with proxsuite (§2.2). Returns (feasible, primal residual of the equalities and load bounds per unit
+    weight)."""
+    _forces, residual = equilibrium_forces(patches, com_world)
+    return residual < max(tol, 1e-4), residual
+
+
+def equilibrium_forces(patches: Sequence[ContactPatch], com_world: np.ndarray) -> tuple[np.ndarray, float]:
+    """The force QP of :func:`is_statically_stable`: (the lambdas per unit weight, in
+    ``_equilibrium_system``'s column order, and the residual of the equalities and load bounds)."""
     A, b = _equilibrium_system(patches)
     A_f, A_c = A[:, :-2], A[:, -2:]
     rhs = b - A_c.dot(np.asarray(com_world, dtype=float)[:2])
     n = A_f.shape[1]
-    qp = proxsuite.proxqp.dense.QP(n, A_f.shape[0], n)
+    A_load, b_load = _load_rows(patches)
+    C = np.vstack((np.eye(n), A_load))
+    lower = np.zeros(C.shape[0])
+    upper = np.concatenate((np.full(n, 1e20), b_load))
+    qp = proxsuite.proxqp.dense.QP(n, A_f.shape[0], C.shape[0])
     qp.settings.eps_abs = 1e-9
     qp.settings.verbose = False
-    qp.init(np.eye(n), np.zeros(n), A_f, rhs, np.eye(n), np.zeros(n), np.full(n, 1e20))
+    qp.init(np.eye(n), np.zeros(n), A_f, rhs, C, lower, upper)
     qp.solve()
     lam = np.maximum(qp.results.x, 0.0)
-    residual = float(np.linalg.norm(A_f.dot(lam) - rhs))
-    return residual < max(tol, 1e-4), residual
+    excess = np.maximum(A_load.dot(lam) - b_load, 0.0) if b_load.size else np.zeros(0)
+    residual = float(np.linalg.norm(np.concatenate((A_f.dot(lam) - rhs, excess))))
+    return lam, residual

@@ -11,6 +11,7 @@ from collections import OrderedDict
 import numpy as np
 import pinocchio as pin
 
+from services.footsteps.arm_obstacles import arm_obstacle_tasks
 from services.footsteps.chain import VirtualChain, footprint_frame
 from services.footsteps.constraints import (
     FootprintDisksTask,
@@ -21,11 +22,13 @@ from services.footsteps.constraints import (
     RootSoleOnFootprintTask,
 )
 from services.footsteps.geometry import relative_pose, se3_of
+from services.footsteps.hand_floor import hand_floor_task
 from services.footsteps.request import FootstepPlanRequest, FootstepTask
 from services.ik.level import Level
 from services.ik.task import Task
 from services.ik.tasks.com_support_polygon import ComSupportPolygonTask
 from services.ik.tasks.feet_flat import FeetFlatTask
+from services.ik.tasks.frame_orientation import FrameOrientationTask
 from services.ik.tasks.frame_pose import FramePoseTask
 from services.ik.tasks.frame_position import FramePositionTask
 from services.ik.tasks.gaze import GazeTask
@@ -103,7 +106,28 @@ def constraint_tasks(
             )
     if opts.self_collision and robot.collision_pairs:
         tasks.append(self_collision_task(chain, opts.collision_margin_m, gain))
+    if opts.hand_floor:
+        ground_z = float(chain.model_point(np.zeros(3))[2])
+        tasks.append(hand_floor_task(robot, model, opts.hand_floor_margin_m, ground_z, gain))
+    tasks.append(grippers_held(chain, request, gain))
+    tasks.extend(arm_obstacle_tasks(chain, request))  # the arm out of the hand obstacles (eqs. 12-13)
     return tasks
+
+
+def grippers_held(chain: VirtualChain, request: FootstepPlanRequest, gain: float) -> PostureTask:
+    """The grippers at their start value, an equality: they are not part of the IK (the paper's HRP-2
+    model has 28 degrees of freedom, its 30 without the two grippers, §4.1). Free, the IK closed the
+    reaching gripper and tilted the closed fingers away from the floor, its grasp point then between no
+    fingers."""
+    robot = chain.robot
+    q_start = request.q_start if request.q_start is not None else robot.q_half_sitting
+    return PostureTask(
+        chain.model,
+        chain_q_rest(chain, np.asarray(q_start, dtype=float)),
+        joint_names=[robot.gripper_joint(side) for side in ("left", "right")],
+        gain=gain,
+        name="grippers_held",
+    )
 
 
 def self_collision_task(chain: VirtualChain, margin_m: float, gain: float) -> SelfCollisionTask:
@@ -141,9 +165,13 @@ def joint_limits(chain: VirtualChain, request: FootstepPlanRequest) -> tuple[np.
     model, opts = chain.model, request.options
     lower = np.array(model.lowerPositionLimit)
     upper = np.array(model.upperPositionLimit)
+    # (nor the grippers: held at their start value, which may be at a limit, see grippers_held)
+    grippers = {int(model.getJointId(chain.robot.gripper_joint(side))) for side in ("left", "right")}
     for jid in range(1, model.njoints):
         joint = model.joints[jid]
         # the margin applies to the robot's revolute joints (not the chain, not the grippers' slides)
+        if jid in grippers:
+            continue
         if joint.idx_q >= chain.chain_nq and joint.nq == 1 and joint.shortname().startswith("JointModelR"):
             lower[joint.idx_q] += opts.joint_margin_rad
             upper[joint.idx_q] -= opts.joint_margin_rad
@@ -187,6 +215,16 @@ def desired_task(chain: VirtualChain, task: FootstepTask, gain: float, max_rate:
         inner = FramePositionTask(
             model, robot.frames.grasp(task.hand), chain.model_point(task.target_m), gain=gain, name=task.name
         )
+    elif task.kind == "orient":
+        # the grasp frame's world orientation, brought into the model's frame (that of F_0)
+        R_world = pin.Quaternion(np.array(task.orientation, dtype=float)).normalized().matrix()
+        inner = FrameOrientationTask(
+            model,
+            robot.frames.grasp(task.hand),
+            chain.T_root_world.rotation @ R_world,
+            gain=gain,
+            name=task.name,
+        )
     elif task.kind == "gaze":
         inner = GazeTask(
             model,
@@ -222,7 +260,7 @@ def build_levels(
     """
     gain = request.options.gain
     o = request.options
-    rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad}
+    rates = {"reach": o.max_rate_m, "gaze": o.max_rate_m, "posture": o.max_rate_rad, "orient": o.max_rate_rad}
     front = FrontRelativePose(chain)
     lm = {"damping": o.damping, "error_damping": o.error_damping}
     levels = [Level(tuple(constraint_tasks(chain, request, front)), name="constraints", **lm)]

@@ -14,17 +14,17 @@ from typing import Any, Literal
 from services.errors import InvalidRequestError
 from services.walking.footsteps import Footstep, FootstepSequence, SolePose
 
-TaskKind = Literal["reach", "gaze", "posture"]
-TASK_KINDS: tuple[str, ...] = ("reach", "gaze", "posture")
+TaskKind = Literal["reach", "gaze", "posture", "orient"]
+TASK_KINDS: tuple[str, ...] = ("reach", "gaze", "posture", "orient")
 FOOT_CHOICES: tuple[str, ...] = ("auto", "left", "right")
 
 # Default task tolerance (value under which the task is "solved", eqs. 5-6) and eq. (15)'s minimum
 # value decrease per iteration epsilon_i, per task kind: [m] for reach and gaze (OG x OB is in m for a
-# unit optical axis), [rad] (norm over the joints) for the posture. The posture is by default an
-# *objective* (infinite tolerance): never required for success, never "solved", so Algorithm 1 keeps
-# adding steps for it while a step helps (section 4.3, Fig. 10).
-DEFAULT_TOLERANCE = {"reach": 2e-3, "gaze": 5e-3, "posture": math.inf}
-DEFAULT_EPSILON = {"reach": 5e-3, "gaze": 5e-3, "posture": 0.05}
+# unit optical axis), [rad] (norm over the joints) for the posture, [rad] (rotation angle) for orient.
+# The posture is by default an *objective* (infinite tolerance): never required for success, never
+# "solved", so Algorithm 1 keeps adding steps for it while a step helps (section 4.3, Fig. 10).
+DEFAULT_TOLERANCE = {"reach": 2e-3, "gaze": 5e-3, "posture": math.inf, "orient": 0.05}
+DEFAULT_EPSILON = {"reach": 5e-3, "gaze": 5e-3, "posture": 0.05, "orient": 0.02}
 
 
 @dataclass(frozen=True)
@@ -32,8 +32,9 @@ class FootstepTask:
     """One desired task (section 4): ``reach`` puts the ``hand`` grasp frame at ``target_m``; ``gaze``
     keeps the gaze axis through ``target_m`` (OG x OB = 0, section 4.3); ``posture`` is eq. (14),
     q - q_rest = 0 over the actuated joints (``q_rest``: a full robot configuration, default the
-    half-sitting). ``tolerance`` and ``epsilon`` default per kind (see ``DEFAULT_TOLERANCE`` and
-    ``DEFAULT_EPSILON``)."""
+    half-sitting); ``orient`` turns the ``hand`` grasp frame to the world ``orientation`` [qx, qy, qz,
+    qw] (a grasp's wrist yaw, fingers down, chosen clear of a neighbouring object), log3 error [rad].
+    ``tolerance`` and ``epsilon`` default per kind (see ``DEFAULT_TOLERANCE`` and ``DEFAULT_EPSILON``)."""
 
     kind: str
     target_m: tuple[float, float, float] | None = None
@@ -41,11 +42,12 @@ class FootstepTask:
     tolerance: float | None = None
     epsilon: float | None = None
     q_rest: tuple[float, ...] | None = None
+    orientation: tuple[float, float, float, float] | None = None
 
     @property
     def name(self) -> str:
-        """Label in residuals and histories, e.g. ``reach:right``."""
-        return f"reach:{self.hand}" if self.kind == "reach" else self.kind
+        """Label in residuals and histories, e.g. ``reach:right``, ``orient:right``."""
+        return f"{self.kind}:{self.hand}" if self.kind in ("reach", "orient") else self.kind
 
     def tol(self) -> float:
         return DEFAULT_TOLERANCE[self.kind] if self.tolerance is None else float(self.tolerance)
@@ -62,7 +64,13 @@ class FootstepTask:
             target_ok and all(math.isfinite(v) for v in self.target_m)
         ):
             raise InvalidRequestError(f"{where}.target_m: a {self.kind} task needs 3 finite numbers [m]")
-        if self.kind == "reach" and self.hand not in ("left", "right"):
+        if self.kind == "orient":
+            quat = self.orientation
+            if quat is None or len(quat) != 4 or not all(math.isfinite(v) for v in quat):
+                raise InvalidRequestError(f"{where}.orientation: an orient task needs [qx, qy, qz, qw]")
+            if not math.isclose(math.sqrt(sum(v * v for v in quat)), 1.0, abs_tol=1e-3):
+                raise InvalidRequestError(f"{where}.orientation: {list(quat)} is not a unit quaternion")
+        if self.kind in ("reach", "orient") and self.hand not in ("left", "right"):
             raise InvalidRequestError(f"{where}.hand: must be 'left' or 'right', got {self.hand!r}")
         for attr in ("tolerance", "epsilon"):
             value = getattr(self, attr)
@@ -80,6 +88,17 @@ class DiskObstacle:
 
 
 @dataclass(frozen=True)
+class SphereObstacle:
+    """A sphere above the ground that the reaching arm's capsules keep out of (a ball beside the one to
+    grasp; the object itself when the hand is planned above it): centre (x, y, z), radius [m], world."""
+
+    x_m: float
+    y_m: float
+    z_m: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
 class PlannerOptions:
     """Numerical settings of the planner.
 
@@ -93,6 +112,8 @@ class PlannerOptions:
             (Fig. 5).
         disk_margin_m: gap kept between a footprint and a disk obstacle.
         collision_margin_m: d of eq. (12) between capsules; ``self_collision`` turns eq. (13) on/off.
+        arm_obstacle_margin_m: d of eq. (12) between the reaching arm's capsules and the request's
+            ``hand_obstacles`` (``arm_obstacles.py``).
         joint_margin_rad: joint limits are kept this far inside the model's range.
         step_region_scale: the relative step bounds of section 3.3 (the robot's, e.g. HRP-2's
             -0.22 < dx < 0.22 m, 0.07 < dy < 0.25 m, -0.1 < dtheta < pi/4 rad) shrunk towards their
@@ -108,6 +129,10 @@ class PlannerOptions:
             V_i) (the paper asks epsilon_i < lambda V_i); ``math.inf``: epsilon_i as written.
         polish_iterations: iterations without new steps after Algorithm 1 stops on a stall (the
             level-0 equalities settle); 0: Algorithm 1 as written.
+        hand_floor: keep the corners of both hands' collision boxes ``hand_floor_margin_m`` [m] above
+            the floor, a constraint in the form of eq. (13) (``services.footsteps.hand_floor``; an
+            extension: the paper's §3.2 has no ground under the hand, and §4.2's reach of an object on
+            the floor put the gripper into it).
     """
 
     gain: float = 1.0
@@ -118,6 +143,7 @@ class PlannerOptions:
     disk_margin_m: float = 0.01
     collision_margin_m: float = 0.01
     self_collision: bool = True
+    arm_obstacle_margin_m: float = 0.02
     joint_margin_rad: float = 0.02
     max_rate_m: float = 0.1
     step_region_scale: float = 1.0
@@ -126,6 +152,8 @@ class PlannerOptions:
     error_damping: float = 0.1
     relative_epsilon: float = 0.3
     polish_iterations: int = 30
+    hand_floor: bool = True
+    hand_floor_margin_m: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -138,6 +166,7 @@ class FootstepPlanRequest:
             half-sitting with the mid-feet frame at the origin.
         tasks: desired tasks, highest priority first.
         disks: disk obstacles on the ground.
+        hand_obstacles: spheres the reaching arm keeps out of (level 0, ``arm_obstacles.py``).
         front_foot: the foot that makes the last step; "auto" solves for both and keeps the solution
             with fewer steps, ties broken by the posture residual (section 5.2). With a root insertion
             per added step, the two choices give the two possible first stepping feet at any count.
@@ -155,6 +184,7 @@ class FootstepPlanRequest:
     robot: str = "hrp2_like"
     q_start: tuple[float, ...] | None = None
     disks: tuple[DiskObstacle, ...] = ()
+    hand_obstacles: tuple[SphereObstacle, ...] = ()
     front_foot: str = "auto"
     initial_steps: int = 0
     max_steps: int = 20
@@ -175,6 +205,12 @@ class FootstepPlanRequest:
         for i, disk in enumerate(self.disks):
             if not all(math.isfinite(v) for v in (disk.x_m, disk.y_m, disk.radius_m)) or disk.radius_m <= 0:
                 raise InvalidRequestError(f"disks[{i}]: needs finite x_m, y_m and radius_m > 0, got {disk}")
+        for i, sphere in enumerate(self.hand_obstacles):
+            values = (sphere.x_m, sphere.y_m, sphere.z_m, sphere.radius_m)
+            if not all(math.isfinite(v) for v in values) or sphere.radius_m <= 0:
+                raise InvalidRequestError(
+                    f"hand_obstacles[{i}]: needs finite x_m, y_m, z_m and radius_m > 0, got {sphere}"
+                )
         if self.front_foot not in FOOT_CHOICES:
             raise InvalidRequestError(f"front_foot: {self.front_foot!r} is not one of {list(FOOT_CHOICES)}")
         if not 0 <= self.initial_steps <= self.max_steps:
@@ -194,6 +230,10 @@ class FootstepPlanRequest:
                 "options: need damping >= 0, error_damping >= 0, relative_epsilon > 0, "
                 f"polish_iterations >= 0, got {o.damping}, {o.error_damping}, {o.relative_epsilon}, "
                 f"{o.polish_iterations}"
+            )
+        if not (math.isfinite(o.hand_floor_margin_m) and o.hand_floor_margin_m >= 0):
+            raise InvalidRequestError(
+                f"options.hand_floor_margin_m must be >= 0 m, got {o.hand_floor_margin_m}"
             )
         if not 0 < o.step_region_scale <= 1:
             raise InvalidRequestError(

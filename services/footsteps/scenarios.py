@@ -1,8 +1,9 @@
 """The three scenarios of section 4 of the footstep paper, and seeded random layouts for the benchmark.
 
 1. ``reach`` (section 4.1): a ball 2 m away at table height, a disk obstacle on the floor in between.
-2. ``pickup`` (section 4.2): a small object on the floor between the feet, a disk around it that the
-   feet may not enter.
+2. ``pickup`` (section 4.2): a small object on the floor between the feet (a 3 x 3 x 8 cm block: the
+   open gripper's grasp point cannot come within 2.5 cm of the floor, see ``PICKUP_OBJECT_M``), a disk
+   around it that the feet may not enter.
 3. ``posture`` (section 4.3): the robot has turned to look at a ball without stepping; recover the rest
    posture (eq. 14) while the gaze stays on the ball (OG x OB = 0).
 
@@ -56,7 +57,13 @@ class Scenario:
 # The layouts match the simulator's scenes sim/scenes/footsteps_reach.yaml and footsteps_pickup.yaml.
 REACH_BALL_M = (2.05, 0.0, 0.80)  # a 5 cm ball on a 0.2 x 0.2 x 0.75 m stand centred at (2.1, 0)
 REACH_STAND_XY_M = (2.1, 0.0)
-PICKUP_BALL_M = (0.03, 0.0, 0.015)  # a 1.5 cm ball on the floor between the feet
+# The centre of a 3 x 3 x 8 cm block standing on the floor between the feet (their inner edges 5 cm
+# apart), 7 cm ahead of the ankles (clear of TALOS's shins in the sim scene). It was a 3 cm ball
+# (centre 1.5 cm up), which no hand of hrp2_like can take from the floor: the fingers reach 4.5 cm
+# past the grasp point and the palm is 7 cm thick, so with the hands kept clear of the floor
+# (``PlannerOptions.hand_floor``) the open gripper's grasp point stays >= 2.5 cm + the margin above
+# it (measured: 3.5 cm with the 1 cm margin, the hand tilted 80 deg from vertical).
+PICKUP_OBJECT_M = (0.07, 0.0, 0.04)
 
 
 def reach(robot: str = "hrp2_like", posture_objective: bool = False) -> Scenario:
@@ -74,14 +81,14 @@ def reach(robot: str = "hrp2_like", posture_objective: bool = False) -> Scenario
 
 
 def pickup(robot: str = "hrp2_like", posture_objective: bool = False) -> Scenario:
-    """Section 4.2: a small ball on the floor between the feet, with a virtual disk around it that no
+    """Section 4.2: a small object on the floor between the feet, with a virtual disk around it that no
     footprint may enter (it covers the inner edges of both initial soles); the reach alone (the
     paper's task set), or with the rest posture objective."""
-    tasks = (FootstepTask("reach", PICKUP_BALL_M, hand="right"),)
+    tasks = (FootstepTask("reach", PICKUP_OBJECT_M, hand="right"),)
     request = FootstepPlanRequest(
         robot=robot,
         tasks=tasks + ((FootstepTask("posture"),) if posture_objective else ()),
-        disks=(DiskObstacle(PICKUP_BALL_M[0], PICKUP_BALL_M[1], 0.12),),
+        disks=(DiskObstacle(PICKUP_OBJECT_M[0], PICKUP_OBJECT_M[1], 0.12),),
         options=PlannerOptions() if posture_objective else PAPER_OPTIONS,
     )
     return Scenario(

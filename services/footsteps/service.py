@@ -46,6 +46,7 @@ from services.footsteps.request import (
     FootstepPlanResult,
     FootstepTask,
     PlannerOptions,
+    SphereObstacle,
 )
 from services.model import RobotModel, load_robot
 
@@ -153,6 +154,7 @@ def to_planner_request(
             tolerance=t.tolerance,
             epsilon=t.epsilon,
             q_rest=_vector(t.q_rest, robot, f"tasks[{i}].q_rest"),
+            orientation=None if t.orientation is None else tuple(float(v) for v in t.orientation),  # type: ignore[arg-type]
         )
         for i, t in enumerate(request.tasks)
     )
@@ -163,6 +165,10 @@ def to_planner_request(
         disks=(
             *(DiskObstacle(float(d.x), float(d.y), float(d.radius)) for d in request.disks),
             *(DiskObstacle(*disk) for disk in _box_disks(request.boxes)),
+        ),
+        hand_obstacles=tuple(
+            SphereObstacle(*(float(v) for v in sphere.center), float(sphere.radius))
+            for sphere in request.hand_obstacles
         ),
         front_foot=request.front_foot,
         initial_steps=request.initial_steps,

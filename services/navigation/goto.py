@@ -29,7 +29,7 @@ from services.navigation.carry import grip_from_configuration
 from services.navigation.footsteps_along_path import FootstepOptions, PathFootsteps, footsteps_along_path
 from services.navigation.geometry import Pose2D, Scene, body_model
 from services.navigation.goals import ObjectGoal
-from services.navigation.path import PlannerConfig, SampledPath, plan_path
+from services.navigation.path import PlannerConfig, SampledPath, escape_pose, plan_path, stage1_checker
 from services.navigation.stage2 import Stage2Options, WholeBodyMotion, plan_motion
 from services.navigation.straight import StraightWalkOptions, straight_walk
 from services.navigation.upper_body import CarriedBar, SweepResult, sweep_carried_object
@@ -41,6 +41,8 @@ REPLAN_EXTRA_MARGIN_M = 0.02
 SLOW_WALK_FACTOR = 1.5
 """Single supports this much longer when stage 2's walk moves a joint faster than its limit: first those
 of the steps moving while it does, then (once more too fast) every step's."""
+ESCAPE_EXTRA_MARGIN_M = 0.02
+"""A start overlapping an obstacle escapes to a pose this much clearer [m] than stage 1 requires."""
 log = logging.getLogger("humanoid.navigation")
 
 MAX_START_SOLE_HEIGHT_M = 0.005
@@ -124,6 +126,64 @@ def start_pose(robot: Any, q: np.ndarray) -> Pose2D:
     return Pose2D(float(x), float(y), float(yaw))
 
 
+def _escaped(
+    robot: Any,
+    scene: Scene,
+    body: Any,
+    start: Pose2D,
+    soles: tuple[SolePose, SolePose],
+    options: GotoOptions,
+) -> tuple[Pose2D, tuple[SolePose, SolePose], tuple[SampledPath, PathFootsteps] | None]:
+    """Where stage 1 starts from: the robot's mid-feet pose when its footprint (margin included, as
+    :func:`plan_path` checks it) is free; else the nearest free pose (:func:`escape_pose`, computed from
+    the overlap), reached by a straight walk checked against the obstacles
+    (:func:`straight_walk`), which the goto's footsteps then begin with. Returns (start pose, soles
+    there (left, right), the escape walk or None). A start with no free pose within reach, or no
+    clear straight walk to it, is left to :func:`plan_path` (``start_in_collision``)."""
+    checker = stage1_checker(scene, body, options.planner)
+    # the stance reached is within millimetres of the pose aimed at: aim ESCAPE_EXTRA_MARGIN_M clear
+    free = escape_pose(checker.with_margin(checker.body.margin_m + ESCAPE_EXTRA_MARGIN_M), start)
+    if free is None or free == start:
+        return start, soles, None
+    walk = straight_walk(robot, scene, soles, start, free, options.straight or StraightWalkOptions())
+    if walk is None:
+        return start, soles, None
+    sequence = walk[1].sequence
+    left, right = sequence.final_stance()
+    return (
+        Pose2D((left.x_m + right.x_m) / 2.0, (left.y_m + right.y_m) / 2.0, free.theta_rad),
+        (left, right),
+        walk,
+    )
+
+
+def _joined(
+    escape: tuple[SampledPath, PathFootsteps], path: SampledPath, steps: PathFootsteps
+) -> tuple[SampledPath, PathFootsteps]:
+    """The escape walk followed by the path planned from its end: one path (its ``curve`` "escape+" the
+    path's), one footstep sequence."""
+    first, first_steps = escape
+    length = first.length_m
+    theta = path.theta_rad + 2.0 * math.pi * round(
+        (first.theta_rad[-1] - path.theta_rad[0]) / (2.0 * math.pi)
+    )
+    joined = replace(
+        path,
+        xy_m=np.vstack([first.xy_m, path.xy_m[1:]]),
+        theta_rad=np.concatenate([first.theta_rad, theta[1:]]),
+        s_m=np.concatenate([first.s_m, length + path.s_m[1:]]),
+        forward=np.concatenate([first.forward, path.forward[1:]]),
+        waypoints=np.vstack([first.waypoints, path.waypoints]),
+        curve=f"escape+{path.curve}",
+    )
+    sequence = FootstepSequence(
+        first_steps.sequence.left_start,
+        first_steps.sequence.right_start,
+        first_steps.sequence.steps + steps.sequence.steps,
+    )
+    return joined, PathFootsteps(sequence, first_steps.s_m + tuple(length + s for s in steps.s_m))
+
+
 def plan_goto(
     robot: Any,
     scene: Scene,
@@ -142,6 +202,10 @@ def plan_goto(
     a path with the footprint margin grown by the clearance missing (+ 2 cm), at most ``max_replans``
     times ("the planner goes back to the first stage", "Two-stage Planning Method").
 
+    A start whose footprint overlaps an obstacle (margin included: the robot ended a reach or a turn
+    beside a chair) is left first: the footsteps begin with a straight walk to the nearest free pose,
+    computed from the overlap (:func:`_escaped`), and stage 2 plans the whole walk as one motion.
+
     Raises the errors of the stages: InfeasibleError (``details["reason"]`` from :func:`plan_path`,
     :func:`footsteps_along_path` and :func:`plan_motion`), NotFoundError (unknown object or robot),
     InvalidRequestError (bad configuration, pose outside the scene, bad options).
@@ -149,14 +213,14 @@ def plan_goto(
     options = options or GotoOptions()
     t0 = time.perf_counter()
     q_start = robot.check_q(q_start)
-    soles = start_soles(robot, q_start)
+    soles_now = start_soles(robot, q_start)
     body = with_arms_of(body_model(robot.name), robot, q_start)  # the arms as they are (and stay)
     grip = grip_from_configuration(robot, q_start, bar) if bar is not None else None
     timings = {"path_s": 0.0, "footsteps_s": 0.0, "stage2_s": 0.0}
     replans = 0
     slowed = False
     slowed_steps: tuple[int, ...] = ()
-    start = start_pose(robot, q_start)
+    start_now = start_pose(robot, q_start)
     straight_options = options.straight if bar is None else None
     while True:
         budget.check(
@@ -165,11 +229,10 @@ def plan_goto(
         )
         t1 = time.perf_counter()
         steps = None
+        start, soles, escape = _escaped(robot, scene, body, start_now, soles_now, options)
         try:
             # the search gets what the whole goto's budget leaves, at most its own time_budget_s
-            planner = replace(
-                options.planner, time_budget_s=budget.remaining(options.planner.time_budget_s)
-            )
+            planner = replace(options.planner, time_budget_s=budget.remaining(options.planner.time_budget_s))
             path = plan_path(scene, body, start, goal, planner)
             if straight_options is not None and straight_options.is_detour(start, path.goal, path.length_m):
                 straight = straight_walk(robot, scene, soles, start, path.goal, straight_options)
@@ -205,6 +268,8 @@ def plan_goto(
             steps = footsteps_along_path(
                 path, FootstepLimits.from_robot(robot), footstep_options, start_soles=soles
             )
+        if escape is not None:
+            path, steps = _joined(escape, path, steps)
         t3 = time.perf_counter()
         timings["path_s"] += t2 - t1
         n_steps = len(steps.sequence.steps)

@@ -341,6 +341,45 @@ def densify(
     return xy, theta, s, forward
 
 
+def stage1_checker(scene: Scene, body: BodyModel, config: PlannerConfig) -> FootprintChecker:
+    """The footprint checker :func:`plan_path` tests poses with: the body's margin plus the sweep
+    inflation between checked states (:func:`sweep_inflation_m`)."""
+    nominal = FootprintChecker(scene, body, config.grid_resolution_m)
+    return nominal.with_margin(
+        body.margin_m + sweep_inflation_m(body, config.check_step_m, config.turning_radius_m)
+    )
+
+
+def escape_pose(
+    checker: FootprintChecker,
+    start: Pose2D,
+    max_m: float = 0.6,
+    step_m: float = 0.02,
+    n_directions: int = 24,
+) -> Pose2D | None:
+    """The nearest base pose, same heading, whose footprint (margin included) ``checker`` finds free,
+    when ``start``'s is not: the way out of a start that overlaps an obstacle (a robot that ended a
+    reach or a turn close beside a chair), which :func:`plan_path` refuses to start from.
+
+    Translations of ``step_m``, 2 ``step_m``, ... up to ``max_m`` [m] in ``n_directions`` directions are
+    tried, shortest first; among free poses at one distance, the one farthest from the obstacles
+    (``centre_distance_m``). ``start`` itself when it is free; None when nothing within ``max_m`` is."""
+    if checker.is_free(start.x_m, start.y_m, start.theta_rad):
+        return start
+    angles = 2.0 * math.pi * np.arange(n_directions) / n_directions
+    for k in range(1, round(max_m / step_m) + 1):
+        d = k * step_m
+        free = [
+            (checker.centre_distance_m(x, y), x, y)
+            for x, y in zip(start.x_m + d * np.cos(angles), start.y_m + d * np.sin(angles), strict=True)
+            if checker.in_bounds(float(x), float(y)) and checker.is_free(float(x), float(y), start.theta_rad)
+        ]
+        if free:
+            _, x, y = max(free)
+            return Pose2D(float(x), float(y), start.theta_rad)
+    return None
+
+
 def plan_path(
     scene: Scene,
     body: BodyModel,
@@ -369,9 +408,9 @@ def plan_path(
                 f"{label} ({pose.x_m:.2f}, {pose.y_m:.2f}) is outside the scene bounds "
                 f"x in [{xmin}, {xmax}], y in [{ymin}, {ymax}] m"
             )
-    nominal = FootprintChecker(scene, body, config.grid_resolution_m)
+    checker = stage1_checker(scene, body, config)
+    nominal = checker.with_margin(body.margin_m)
     inflation = sweep_inflation_m(body, config.check_step_m, config.turning_radius_m)
-    checker = nominal.with_margin(body.margin_m + inflation)
     for label, pose in poses:
         hits = checker.colliding_obstacles(pose.x_m, pose.y_m, pose.theta_rad)
         if hits:

@@ -20,7 +20,8 @@ class PerceptionConfig:
             "sgbm" or "edges".
         max_depth_m: farthest object searched [m] (bounds the disparities accepted).
         render_timeout_s: how long to wait for ``sim/render`` (and ``sim/state``) [s] (within the
-            request's budget).
+            request's budget; at most ``MAX_BUDGET_S``): also the render's own time budget, so that the
+            sim stops when perception stops waiting.
         time_budget_s: wall-clock budget of a ``perception/locate`` request that gives none [s] (at most
             ``services.bus.limits.MAX_BUDGET_S``); past it the reply is ``timeout``.
         check_render_pose_m: warn in the log when the pose the sim rendered from is farther than this
@@ -38,9 +39,10 @@ class PerceptionConfig:
 
     def __post_init__(self) -> None:
         check_budget(self.time_budget_s, "perception.time_budget_s")
+        check_budget(self.render_timeout_s, "perception.render_timeout_s")
         if self.stereo_method not in METHODS:
             raise InvalidRequestError(
                 f"perception.stereo_method must be one of {list(METHODS)}, got {self.stereo_method!r}"
             )
-        if not (self.max_depth_m > 0.5 and self.render_timeout_s > 0):
-            raise InvalidRequestError("perception.max_depth_m must be > 0.5 m and render_timeout_s > 0 s")
+        if not self.max_depth_m > 0.5:
+            raise InvalidRequestError("perception.max_depth_m must be > 0.5 m")

@@ -106,7 +106,10 @@ def locate_object(
     stereo_mismatch) when it is not found.
     """
     model = object_model(models, name)
-    return locate(model, left_bgr, right_bgr, head.rig, head.T_world_left_camera, config or LocalizeConfig())
+    others = [m for other, m in models.items() if other != name]  # what may hide parts of it
+    return locate(
+        model, left_bgr, right_bgr, head.rig, head.T_world_left_camera, config or LocalizeConfig(), others
+    )
 
 
 def default_localize_config(method: str = "centroid", max_depth_m: float = 8.0) -> LocalizeConfig:

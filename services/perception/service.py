@@ -191,12 +191,16 @@ class PerceptionService(Service):
         else:
             stereo_pair(robot, request.camera)  # an unknown pair is this request's fault, not the sim's
             budget.check("the render of the stereo pair (sim/render)")
+            wait_s = budget.remaining(cfg.render_timeout_s)
             render = self.client.call(
                 sim.RENDER,
                 sim.RenderRequest(
-                    camera=request.camera, width_px=request.width_px, height_px=request.height_px
+                    camera=request.camera,
+                    width_px=request.width_px,
+                    height_px=request.height_px,
+                    time_budget_s=wait_s,  # the sim gives up when this call does (no draw left running)
                 ),
-                timeout_s=budget.remaining(cfg.render_timeout_s),
+                timeout_s=wait_s,
             )
             image_left, image_right = render.images
             left = cv2.cvtColor(image_left.rgb, cv2.COLOR_RGB2BGR)

@@ -108,7 +108,10 @@ class ReachingOptions:
 
     Motion:
         hand_speed_m_s: mean hand speed [m/s] that sets the reaching duration (the hand follows a
-            minimum-jerk profile), clipped to [min_reach_s, max_reach_s] [s].
+            minimum-jerk profile), clipped to [min_reach_s, max_reach_s] [s]; hand_turn_rad_s: with an
+            orientation asked, the mean turning speed [rad/s] of the hand that sets it too (the longer
+            of the two): without it a wrist turning by 90 deg or more over a short travel lagged
+            behind its reference (fingers down between two balls, fetch seed 37).
         final_hold_s: standing still at the end of a reach without step [s].
 
     Stepping (pattern generator):
@@ -149,6 +152,7 @@ class ReachingOptions:
     arm_speed_per_knot: bool = False
     torque_ratio: float = 0.6
     hand_speed_m_s: float = 0.2
+    hand_turn_rad_s: float = 0.6
     min_reach_s: float = 1.4
     max_reach_s: float = 5.0
     final_hold_s: float = 0.3
@@ -181,6 +185,7 @@ class ReachingOptions:
             "step_slowdown": self.step_slowdown,
             "double_support_ratio": self.double_support_ratio,
             "hand_speed_m_s": self.hand_speed_m_s,
+            "hand_turn_rad_s": self.hand_turn_rad_s,
             "min_reach_s": self.min_reach_s,
             "max_reach_s": self.max_reach_s,
             "step_bound_ratio": self.step_bound_ratio,

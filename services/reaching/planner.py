@@ -329,9 +329,12 @@ class ReachPlanner:
         return best
 
     # ------------------------------------------------------------------------------------ references
-    def _reach_duration(self, distance_m: float) -> float:
+    def _reach_duration(self, distance_m: float, angle_rad: float = 0.0) -> float:
+        """The hand's motion time [s]: its travel ``distance_m`` at ``hand_speed_m_s`` or its turn
+        ``angle_rad`` at ``hand_turn_rad_s``, the longer, within [min_reach_s, max_reach_s]."""
         opt = self.options
-        return float(np.clip(distance_m / opt.hand_speed_m_s, opt.min_reach_s, opt.max_reach_s))
+        seconds = max(distance_m / opt.hand_speed_m_s, angle_rad / opt.hand_turn_rad_s)
+        return float(np.clip(seconds, opt.min_reach_s, opt.max_reach_s))
 
     def _references(
         self, req: ReachRequest, frame: dict[str, np.ndarray], s: np.ndarray, yaw: np.ndarray
@@ -356,8 +359,12 @@ class ReachPlanner:
 
     def _standing_spec(self, req: ReachRequest, left: SolePose, right: SolePose) -> MotionSpec:
         robot = self.robot
-        hand0 = robot.frame_pose(req.q_start, robot.frames.grasp(req.hand)).translation
-        duration = self._reach_duration(float(np.linalg.norm(req.target_world_m - hand0)))
+        T_hand0 = robot.frame_pose(req.q_start, robot.frames.grasp(req.hand))
+        hand0 = T_hand0.translation
+        turn = 0.0
+        if req.R_world_hand is not None:
+            turn = float(np.linalg.norm(pin.log3(T_hand0.rotation.T @ req.R_world_hand)))
+        duration = self._reach_duration(float(np.linalg.norm(req.target_world_m - hand0)), turn)
         n = round((duration + self.options.final_hold_s) / DT_S) + 1
         frame = standing_frame(
             n,

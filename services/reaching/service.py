@@ -103,7 +103,9 @@ class ReachingService(Service):
             )
         rotation = None if request.orientation is None else quaternion_to_matrix(request.orientation)
         options = self.config.planner_options(
-            weighted=request.weighted, joint_limit_selection_rad=request.joint_limit_selection_rad
+            weighted=request.weighted,
+            joint_limit_selection_rad=request.joint_limit_selection_rad,
+            ee_error_threshold_m=request.ee_error_threshold_m,
         )
         with budget.within(request.time_budget_s or self.config.time_budget_s):
             result = self._planner(options).plan(

@@ -53,6 +53,8 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     best_first_sons: bool = True  # §2.8: one leaf per (spot, surface) pair, sons in f_T order
     slope_k: Gain = 30.0  # k of f_T (eq. 1)
     interpolate: bool = True  # compute the 5 ms motion (§3.3)
+    # the arms' contact forces bounded by what their joints hold (an extension of §2.2; false: friction only)
+    limb_load: bool = False
     n_interpolation: Annotated[int, Meta(ge=1, le=1000)] = 20  # posture generations per transition (§3.3's n)
 
 
@@ -86,7 +88,8 @@ class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
     ``q_measured``, the witness of ``to_set`` (a son of ``from_set``: one contact more or less, §2.3) is
     generated again for them near ``witness`` (its planned posture), and the motion to it interpolated
     (§3.3). ``released``: the contacts removed at the previous transition, still touched at
-    ``q_measured`` (their bodies leave now)."""
+    ``q_measured`` (their bodies leave now). ``time_budget_s`` bounds the whole request: past it the
+    reply is ``timeout`` naming the step reached (issue 16)."""
 
     scene: SceneName
     q_measured: np.ndarray  # (nq,) float64
@@ -95,6 +98,9 @@ class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
     witness: np.ndarray  # (nq,) the planned witness of to_set
     released: ContactList = msgspec.field(default_factory=list)
     n_interpolation: Annotated[int, Meta(ge=2, le=100)] = 10  # bounded work: <= 7 tries of 2n postures
+    # the whole request (witness regeneration, interpolation, its re-planning and collision checks) [s]
+    time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] = 60.0
+    limb_load: bool = False  # as in PlanRequest: the arms' contact forces bounded by their joints
 
 
 class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
@@ -108,6 +114,9 @@ class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
     # because none was found for the supports where they slid ("" if nothing)
     collision: str
     replan_s: float  # wall time [s]
+    # joint name -> fraction of its effort limit to play q with (sim/execute's effort_scale): the arm of
+    # a hand or forearm in contact, compliant in the loop it closes (services/contacts/closed_loop.py)
+    effort_scale: dict[str, float] = {}
 
 
 class Progress(msgspec.Struct, kw_only=True, frozen=True):

@@ -58,10 +58,11 @@ class Task(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True
     """A desired task (section 4 of the paper); the order of ``PlanRequest.tasks`` is the priority order.
 
     ``reach``: the grasp frame of ``hand`` at ``target``; ``gaze``: the gaze axis through ``target``
-    (OG x OB = 0, section 4.3); ``posture``: q - q_rest = 0 over the actuated joints (eq. 14).
+    (OG x OB = 0, section 4.3); ``posture``: q - q_rest = 0 over the actuated joints (eq. 14);
+    ``orient``: the grasp frame of ``hand`` at the world ``orientation`` (a grasp's wrist yaw).
     """
 
-    kind: Name  # "reach", "gaze" or "posture"
+    kind: Name  # "reach", "gaze", "posture" or "orient"
     target: Point3 | None = None  # reach/gaze: [x, y, z] world [m]
     hand: Name = "right"  # reach: "left" or "right"
     tolerance: Tolerance | None = None  # solved below this value: [m] reach/gaze, [rad] posture; None: 2 mm,
@@ -69,6 +70,8 @@ class Task(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True
     # minimum value decrease per iteration of eq. (15) [m or rad]; None: default
     epsilon: Tolerance | None = None
     q_rest: np.ndarray | None = None  # posture: (nq,) float64 rest configuration; None: half-sitting
+    # orient: the hand's grasp frame at this world orientation [qx, qy, qz, qw] (log3 error [rad])
+    orientation: Annotated[list[Coord], Meta(min_length=4, max_length=4)] | None = None
 
 
 class Disk(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
@@ -76,6 +79,14 @@ class Disk(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True
 
     x: Coord
     y: Coord
+    radius: Size
+
+
+class Sphere(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    """A sphere the reaching arm keeps out of (a ball beside the one to grasp): centre [x, y, z], radius
+    [m], world (``services.footsteps.arm_obstacles``: eqs. 12-13 on the arm's capsules)."""
+
+    center: Point3
     radius: Size
 
 
@@ -99,6 +110,7 @@ class Options(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=T
     disk_margin_m: Margin | None = None  # gap between a footprint and a disk [m]
     collision_margin_m: Margin | None = None  # gap between capsules (eq. 12) [m]
     self_collision: bool | None = None  # eq. (13) on/off
+    arm_obstacle_margin_m: Margin | None = None  # gap between the reaching arm and hand_obstacles [m]
     joint_margin_rad: Margin | None = None  # joint limits kept this far inside the range [rad]
     step_region_scale: Fraction | None = None  # step bounds shrunk towards their middle, in (0, 1]
     max_rate_m: Gain | None = None  # saturation of the reach/gaze desired rate [m per IK time]
@@ -122,6 +134,8 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     # boxes on the floor (e.g. the supervisor's map, as for navigation/goto): each covered by disks of
     # its footprint rectangle (services.footsteps.geometry.disks_covering), obstacles like ``disks``
     boxes: Annotated[list[ObstacleMsg], Meta(max_length=MAX_OBSTACLES)] = []
+    # spheres above the ground that the reaching arm's capsules (hand, forearm, upper arm) keep out of
+    hand_obstacles: Annotated[list[Sphere], Meta(max_length=MAX_OBSTACLES)] = []
     front_foot: Name = "auto"  # foot of the last step, "left"/"right"; "auto": both solved, the one with
     #                           fewer steps kept (section 5.2: this is the choice of the start foot)
     initial_steps: StepCount = 0  # initial guess of the number of steps (section 5.1)

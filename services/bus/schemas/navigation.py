@@ -145,7 +145,7 @@ class GotoReply(msgspec.Struct, kw_only=True, frozen=True):
     path_theta_rad: np.ndarray
     path_s_m: np.ndarray
     path_forward: np.ndarray  # (N,) uint8
-    path_curve: str  # "dubins", "reeds_shepp" or "straight"
+    path_curve: str  # "dubins", "reeds_shepp" or "straight"; "escape+" first: a way out of the start first
     left_start: list[float]
     right_start: list[float]
     step_sides: list[str]

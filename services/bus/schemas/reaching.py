@@ -48,6 +48,10 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     )
     # selection matrix S_l margin [rad]; None: service default
     joint_limit_selection_rad: Margin | None = None
+    # the end-effector criterion's threshold [m] (the hand's distance behind its reference at a knot);
+    # None: the robot's (the paper's 4e-5 m, a trigger for support polygon reshaping). A motion whose
+    # stance a footstep plan chose (no stepping) may allow the hand a larger lag on its way.
+    ee_error_threshold_m: Margin | None = None
     # wall-clock planning budget [s] (<= 60); None: the service's time_budget_s. Past it: ``timeout``
     # with the stage reached and the attempts made (``details.stage``, ``attempts``).
     time_budget_s: Budget | None = None

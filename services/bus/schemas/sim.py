@@ -14,7 +14,7 @@ import msgspec
 import numpy as np
 from msgspec import Meta
 
-from services.bus.limits import Coord, ImageSide, Name, Names, Phase, Point3, SceneName, Seed
+from services.bus.limits import Budget, Coord, ImageSide, Name, Names, Phase, Point3, SceneName, Seed
 from services.bus.spec import EndpointSpec, TopicSpec
 
 # ---------------------------------------------------------------------------------------------- topics
@@ -86,6 +86,9 @@ class ExecuteRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_f
     # Objects any link may touch during the whole motion: the supports of a multi-contact motion (the
     # chair the robot gets up from, the table it leans on), chosen by the contact planner.
     supports: Names = []
+    # Joint name -> fraction in (0, 1] of its effort limit, for this execution only: a compliant limb in
+    # a closed kinematic loop (the arm of a hand on a table while a sole holds the robot). {}: full effort.
+    effort_scale: dict[str, float] = {}
     # Wall-clock limit of the execution [s]: past it the robot holds where it is and the reply is a
     # timeout error saying how much was played. None: the sim's execute_budget_s (300 s by default).
     time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] | None = None
@@ -137,6 +140,9 @@ class RenderRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fi
     height_px: ImageSide = 480
     depth: bool = False  # also return depth along the optical axis
     segmentation: bool = False  # also return a per-pixel body id mask (see CameraImage.labels)
+    # the wait for the world and the draws [s] (a draw estimated to end past it is not started:
+    # ``timeout``); None: no budget (the image sides bound the work)
+    time_budget_s: Budget | None = None
 
 
 class CameraImage(msgspec.Struct, kw_only=True, frozen=True):
@@ -257,6 +263,7 @@ class SnapshotRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_
     height_px: ImageSide = 480
     eye: Point3 | None = None  # custom camera position [m] (with target)
     target: Point3 | None = None  # custom point looked at [m] (with eye)
+    time_budget_s: Budget | None = None  # as RenderRequest's: the wait for the world and the draw [s]
 
 
 class SnapshotReply(msgspec.Struct, kw_only=True, frozen=True):
@@ -308,12 +315,15 @@ class KinematicsRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
 
     ``frames``: frame names (``RobotInfoReply.frames`` values) whose world poses to return.
     ``place_at``: [x, y, yaw] ([m], [m], [rad]): also return the last configuration moved so that its
-    mid-feet frame is there and its soles at z = 0 (joints unchanged).
+    mid-feet frame is there and its soles at z = 0 (joints unchanged). ``time_budget_s``: see below.
     """
 
     q: np.ndarray
     frames: Names = []
     place_at: Annotated[list[Coord], Meta(max_length=3)] = []
+    # wall-clock budget [s]: past it, ``timeout`` naming the configuration reached; None: no budget (the
+    # configuration and frame-pose limits bound the work)
+    time_budget_s: Budget | None = None
 
 
 class KinematicsReply(msgspec.Struct, kw_only=True, frozen=True):
