@@ -31,7 +31,7 @@ class SupervisorConfig:
             and not at all when there is none to a face either);
         retry_budget_s, retry_turning_radius_m: when navigation finds no path in its default budget,
             the second search's budget and turning radius (the first's is navigation's 0.5 m);
-        walk_double_support_s: double support between the steps of a walk (before the sims's
+        walk_double_support_s: double support between the steps of a walk (before the sim's
             spring-damper soles, with 0.1 s the simulated robot fell in about half of the 60-90 deg
             turns and 0.3 s turned every time; with them 0.2 s, the fetch's walks shorter by 0.1 s a
             step).

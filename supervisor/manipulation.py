@@ -301,6 +301,7 @@ class ManipulationActions:
             # Planned without it (none found with it): walked around what the hand felt ahead of the
             # fingers first.
             jaws_quat = None
+            point = self._grasp_point(hand, target, self._heading())  # (turned for the jaws above)
             self._clear_of_felt(point, f"step around {target}")
             if jaws is not None:
                 jaws = jaws_clear_of(centre, near, self._heading(), turns)

@@ -27,6 +27,7 @@ from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import compute_kinematics
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox, segment_box_distances
 from services.model import load_robot
+from services.model.ground import signed_distance
 from sim.scene import layout, load_scene
 from sim.world import start_configuration
 
@@ -96,7 +97,7 @@ def test_non_coplanar_region_differs_from_the_hull_and_the_force_qp_agrees_with_
     rng = np.random.default_rng(1)
     agree = 0
     for xy in rng.uniform((-0.2, -0.3), (0.7, 0.3), size=(200, 2)):
-        margin = _signed_margin(region, xy)
+        margin = -float(signed_distance(xy, region)[0])  # > 0 inside
         if abs(margin) < 5e-3:
             continue  # on the boundary within the projection's tolerance
         feasible, _ = is_statically_stable([*feet, hand_high], np.array([xy[0], xy[1], 0.7]))
@@ -109,16 +110,6 @@ def _area(polygon: np.ndarray) -> float:
     x, y = polygon[:, 0], polygon[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
-
-def _signed_margin(polygon: np.ndarray, point: np.ndarray) -> float:
-    """Distance of ``point`` inside the counter-clockwise ``polygon`` (negative outside)."""
-    margins = []
-    for k in range(len(polygon)):
-        a, b = polygon[k], polygon[(k + 1) % len(polygon)]
-        edge = b - a
-        normal = np.array([-edge[1], edge[0]]) / np.linalg.norm(edge)
-        margins.append(float(normal.dot(point - a)))
-    return min(margins)
 
 
 # ------------------------------------------------------------------------------------------ tasks

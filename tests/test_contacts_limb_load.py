@@ -21,6 +21,7 @@ from services.contacts.stability import (
     is_statically_stable,
 )
 from services.model import load_robot
+from services.model.ground import signed_distance
 from sim.scene import layout, load_scene
 
 
@@ -105,7 +106,7 @@ def test_a_load_bound_on_the_hand_shrinks_the_region_and_the_force_qp_agrees():
     checked = 0
     for x, y in rng.uniform((-0.1, -0.1), (0.5, 0.1), size=(80, 2)):
         com = np.array([x, y, 0.8])
-        margin = _signed_margin(bounded, np.array([x, y]))
+        margin = -float(signed_distance(np.array([x, y]), bounded)[0])  # > 0 inside
         if abs(margin) < 5e-3:
             continue  # on the boundary within the projection's tolerance
         feasible, _ = is_statically_stable([sole, held_hand], com)
@@ -116,16 +117,6 @@ def test_a_load_bound_on_the_hand_shrinks_the_region_and_the_force_qp_agrees():
         checked += 1
     assert checked > 50
 
-
-def _signed_margin(polygon: np.ndarray, point: np.ndarray) -> float:
-    """Distance of ``point`` inside the counter-clockwise ``polygon`` (negative outside)."""
-    margins = []
-    for k in range(len(polygon)):
-        a, b = polygon[k], polygon[(k + 1) % len(polygon)]
-        edge = b - a
-        normal = np.array([-edge[1], edge[0]]) / np.linalg.norm(edge)
-        margins.append(float(normal.dot(point - a)))
-    return min(margins)
 
 
 def test_the_posture_generator_bounds_the_arms_when_asked():

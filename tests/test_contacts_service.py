@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -69,19 +70,16 @@ def test_a_one_removal_plan_with_its_motion_and_progress(services, q_seated):
     # the same transition re-planned from a measured state 2 cm off (executing set by set)
     measured = q_seated.copy()
     measured[0] += 0.02
-    step = services.client.call(
-        msg.TRANSITION,
-        msg.TransitionRequest(
-            scene="chair_egress",
-            q_measured=measured,
-            from_set=reply.sets[0],
-            to_set=reply.sets[1],
-            witness=reply.witnesses[1],
-            n_interpolation=4,
-            limb_load=True,  # the arms' load bound (limb_load.py): no arm holds here, the same witness
-        ),
-        timeout_s=120,
+    transition = msg.TransitionRequest(
+        scene="chair_egress",
+        q_measured=measured,
+        from_set=reply.sets[0],
+        to_set=reply.sets[1],
+        witness=reply.witnesses[1],
+        n_interpolation=4,
+        limb_load=True,  # the arms' load bound (limb_load.py): no arm holds here, the same witness
     )
+    step = services.client.call(msg.TRANSITION, transition, timeout_s=120)
     np.testing.assert_allclose(step.q[0], measured, atol=1e-9)
     np.testing.assert_allclose(step.q[-1], step.witness, atol=1e-9)
     assert step.support_error_m == pytest.approx(0.02, abs=1e-3) and step.collision == ""
@@ -91,15 +89,7 @@ def test_a_one_removal_plan_with_its_motion_and_progress(services, q_seated):
     with pytest.raises(RequestTimeoutError, match=r"time budget of 0\.001 s ran out") as late:
         services.client.call(
             msg.TRANSITION,
-            msg.TransitionRequest(
-                scene="chair_egress",
-                q_measured=measured,
-                from_set=reply.sets[0],
-                to_set=reply.sets[1],
-                witness=reply.witnesses[1],
-                n_interpolation=4,
-                time_budget_s=1e-3,
-            ),
+            msgspec.structs.replace(transition, limb_load=False, time_budget_s=1e-3),
             timeout_s=60,
         )
     assert late.value.details["budget_s"] == 1e-3 and late.value.details["stage"]

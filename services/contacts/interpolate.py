@@ -39,7 +39,7 @@ import pinocchio as pin
 
 from services import budget
 from services.contacts.hold import hold_spots
-from services.contacts.posture import PostureConfig, PostureGenerator
+from services.contacts.posture import ARM_SPOTS, PostureConfig, PostureGenerator
 from services.contacts.sets import ContactSet, spot_surface_gap
 from services.contacts.timing import ZMP_SLOWDOWNS, interval_times, knots, time_segment, zmp_shift
 from services.errors import InfeasibleError, RequestTimeoutError
@@ -124,14 +124,19 @@ def moving_candidates(s1: ContactSet, s2: ContactSet, released: ContactSet) -> l
     return sorted({c.spot for c in s2 if c not in s1} | {c.spot for c in released})
 
 
+def _moving_spots(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2: np.ndarray) -> list[str]:
+    """The spots among ``spots`` that move more than 5 mm between q1 and q2, the one moving most first."""
+    moves = [
+        (float(np.linalg.norm(gen.spot_pose(q1, s).translation - gen.spot_pose(q2, s).translation)), s)
+        for s in spots
+    ]
+    return [s for d, s in sorted(moves, reverse=True) if d > 5e-3]
+
+
 def _moving_spot(gen: PostureGenerator, spots: Sequence[str], q1: np.ndarray, q2: np.ndarray) -> str | None:
     """The spot in (or about to be in) contact that moves most between q1 and q2 (> 5 mm), if any."""
-    best, best_d = None, 5e-3
-    for spot in spots:
-        d = float(np.linalg.norm(gen.spot_pose(q1, spot).translation - gen.spot_pose(q2, spot).translation))
-        if d > best_d:
-            best, best_d = spot, d
-    return best
+    moving = _moving_spots(gen, spots, q1, q2)
+    return moving[0] if moving else None
 
 
 def held_frames(
@@ -279,10 +284,17 @@ def transition(
         and np.linalg.norm(gen.spot_pose(q2, c.spot).translation - gen.contact_pose(c).translation) < 5e-3
     )
     stable = tuple(c for c in s1 if c in held) or held
-    frames = []
-    if moving is not None:
-        T1, T2 = gen.spot_pose(q1, moving), gen.spot_pose(q2, moving)
-        frames = spot_path(gen, T1, T2, config.n, config.lift_m, detour_m)
+    # the body moving most gets its path (bent by a detour if asked), and so does an arm's spot moving
+    # besides it: a hand released at the previous transition leaves the table while the other comes
+    # onto it, and unguided it went 2 cm into the table's underside. (A released thigh rises with the
+    # whole body: a path of its own changed the rise, and the rise fell.)
+    paths: dict[str, list[pin.SE3]] = {}
+    for spot in _moving_spots(gen, candidates, q1, q2):
+        if spot != moving and spot not in ARM_SPOTS:
+            continue
+        T1, T2 = gen.spot_pose(q1, spot), gen.spot_pose(q2, spot)
+        bend = detour_m if spot == moving else (0.0, 0.0)
+        paths[spot] = spot_path(gen, T1, T2, config.n, config.lift_m, bend)
     # the moving body may touch the surface it leaves during the first step and the one it enters
     # during the last (within the straight lines along the normal); elsewhere it must clear them
     leaving = [c.pair for c in pairs1.values() if c.spot == moving]
@@ -295,18 +307,17 @@ def transition(
     for i in range(1, config.n + 1):
         budget.check(f"the interpolation's posture {i} of {config.n}")
         q_ref = pin.interpolate(gen.model, q1, q2, min(1.0, lead * i / config.n))
-        extra = []
-        if moving is not None:
-            extra = [
-                FramePoseTask(
-                    gen.model,
-                    gen.spots[moving].frame_name,
-                    frames[i - 1],
-                    max_step=0.1,
-                    name=f"C_{i}:{moving}",
-                    mask=path_mask(moving),
-                )
-            ]
+        extra = [
+            FramePoseTask(
+                gen.model,
+                gen.spots[spot].frame_name,
+                frames[i - 1],
+                max_step=0.1,
+                name=f"C_{i}:{spot}",
+                mask=path_mask(spot),
+            )
+            for spot, frames in paths.items()
+        ]
         result = gen.generate(
             held,
             stable,
