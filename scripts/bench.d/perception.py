@@ -80,31 +80,20 @@ FOOTPRINT_SCENE = {
         },
     ],
 }
+
+
+def _placed(name: str, xy: tuple[float, float], yaw: float) -> dict:
+    """FOOTPRINT_SCENE's object ``name`` moved to ``xy`` [m] and ``yaw`` [rad] (world frame)."""
+    (obj,) = (o for o in FOOTPRINT_SCENE["objects"] if o["name"] == name)
+    return {**obj, "xy": list(xy), "yaw": yaw}
+
+
 #: The occluded case: the table with the chair 0.75 m in front of it (toward +y, where the robot is).
 OCCLUDED_SCENE = {
+    **FOOTPRINT_SCENE,
     "name": "footprint_occluded",
     "description": "the yellow table with the chair in front of it",
-    "robot": {"x": -6.0, "y": -6.0, "yaw": 0.0},
-    "floor": {"colour": "light_grey", "friction": 1.0},
-    "objects": [
-        {
-            "name": "yellow_table",
-            "kind": "table",
-            "size": [1.0, 0.6, 0.72],
-            "colour": "yellow",
-            "xy": [0.0, 0.0],
-            "yaw": 0.1,
-        },
-        {
-            "name": "chair",
-            "kind": "chair",
-            "size": [0.45, 0.45, 0.45],
-            "back_height": 0.45,
-            "colour": "brown",
-            "xy": [-0.35, 0.75],
-            "yaw": 2.0,
-        },
-    ],
+    "objects": [_placed("yellow_table", (0.0, 0.0), 0.1), _placed("chair", (-0.35, 0.75), 2.0)],
 }
 GOALS_CM = {"1.5": 1.0, "2.5": 3.0}
 GOAL_MS = 20.0
