@@ -132,7 +132,7 @@ def test_a_lowered_ball_touching_only_an_edge_is_moved_toward_it():
     """Fetch seed 5: the ball held 5 cm beyond the table's edge touched it on its side (70 deg off
     straight below its centre): the top lies toward the contact; a contact under the ball is a ball
     standing on the top (also with another contact on an edge beside it); no contact, no edge."""
-    from supervisor.manipulation import toward_edge
+    from supervisor.put import toward_edge
 
     centre = np.array([2.48, -2.28, 0.737])
     edge = np.array([2.467, -2.235, 0.72])  # 4.7 cm across, 1.7 cm below
@@ -150,7 +150,7 @@ def test_a_lowering_stopped_by_the_wrist_alone_is_a_collision_not_a_put():
     and just inside it; released, the ball rolled off. Only a contact of the held object says it stands
     on the place."""
     from services.bus.schemas.sim import Contact
-    from supervisor.manipulation import arm_only
+    from supervisor.put import arm_only
 
     wrist = Contact(
         robot_link="RARM_LINK5", other="yellow_table", position=[2.41, -2.44, 0.72], normal_force_n=5.0
