@@ -213,3 +213,47 @@ def test_the_table_half_behind_the_chair_is_mapped_where_it_is(models):
     assert fp is not None
     assert np.linalg.norm(np.subtract(fp.center_m, centre)) < 0.06
     assert abs(fp.size_m[0] - 1.0) < 0.1 and -0.05 < fp.size_m[1] - 0.6 < 0.12
+
+
+#: The robot's configuration when it looked at the table at the start of fetch seed 0's put (session 8):
+#: 1 m from the table's short side, the right hand carrying the ball in front of the chest.
+_PUT_LOOK_Q = [
+    3.174, -1.9761, 0.6575, 0.0047, 0.0023, 0.9866, -0.1631, -0.0, -0.0, 0.0211, 0.6471, 0.2556, 0.1718,
+    -0.0008, -0.525, -0.0001, -0.0001, -0.0, -0.0317, 0.1703, 0.2711, -1.4054, 0.0789, -0.55, 0.0301,
+    -0.0008, 0.0145, -0.4366, 0.7859, -0.3391, -0.0175, -0.0007, 0.0145, -0.4434, 0.7995, -0.3459, -0.0174,
+]  # fmt: skip
+
+
+def test_the_table_behind_the_robots_own_hand_is_mapped_where_it_is(models):
+    """Fetch seed 0's put: from 1 m, the gripper and the ball hide the table's near right leg; the
+    gripper's contour (not a learned colour) was taken as the table's edge and the table was mapped
+    1.47 m long, its centre 0.22 m toward the robot (the put then lowered the ball beside it). The
+    robot's own links, drawn from its model at q (services/perception/own_body.py), are an occluder."""
+    from services.perception.own_body import OwnBody
+    from sim.world import World
+
+    with World(ROBOT, "ball_fetch", seed=0) as w:
+        robot = w.robot
+        q = robot.check_q(np.asarray(_PUT_LOOK_Q, dtype=float))
+        w.pyrobot.reset(q)
+        w.set_object_pose(
+            "orange_ball",
+            robot.frame_pose(q, robot.frames.right_grasp).act(robot.held_object_offset("right", 0.05)),
+        )
+        left, right = (cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in w.render("wide", 640, 480))
+        stereo = head_stereo(robot, q, "wide", 640, 480)
+        table = w.layout.object("yellow_table")
+        own = OwnBody(robot)
+        masks = own.stereo_masks(q, stereo.rig.intrinsics, stereo.T_world_left_camera, stereo.rig.baseline_m)
+        seen = locate_object(models, "yellow_table", stereo, left, right)
+        fp = locate_object(models, "yellow_table", stereo, left, right, own_body=own, q=q).footprint
+    # the fixed finger (a box 13.5 cm down the wrist link, 7 cm aside) is drawn
+    palm = robot.frame_pose(q, "RARM_LINK5").act(np.array([0.0, 0.0725, -0.135]))
+    hand = stereo.rig.intrinsics.project(np.linalg.inv(stereo.T_world_left_camera)[:3] @ np.append(palm, 1.0))
+    u, v = (round(float(c)) for c in hand)
+    assert masks[0][v, u] and masks[0].mean() < 0.2 and masks[1].any()
+    assert seen.footprint is not None and seen.footprint.size_m[0] > 1.3  # the failure, without it
+    assert fp is not None
+    assert np.linalg.norm(np.subtract(fp.center_m, table.position[:2])) < 0.05
+    assert abs(fp.size_m[0] - 1.0) < 0.06 and abs(fp.size_m[1] - 0.6) < 0.05
+    assert abs(fp.top_z_m - table.top_z_m) < 0.05  # the gripper's contour put it at 1.08 m

@@ -105,6 +105,9 @@ class StereoFrame:
     right_bgr: np.ndarray
     rig: StereoRig
     T_world_left_camera: np.ndarray
+    #: Boolean (H, W) masks of the robot's own body in the left and right images (None: not known): it
+    #: hides what is behind it like another object (services/perception/own_body.py draws them).
+    own_body: tuple[np.ndarray, np.ndarray] | None = None
     hsv_left: np.ndarray = field(init=False)
     hsv_right: np.ndarray = field(init=False)
     _gray: tuple[np.ndarray, np.ndarray] | None = field(init=False, default=None)
@@ -119,6 +122,13 @@ class StereoFrame:
                 f"T_world_left_camera must be a 4x4 homogeneous transform, got {T.shape}"
             )
         self.T_world_left_camera = T
+        if self.own_body is not None:
+            shape = self.left_bgr.shape[:2]
+            if any(np.shape(m) != shape for m in self.own_body):
+                raise InvalidRequestError(
+                    f"own_body masks must be {shape[1]}x{shape[0]} like the images, got "
+                    f"{[np.shape(m) for m in self.own_body]}"
+                )
         self.hsv_left = to_hsv(self.left_bgr)
         self.hsv_right = to_hsv(self.right_bgr)
 
@@ -234,11 +244,11 @@ def _edges_point(
 
 
 def _occluder_mask(
-    hsv: np.ndarray, occluders: Sequence[ObjectModel], config: DetectionConfig
+    hsv: np.ndarray, occluders: Sequence[ObjectModel], config: DetectionConfig, own: np.ndarray | None
 ) -> np.ndarray | None:
-    """Boolean (H, W) mask of the pixels of the ``occluders``' colours (back projection >= threshold),
-    None without occluders."""
-    mask = None
+    """Boolean (H, W) mask of the pixels of the ``occluders``' colours (back projection >= threshold)
+    and of the robot's ``own`` body (its mask, or None), None without either."""
+    mask = None if own is None else np.asarray(own, dtype=bool)
     for other in occluders:
         seen = back_project(hsv, other) >= config.threshold
         mask = seen if mask is None else mask | seen
@@ -253,7 +263,7 @@ def locate_in_frame(
 ) -> ObjectLocation:
     """Localize ``model``'s object in a prepared :class:`StereoFrame` (NotFoundError when not found).
     ``occluders``: the other objects' models, whose pixels next to its outline hide it there (its
-    footprint leaves those edges out: vision.footprint)."""
+    footprint leaves those edges out: vision.footprint), as do the robot's own (``frame.own_body``)."""
     config = config or LocalizeConfig()
     det_cfg = config.detection
     bp_left = back_project(frame.hsv_left, model)
@@ -298,6 +308,7 @@ def locate_in_frame(
     cut = {"left", "right", "top"} & {*left.border_sides, *right.border_sides}
     if model.shape != "sphere" and not cut and z >= config.footprint_min_depth_m:
         others = [other for other in occluders if other.name != model.name]
+        own_left, own_right = frame.own_body if frame.own_body is not None else (None, None)
         points = outline_points(
             _silhouette(bp_left, left.window, det_cfg),
             left.window,
@@ -305,8 +316,8 @@ def locate_in_frame(
             right.window,
             rig,
             frame.T_world_left_camera,
-            _occluder_mask(frame.hsv_left, others, det_cfg),
-            _occluder_mask(frame.hsv_right, others, det_cfg),
+            _occluder_mask(frame.hsv_left, others, det_cfg, own_left),
+            _occluder_mask(frame.hsv_right, others, det_cfg, own_right),
         )
         floor_rectangle = footprint(points, p_world)
     return ObjectLocation(
@@ -332,6 +343,7 @@ def localize(
     config: LocalizeConfig | None = None,
     require_all: bool = True,
     occluders: Sequence[ObjectModel] = (),
+    own_body: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> list[ObjectLocation]:
     """Localize every model's object in a rectified stereo pair.
 
@@ -340,10 +352,11 @@ def localize(
     Returns one ObjectLocation per object found, in the order of ``models``. With ``require_all`` a
     missing object raises NotFoundError (``details["missing"]`` maps each missing name to its reason,
     ``details["found"]`` lists the names found); otherwise missing objects are left out.
-    ``occluders``: models of objects that may hide parts of them (:func:`locate_in_frame`).
+    ``occluders``: models of objects that may hide parts of them (:func:`locate_in_frame`);
+    ``own_body``: the robot's own pixels in the left and right images (:class:`StereoFrame`).
     """
     config = config or LocalizeConfig()
-    frame = StereoFrame(left_bgr, right_bgr, rig, T_world_left_camera)
+    frame = StereoFrame(left_bgr, right_bgr, rig, T_world_left_camera, own_body)
     found: list[ObjectLocation] = []
     missing: dict[str, str] = {}
     messages: list[str] = []
@@ -372,6 +385,9 @@ def locate(
     T_world_left_camera: np.ndarray,
     config: LocalizeConfig | None = None,
     occluders: Sequence[ObjectModel] = (),
+    own_body: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> ObjectLocation:
     """Localize one object (see :func:`localize`); NotFoundError saying why when it is not found."""
-    return localize([model], left_bgr, right_bgr, rig, T_world_left_camera, config, occluders=occluders)[0]
+    return localize(
+        [model], left_bgr, right_bgr, rig, T_world_left_camera, config, occluders=occluders, own_body=own_body
+    )[0]
