@@ -76,6 +76,26 @@ def test_a_sighting_without_footprint_keeps_the_last_one_where_it_still_fits():
     assert memory.get("yellow_table").footprint is None
 
 
+def test_a_footprint_more_hidden_than_the_one_it_disagrees_with_does_not_replace_it():
+    """At the put's start, from 1 m, the gripper and the ball hid part of the table's outline: the
+    rectangle fitted to the rest (1.47 m long, 0.2 m off) replaced the whole-outline one seen from
+    1.25 m, and the put missed (fetch seed 0, session 8). A disagreeing footprint is kept only if as
+    much of its outline was seen; one that agrees, or was seen better, replaces it."""
+    from msgspec import structs
+
+    from supervisor.memory import Memory
+
+    memory = Memory()
+    seen = structs.replace(_fp((2.0, 0.0), (1.0, 0.6), 0.0, 0.72, 550), n_hidden=5)
+    memory.remember(_sighting(seen))
+    partly = structs.replace(_fp((2.2, 0.05), (1.47, 0.6), 0.0, 0.72, 650), n_hidden=130)
+    assert memory.remember(_sighting(partly)).footprint == seen
+    agreeing = structs.replace(_fp((2.03, 0.0), (1.05, 0.6), 0.0, 0.72, 600), n_hidden=130)
+    assert memory.remember(_sighting(agreeing)).footprint == agreeing  # the same table, seen again
+    elsewhere = _fp((3.0, 1.0), (1.0, 0.6), 0.0, 0.72, 400)  # moved, seen whole
+    assert memory.remember(_sighting(elsewhere)).footprint == elsewhere
+
+
 def test_a_footprint_proved_wrong_is_not_inherited_again():
     """A put lowered the object inside the table's rectangle onto nothing: the rectangle is dropped, and
     the next sighting without a footprint (close up, cut by the border) maps the table from its own

@@ -94,10 +94,10 @@ def test_edges_next_to_another_objects_pixels_are_left_out():
     T = np.eye(4)
     every = outline_points(left, window, right, window, rig, T)
     hidden = outline_points(left, window, right, window, rig, T, chair_left, chair_right)
-    assert len(every) == 2 * 60
-    assert len(hidden) == 2 * 60 - 20 - 5
+    assert len(every.points) == 2 * 60 and every.n_hidden == 0
+    assert len(hidden.points) == 2 * 60 - 20 - 5 and hidden.n_hidden == 20 + 5
     depth = rig.intrinsics.fx * 0.144 / 20.0
-    assert np.allclose(hidden[:, 2], depth)  # the camera frame is the world here: z is the depth
+    assert np.allclose(hidden.points[:, 2], depth)  # the camera frame is the world here: z is the depth
 
 
 def test_the_top_is_the_highest_height_many_points_share_not_a_few_stray_ones():
@@ -257,3 +257,4 @@ def test_the_table_behind_the_robots_own_hand_is_mapped_where_it_is(models):
     assert np.linalg.norm(np.subtract(fp.center_m, table.position[:2])) < 0.05
     assert abs(fp.size_m[0] - 1.0) < 0.06 and abs(fp.size_m[1] - 0.6) < 0.05
     assert abs(fp.top_z_m - table.top_z_m) < 0.05  # the gripper's contour put it at 1.08 m
+    assert fp.n_hidden > seen.footprint.n_hidden  # the edges it left out (the ball's already), reported

@@ -62,13 +62,25 @@ OCCLUDER_GAP_PX = 2
 @dataclass(frozen=True)
 class Footprint:
     """A horizontal rectangle on the floor: centre (x, y) [m], size (along its yaw, across) [m], yaw [rad]
-    in (-pi/2, pi/2], its top ``top_z_m`` [m] (world; see ``TOP_BAND_M``), ``n_points`` used."""
+    in (-pi/2, pi/2], its top ``top_z_m`` [m] (world; see ``TOP_BAND_M``), ``n_points`` used,
+    ``n_hidden`` outline edges left out next to an occluder (:class:`Outline`): how much of its outline
+    was not seen."""
 
     center_m: tuple[float, float]
     size_m: tuple[float, float]
     yaw_rad: float
     top_z_m: float
     n_points: int
+    n_hidden: int = 0
+
+
+@dataclass(frozen=True)
+class Outline:
+    """The world points (n, 3) [m] of an object's matched outline edges, and ``n_hidden``: the edges
+    matched in both images but left out next to an occluder (another object, the robot's own body)."""
+
+    points: np.ndarray
+    n_hidden: int = 0
 
 
 def outline_points(
@@ -80,7 +92,7 @@ def outline_points(
     T_world_left_camera: np.ndarray,
     occluder_left: np.ndarray | None = None,
     occluder_right: np.ndarray | None = None,
-) -> np.ndarray:
+) -> Outline:
     """World points (n, 3) [m] of the silhouettes' matched left and right edges, row by row.
 
     An edge lies between its object pixel and the background pixel next to it (half a pixel outward);
@@ -94,10 +106,14 @@ def outline_points(
     last_col = rig.intrinsics.width - 1
     rows = sorted(left.keys() & right.keys())
 
+    hidden = 0
+
     def free(r: int, side: int) -> bool:  # no occluder just outside either image's edge on row r
-        return not (
-            _beside(occluder_left, r, left[r][side], side) or _beside(occluder_right, r, right[r][side], side)
-        )
+        nonlocal hidden
+        if _beside(occluder_left, r, left[r][side], side) or _beside(occluder_right, r, right[r][side], side):
+            hidden += 1
+            return False
+        return True
 
     sides = (  # (columns, disparities) of the left edges, then of the right edges
         (
@@ -122,12 +138,12 @@ def outline_points(
         v.extend(np.asarray(rows)[keep])
         d.extend(np.asarray(disparities, dtype=float)[keep])
     if not u:
-        return np.zeros((0, 3))
+        return Outline(np.zeros((0, 3)), hidden)
     k = rig.intrinsics
     u_px, v_px, d_px = (np.asarray(a, dtype=float) for a in (u, v, d))
     z = k.fx * rig.baseline_m / d_px
     p_camera = np.stack([(u_px - k.cx) * z / k.fx, (v_px - k.cy) * z / k.fy, z], axis=1)
-    return to_world(p_camera, T_world_left_camera)
+    return Outline(to_world(p_camera, T_world_left_camera), hidden)
 
 
 def _beside(occluder: np.ndarray | None, row: int, col: int, side: int) -> bool:
@@ -238,12 +254,13 @@ def _near(xy: np.ndarray, centre_xy: np.ndarray, max_extent_m: float) -> np.ndar
 
 
 def footprint(
-    points_world: np.ndarray, centre_world: np.ndarray, max_extent_m: float = 1.0
+    points_world: np.ndarray, centre_world: np.ndarray, max_extent_m: float = 1.0, n_hidden: int = 0
 ) -> Footprint | None:
     """The minimum-area rectangle of the points' horizontal projection (see the module docstring).
 
     points_world: (n, 3) [m]; centre_world: the object's located centre [m] (points farther than
-    ``max_extent_m`` from it horizontally are dropped, see :func:`_near`). None with fewer than
+    ``max_extent_m`` from it horizontally are dropped, see :func:`_near`); ``n_hidden``: the outline's
+    edges left out next to an occluder (:class:`Outline`), reported. None with fewer than
     :data:`MIN_POINTS` points.
     """
     p = np.asarray(points_world, dtype=float).reshape(-1, 3)
@@ -264,4 +281,5 @@ def footprint(
         float(yaw),
         _top(p[:, 2]),
         len(p),
+        int(n_hidden),
     )

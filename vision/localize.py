@@ -309,7 +309,7 @@ def locate_in_frame(
     if model.shape != "sphere" and not cut and z >= config.footprint_min_depth_m:
         others = [other for other in occluders if other.name != model.name]
         own_left, own_right = frame.own_body if frame.own_body is not None else (None, None)
-        points = outline_points(
+        outline = outline_points(
             _silhouette(bp_left, left.window, det_cfg),
             left.window,
             _silhouette(bp_right, right.window, det_cfg),
@@ -319,7 +319,7 @@ def locate_in_frame(
             _occluder_mask(frame.hsv_left, others, det_cfg, own_left),
             _occluder_mask(frame.hsv_right, others, det_cfg, own_right),
         )
-        floor_rectangle = footprint(points, p_world)
+        floor_rectangle = footprint(outline.points, p_world, n_hidden=outline.n_hidden)
     return ObjectLocation(
         model.name,
         tuple(float(v) for v in p_world),

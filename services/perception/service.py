@@ -93,7 +93,12 @@ def to_reply(loc: ObjectLocation, head: HeadStereo, rendered: bool, sim_time_s: 
 
 def _footprint(fp: Footprint) -> msg.FootprintMsg:
     return msg.FootprintMsg(
-        center=list(fp.center_m), size=list(fp.size_m), yaw=fp.yaw_rad, top_z=fp.top_z_m, n_points=fp.n_points
+        center=list(fp.center_m),
+        size=list(fp.size_m),
+        yaw=fp.yaw_rad,
+        top_z=fp.top_z_m,
+        n_points=fp.n_points,
+        n_hidden=fp.n_hidden,
     )
 
 
