@@ -258,3 +258,26 @@ def test_the_table_behind_the_robots_own_hand_is_mapped_where_it_is(models):
     assert abs(fp.size_m[0] - 1.0) < 0.06 and abs(fp.size_m[1] - 0.6) < 0.05
     assert abs(fp.top_z_m - table.top_z_m) < 0.05  # the gripper's contour put it at 1.08 m
     assert fp.n_hidden > seen.footprint.n_hidden  # the edges it left out (the ball's already), reported
+
+
+def test_a_table_cut_by_the_side_border_in_both_images_is_matched_by_its_edges(models):
+    """Fetch seed 63: 0.85 m from the table, cut by the right and bottom borders of both images, the
+    held ball in front of it: the centroids of the two cut silhouettes were 8.5 px apart (below the
+    10 px of the farthest depth) though their left edges were 80 px apart: `not_in_right_view`. A pair
+    cut by a side border is matched by its edges' disparity."""
+    from vision.localize import LocalizeConfig, locate
+
+    rig = StereoRig(CameraIntrinsics.from_hfov(640, 480, math.radians(60.0)), 0.144)
+    grey, yellow, orange = (201, 206, 206), (0, 233, 255), (0, 118, 255)
+    left = np.full((480, 640, 3), grey, np.uint8)
+    right = left.copy()
+    left[170:, 280:] = yellow  # its near edge 80 px apart: 1.0 m away
+    right[170:, 200:] = yellow
+    cv2.circle(left, (560, 420), 150, orange, -1)  # the ball in front: 150 px of disparity
+    cv2.circle(right, (410, 420), 150, orange, -1)
+    centroids = [np.argwhere(np.all(im == yellow, axis=2))[:, 1].mean() for im in (left, right)]
+    assert centroids[0] - centroids[1] < 9.0  # the centroids alone refuse the match
+    T = np.eye(4)
+    found = locate(models["yellow_table"], left, right, rig, T, LocalizeConfig(), [models["orange_ball"]])
+    assert found.method == "edges" and found.disparity_px == pytest.approx(80.0, abs=1.5)
+    assert found.footprint is None  # cut: no rectangle
