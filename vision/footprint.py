@@ -51,7 +51,12 @@ MIN_SIDE_POINTS = 5
 AREA_SLACK = 0.1
 #: The top is the highest height [m] with at least ``TOP_SUPPORT_FRACTION`` of the points (and
 #: ``MIN_POINTS``) within ``TOP_BAND_M`` below it: edges mismatched behind an occluder (an arm in front
-#: of the table in one image) triangulate nearer, hence higher, but few of them at any one height.
+#: of the table in one image) triangulate nearer, hence higher, but few of them at any one height. A
+#: thin tall part has no such height (a chair's back seen from its side: its edge's points spread over
+#: 0.45 m, and the seat's rows gave the top, 0.5 m instead of 0.9 m; the arms, above 0.53 m, were not
+#: kept clear of it and the walk brushed it, fetch seed 64): the top is also at least the highest point
+#: of every unbroken run of ``CONSISTENCY_WINDOW_ROWS`` rows on one side (a contour seen whole; a
+#: mismatched run that long is not kept by :func:`_consistent`).
 TOP_BAND_M = 0.03
 TOP_SUPPORT_FRACTION = 0.03
 #: An edge whose outside neighbour within this many pixels belongs to an occluder is dropped (the
@@ -77,10 +82,13 @@ class Footprint:
 @dataclass(frozen=True)
 class Outline:
     """The world points (n, 3) [m] of an object's matched outline edges, and ``n_hidden``: the edges
-    matched in both images but left out next to an occluder (another object, the robot's own body)."""
+    matched in both images but left out next to an occluder (another object, the robot's own body);
+    ``runs``: the indices into ``points`` of each unbroken run of at least ``CONSISTENCY_WINDOW_ROWS``
+    consecutive rows kept on one side (a contour seen whole: a leg, a vertical edge, a chair's back)."""
 
     points: np.ndarray
     n_hidden: int = 0
+    runs: tuple[np.ndarray, ...] = ()
 
 
 def outline_points(
@@ -132,8 +140,10 @@ def outline_points(
         ),
     )
     u, v, d = [], [], []
+    runs = []
     for columns, disparities in sides:
         keep = _consistent(np.asarray(disparities, dtype=float))
+        runs += [len(u) + run for run in _runs(np.asarray(rows)[keep], CONSISTENCY_WINDOW_ROWS)]
         u.extend(np.asarray(columns)[keep])
         v.extend(np.asarray(rows)[keep])
         d.extend(np.asarray(disparities, dtype=float)[keep])
@@ -143,7 +153,16 @@ def outline_points(
     u_px, v_px, d_px = (np.asarray(a, dtype=float) for a in (u, v, d))
     z = k.fx * rig.baseline_m / d_px
     p_camera = np.stack([(u_px - k.cx) * z / k.fx, (v_px - k.cy) * z / k.fy, z], axis=1)
-    return Outline(to_world(p_camera, T_world_left_camera), hidden)
+    return Outline(to_world(p_camera, T_world_left_camera), hidden, tuple(runs))
+
+
+def _runs(rows: np.ndarray, min_rows: int) -> list[np.ndarray]:
+    """Index arrays of the runs of consecutive values in the sorted ``rows`` [px] at least ``min_rows``
+    long."""
+    if len(rows) == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(rows) != 1) + 1
+    return [run for run in np.split(np.arange(len(rows)), breaks) if len(run) >= min_rows]
 
 
 def _beside(occluder: np.ndarray | None, row: int, col: int, side: int) -> bool:
@@ -254,17 +273,24 @@ def _near(xy: np.ndarray, centre_xy: np.ndarray, max_extent_m: float) -> np.ndar
 
 
 def footprint(
-    points_world: np.ndarray, centre_world: np.ndarray, max_extent_m: float = 1.0, n_hidden: int = 0
+    points_world: np.ndarray,
+    centre_world: np.ndarray,
+    max_extent_m: float = 1.0,
+    n_hidden: int = 0,
+    runs: tuple[np.ndarray, ...] = (),
 ) -> Footprint | None:
     """The minimum-area rectangle of the points' horizontal projection (see the module docstring).
 
     points_world: (n, 3) [m]; centre_world: the object's located centre [m] (points farther than
     ``max_extent_m`` from it horizontally are dropped, see :func:`_near`); ``n_hidden``: the outline's
-    edges left out next to an occluder (:class:`Outline`), reported. None with fewer than
-    :data:`MIN_POINTS` points.
+    edges left out next to an occluder (:class:`Outline`), reported; ``runs``: the outline's unbroken
+    runs (:class:`Outline`), whose highest points bound the top from below (:func:`_top`). None with
+    fewer than :data:`MIN_POINTS` points.
     """
     p = np.asarray(points_world, dtype=float).reshape(-1, 3)
-    p = p[_near(p[:, :2], np.asarray(centre_world, dtype=float)[:2], max_extent_m) & (p[:, 2] > -0.05)]
+    kept = _near(p[:, :2], np.asarray(centre_world, dtype=float)[:2], max_extent_m) & (p[:, 2] > -0.05)
+    run_top = max((float(p[run, 2].max()) for run in runs if kept[run].all()), default=-np.inf)
+    p = p[kept]
     if len(p) < MIN_POINTS:
         return None
     try:
@@ -279,7 +305,7 @@ def footprint(
         (float(cx), float(cy)),
         (float(w), float(h)),
         float(yaw),
-        _top(p[:, 2]),
+        max(_top(p[:, 2]), run_top),
         len(p),
         int(n_hidden),
     )

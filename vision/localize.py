@@ -341,7 +341,7 @@ def locate_in_frame(
             _occluder_mask(frame.hsv_left, others, det_cfg, own_left),
             _occluder_mask(frame.hsv_right, others, det_cfg, own_right),
         )
-        floor_rectangle = footprint(outline.points, p_world, n_hidden=outline.n_hidden)
+        floor_rectangle = footprint(outline.points, p_world, n_hidden=outline.n_hidden, runs=outline.runs)
     return ObjectLocation(
         model.name,
         tuple(float(v) for v in p_world),
