@@ -68,6 +68,36 @@ def test_sides_move_to_the_median_of_their_points_not_to_the_outermost():
     assert _yaw_error(fp.yaw_rad, yaw, math.pi) < math.radians(6.0)
 
 
+def test_a_footprint_with_a_hidden_end_is_grown_to_the_known_size_from_its_seen_end():
+    """A 1.0 x 0.6 m table whose left 0.3 m are hidden behind a chair: its outline points stop 0.3 m
+    short on that end. With the table's known floor size the rectangle keeps its seen end (more points)
+    and grows on the hidden one; a footprint longer than known, or without a known size, is as fitted."""
+    rng = np.random.default_rng(5)
+    centre, length, width = np.array([2.0, -1.0]), 1.0, 0.6
+    t = rng.uniform(-0.2, 0.5, (2, 80))  # the long sides, from 0.3 m in from the hidden end
+    u = rng.uniform(-0.5, 0.5, 40)  # the seen short side
+    xy = (
+        np.vstack(
+            [
+                np.column_stack([t[0] * length, np.full(80, width / 2)]),
+                np.column_stack([t[1] * length, np.full(80, -width / 2)]),
+                np.column_stack([np.full(40, length / 2), u * width]),
+                np.column_stack([np.full(5, -0.2), rng.uniform(-0.3, 0.3, 5)]),  # the chair's side, a few
+            ]
+        )
+        + centre
+    )
+    points = np.column_stack([xy, np.full(len(xy), 0.72)])
+    short = footprint(points, np.array([*centre, 0.4]))
+    grown = footprint(points, np.array([*centre, 0.4]), known_size_m=(0.6, 1.0))
+    assert short is not None and grown is not None
+    assert short.size_m[0] == pytest.approx(0.7, abs=0.03)
+    assert grown.size_m[0] == pytest.approx(1.0, abs=0.01) and grown.size_m[1] == pytest.approx(0.6, abs=0.02)
+    assert np.linalg.norm(np.subtract(grown.center_m, centre)) < 0.02
+    longer = footprint(points, np.array([*centre, 0.4]), known_size_m=(0.5, 0.3))
+    assert longer is not None and longer.size_m == pytest.approx(short.size_m)
+
+
 def test_a_run_of_rows_occluded_in_one_image_is_dropped_and_border_edges_never_kept():
     disparity = np.full(80, 30.0) + np.linspace(0.0, 4.0, 80)  # a slanted edge: slowly varying
     disparity[30:40] += 6.0  # a ball in front of the edge in one image only

@@ -59,6 +59,10 @@ AREA_SLACK = 0.1
 #: mismatched run that long is not kept by :func:`_consistent`).
 TOP_BAND_M = 0.03
 TOP_SUPPORT_FRACTION = 0.03
+#: A rectangle shorter than the object's known floor size by more than this [m] is grown to it
+#: (:func:`_to_known_size`), from the side with ``ANCHOR_RATIO`` times the points of the other.
+KNOWN_SIZE_TOLERANCE_M = 0.08
+ANCHOR_RATIO = 2.0
 #: An edge whose outside neighbour within this many pixels belongs to an occluder is dropped (the
 #: silhouettes are closed morphologically and anti-aliased: a pixel or two lies between them).
 OCCLUDER_GAP_PX = 2
@@ -223,9 +227,10 @@ def _rectangle(xy: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]
 
 def _median_sides(
     xy: np.ndarray, centre: tuple[float, float], size: tuple[float, float], yaw: float
-) -> tuple[tuple[float, float], tuple[float, float]]:
+) -> tuple[tuple[float, float], tuple[float, float], tuple[int, int, int, int]]:
     """The rectangle (centre, size along yaw and across) with each side moved to the median of the
-    points nearest to it (at least :data:`MIN_SIDE_POINTS` of them, else the side stays).
+    points nearest to it (at least :data:`MIN_SIDE_POINTS` of them, else the side stays), and the
+    number of points nearest to each side (low and high along the yaw, low and high across).
 
     The outline points of a side scatter about it in depth: each matched edge has a whole-pixel
     disparity, off by up to a pixel (20 cm at 4 m with the wide pair). The minimum-area rectangle wraps
@@ -242,10 +247,54 @@ def _median_sides(
         )
     )
     nearest = np.argmin(to_side, axis=1)
+    n = [int(np.count_nonzero(nearest == side)) for side in range(4)]
+    counts = (n[0], n[1], n[2], n[3])
     for side, (axis, bound) in enumerate(((0, lo), (0, hi), (1, lo), (1, hi))):
         on_side = nearest == side
-        if np.count_nonzero(on_side) >= MIN_SIDE_POINTS:
+        if counts[side] >= MIN_SIDE_POINTS:
             bound[axis] = np.median(local[on_side, axis])
+    middle = R @ (0.5 * (lo + hi)) + np.asarray(centre)
+    return (float(middle[0]), float(middle[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1])), counts
+
+
+def _to_known_size(
+    centre: tuple[float, float],
+    size: tuple[float, float],
+    yaw: float,
+    counts: tuple[int, int, int, int],
+    known: tuple[float, float],
+    camera_xy: np.ndarray | None,
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The rectangle grown to the object's ``known`` floor size [m] where it came out shorter by more
+    than :data:`KNOWN_SIZE_TOLERANCE_M` (part of its outline hidden: by another object in front of
+    one end, by itself behind what is seen): the better-seen side of that axis stays (the one with
+    :data:`ANCHOR_RATIO` times the points of the other, else the one nearer ``camera_xy``, else both
+    move apart evenly) and the other moves out. A side longer than known is left as fitted (the
+    extra points may be the object's as well as another's: nothing says which side to cut)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    R = np.array([[c, -s], [s, c]])
+    along_longer = size[0] >= size[1]
+    big, small = max(known), min(known)
+    target = (big, small) if along_longer else (small, big)
+    lo, hi = -0.5 * np.asarray(size, dtype=float), 0.5 * np.asarray(size, dtype=float)
+    camera = None if camera_xy is None else (np.asarray(camera_xy, dtype=float) - np.asarray(centre)) @ R
+    for axis in (0, 1):
+        grow = target[axis] - (hi[axis] - lo[axis])
+        if grow <= KNOWN_SIZE_TOLERANCE_M:
+            continue
+        n_lo, n_hi = counts[2 * axis], counts[2 * axis + 1]
+        if n_lo >= ANCHOR_RATIO * max(n_hi, 1):
+            hi[axis] += grow
+        elif n_hi >= ANCHOR_RATIO * max(n_lo, 1):
+            lo[axis] -= grow
+        elif camera is not None and abs(camera[axis]) > 1e-6:
+            if camera[axis] < 0.0:  # the low side faces the camera: the high side was hidden
+                hi[axis] += grow
+            else:
+                lo[axis] -= grow
+        else:
+            lo[axis] -= 0.5 * grow
+            hi[axis] += 0.5 * grow
     middle = R @ (0.5 * (lo + hi)) + np.asarray(centre)
     return (float(middle[0]), float(middle[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1]))
 
@@ -278,14 +327,18 @@ def footprint(
     max_extent_m: float = 1.0,
     n_hidden: int = 0,
     runs: tuple[np.ndarray, ...] = (),
+    known_size_m: tuple[float, float] | None = None,
+    camera_xy: np.ndarray | None = None,
 ) -> Footprint | None:
     """The minimum-area rectangle of the points' horizontal projection (see the module docstring).
 
     points_world: (n, 3) [m]; centre_world: the object's located centre [m] (points farther than
     ``max_extent_m`` from it horizontally are dropped, see :func:`_near`); ``n_hidden``: the outline's
     edges left out next to an occluder (:class:`Outline`), reported; ``runs``: the outline's unbroken
-    runs (:class:`Outline`), whose highest points bound the top from below (:func:`_top`). None with
-    fewer than :data:`MIN_POINTS` points.
+    runs (:class:`Outline`), whose highest points bound the top from below (:func:`_top`);
+    ``known_size_m``: the object's floor rectangle [m] when known (its model's catalogue): a rectangle
+    shorter is grown to it (:func:`_to_known_size`, ``camera_xy`` [m] the camera that saw it). None
+    with fewer than :data:`MIN_POINTS` points.
     """
     p = np.asarray(points_world, dtype=float).reshape(-1, 3)
     kept = _near(p[:, :2], np.asarray(centre_world, dtype=float)[:2], max_extent_m) & (p[:, 2] > -0.05)
@@ -297,7 +350,9 @@ def footprint(
         centre, size, yaw = _rectangle(p[:, :2])
     except ValueError:
         return None
-    (cx, cy), (w, h) = _median_sides(p[:, :2], centre, size, yaw)
+    (cx, cy), (w, h), counts = _median_sides(p[:, :2], centre, size, yaw)
+    if known_size_m is not None:
+        (cx, cy), (w, h) = _to_known_size((cx, cy), (w, h), yaw, counts, known_size_m, camera_xy)
     if w < h:  # the first side along the yaw is the longer one
         w, h, yaw = h, w, yaw + math.pi / 2.0
     yaw = (yaw + math.pi / 2.0) % math.pi - math.pi / 2.0  # a rectangle's yaw is defined modulo pi

@@ -341,7 +341,14 @@ def locate_in_frame(
             _occluder_mask(frame.hsv_left, others, det_cfg, own_left),
             _occluder_mask(frame.hsv_right, others, det_cfg, own_right),
         )
-        floor_rectangle = footprint(outline.points, p_world, n_hidden=outline.n_hidden, runs=outline.runs)
+        floor_rectangle = footprint(
+            outline.points,
+            p_world,
+            n_hidden=outline.n_hidden,
+            runs=outline.runs,
+            known_size_m=model.floor_size_m,
+            camera_xy=frame.T_world_left_camera[:2, 3],
+        )
     return ObjectLocation(
         model.name,
         tuple(float(v) for v in p_world),
