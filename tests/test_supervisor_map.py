@@ -59,6 +59,22 @@ def test_a_ray_enters_a_yawed_box_at_its_face():
     assert ray_entry(box, np.array([0.0, 0.0]), np.array([-1.0, 0.0])) == math.inf  # behind the origin
 
 
+def test_making_room_steps_away_from_the_object_not_always_straight_back():
+    """Straight back from an object ahead; sideways from one beside the robot (fetch seed 18: straight
+    back, the left hand beside the chair touched it); straight back from inside one."""
+    from supervisor.locomotion import away_from
+    from supervisor.scene_map import BoxEstimate
+
+    box = BoxEstimate("chair", (0.0, 0.0, 0.45), (0.45, 0.45, 0.9), 0.0)
+    ahead = away_from(box, -0.6, 0.0, 0.0)  # facing +x, the box 0.6 m ahead
+    assert ahead == pytest.approx((-1.0, 0.0), abs=0.05)
+    beside = away_from(box, 0.0, -0.6, 0.0)  # the box on the robot's left
+    assert beside == pytest.approx((0.0, -1.0), abs=0.05)
+    turned = away_from(box, 0.0, -0.6, math.pi / 2)  # the same place, facing +y: the box ahead
+    assert turned == pytest.approx((-1.0, 0.0), abs=0.05)
+    assert away_from(box, 0.05, 0.0, 1.0) == (-1.0, 0.0)  # inside
+
+
 def test_a_sighting_without_footprint_keeps_the_last_one_where_it_still_fits():
     from dataclasses import replace
 
