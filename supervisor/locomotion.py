@@ -21,8 +21,24 @@ from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import Plan, Planners
 from supervisor.report import ActionReport
-from supervisor.scene_map import box_estimate, boxes, distance_to_box, is_obstacle
+from supervisor.scene_map import BoxEstimate, box_estimate, boxes, distance_to_box, is_obstacle
 from supervisor.script import Step, parse_point
+
+
+def away_from(box: BoxEstimate, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float]:
+    """The unit direction (forward, left) in the robot's frame at (x, y, yaw) [m, rad] (its mid-feet
+    frame) away from ``box``'s floor rectangle: from its point nearest the robot to the robot (an
+    object straight ahead: straight back, the usual step before turning away from it; one beside the
+    robot: sideways); straight back when the robot stands inside it."""
+    rect = box.footprint
+    away = np.array([x_m, y_m]) - rect.nearest_point((x_m, y_m))
+    norm = float(np.linalg.norm(away))
+    if norm < 1e-6:
+        return -1.0, 0.0
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    forward = (c * away[0] + s * away[1]) / norm
+    left = (-s * away[0] + c * away[1]) / norm
+    return forward, left
 
 
 class LocomotionActions:
@@ -82,23 +98,33 @@ class LocomotionActions:
         raise AssertionError("unreachable")
 
     def _make_room(self, what: str) -> None:
-        """Step back when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
+        """Step away when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
         would sweep the arms into it, and a car-like path needs room to turn at its start (a start
-        inside an obstacle's margin is navigation's to leave: it computes the way out)."""
-        x, y, _yaw = self.body.base_xy_yaw()
-        near = [(distance_to_box(box, x, y), box.name) for box in boxes(self.memory)]
+        inside an obstacle's margin is navigation's to leave: it computes the way out). Away from the
+        object's map box (:func:`away_from`: straight back when it is ahead; a table or chair beside
+        the robot, the step goes sideways too: straight back the hand beside the chair touched it,
+        fetch seed 18), else, when walking refuses that, straight back."""
+        x, y, yaw = self.body.base_xy_yaw()
+        near = [(distance_to_box(box, x, y), box.name, box) for box in boxes(self.memory)]
         if not near:
             return
-        distance, name = min(near)
+        distance, name, box = min(near, key=lambda item: item[0])
         if distance >= self.config.clearance_m:
             return
         back = min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m)
+        forward, left = away_from(box, x, y, yaw)
         try:
-            plan = self.planners.step_back(back)
-        except InfeasibleError as exc:  # something behind too: the planner that follows decides
-            self.progress(f"{what}: no step back from {name}: {exc.message}")
-            return
-        self.progress(f"{what}: stepping back {back:.2f} m from {name} ({plan.describe()})")
+            plan = self.planners.walk(back * forward, back * left, 0.0)
+        except InfeasibleError as exc:
+            self.progress(f"{what}: no step away from {name}: {exc.message}; straight back")
+            try:
+                plan = self.planners.step_back(back)
+            except InfeasibleError as exc:  # something behind too: the planner that follows decides
+                self.progress(f"{what}: no step back from {name}: {exc.message}")
+                return
+            forward, left = -1.0, 0.0
+        direction = f"{math.degrees(math.atan2(left, forward)):+.0f} deg from ahead"
+        self.progress(f"{what}: stepping {back:.2f} m away from {name}, {direction} ({plan.describe()})")
         self.body.execute(plan.q, what=f"step back from {name}", progress=self.progress)
 
     def _approach(self, name: str) -> None:
