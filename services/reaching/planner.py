@@ -376,7 +376,35 @@ class ReachPlanner:
         )
         s = minimum_jerk(frame["times_s"], 0.0, duration)
         hand, rot, gaze = self._references(req, frame, s, frame["body_yaw_rad"])
-        return MotionSpec(hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=duration, **frame)
+        posture = None
+        if req.q_posture is not None:
+            # The requested final posture reached with the hand (its joints; the base follows the feet),
+            # and its CoM: the footstep plan kept it inside this support polygon (paper 000 eq. 11),
+            # reached slowly (ZMP reference on the CoM, corrected by the second preview stage).
+            posture = req.q_start[None, :] + s[:, None] * (req.q_posture - req.q_start)[None, :]
+            com_end = self._com_on_these_feet(req.q_posture, left, right)
+            com_xy = frame["com_xy_m"][0] + s[:, None] * (com_end - frame["com_xy_m"][0])[None, :]
+            frame = {**frame, "com_xy_m": com_xy, "zmp_planned_m": com_xy, "zmp_reference_m": com_xy}
+        return MotionSpec(
+            hand_ref_m=hand,
+            hand_rot=rot,
+            gaze_ref_m=gaze,
+            reach_end_s=duration,
+            posture_ref=posture,
+            **frame,
+        )
+
+    def _com_on_these_feet(self, q: np.ndarray, left: SolePose, right: SolePose) -> np.ndarray:
+        """The horizontal CoM [m] (world) of configuration ``q`` placed on the soles ``left``/``right``:
+        its CoM relative to its own mid-feet frame, carried to theirs (a planned posture's stance and
+        the one the robot stands in differ by the walk's few millimetres)."""
+        robot, data = self.robot, self.robot.new_data()
+        x0, y0, yaw0 = mid_pose(*(sole_pose_at(robot, q, side, data) for side in ("left", "right")))
+        x1, y1, yaw1 = mid_pose(left, right)
+        com = robot.com(q)[:2] - (x0, y0)
+        turn = yaw1 - yaw0
+        c, s = math.cos(turn), math.sin(turn)
+        return np.array([x1 + c * com[0] - s * com[1], y1 + s * com[0] + c * com[1]])
 
     def _stepping_spec(self, req: ReachRequest, pattern: WalkPattern) -> MotionSpec:
         frame = pattern_frame(pattern)
