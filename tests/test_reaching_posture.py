@@ -37,7 +37,7 @@ def test_the_motion_ends_in_the_requested_posture(robot, other_posture):
     apart = np.abs(own.q[-1][joints] - other_posture[joints]).max()
     off = np.abs(asked.q[-1][joints] - other_posture[joints]).max()
     assert apart > 0.1  # the two IKs end in different postures ...
-    assert off < 0.2 * apart  # ... and asked for it, reaching ends in the other one
+    assert off < 0.02  # ... and asked for it, reaching ends in the other one [rad]
     assert asked.hand_error_m < 1e-3  # the hand task above it still met
     assert not asked.stepped
     com_asked, com_wanted = robot.com(asked.q[-1])[:2], robot.com(other_posture)[:2]

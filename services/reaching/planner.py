@@ -44,6 +44,7 @@ from services.reaching.envelope import ReachEnvelope, measure_envelope
 from services.reaching.monitors import MonitorSeries, Violation
 from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
 from services.reaching.options import CRITERIA, ReachingOptions
+from services.reaching.posture import blended_postures, posture_references
 from services.reaching.references import body_frame_path, body_frame_rotations, minimum_jerk
 from services.reaching.request import ReachRequest
 from services.reaching.result import Attempt, ReachResult
@@ -365,6 +366,9 @@ class ReachPlanner:
         if req.R_world_hand is not None:
             turn = float(np.linalg.norm(pin.log3(T_hand0.rotation.T @ req.R_world_hand)))
         duration = self._reach_duration(float(np.linalg.norm(req.target_world_m - hand0)), turn)
+        if req.q_posture is not None:  # the joints' travel to the posture, at the hand's turning speed
+            travel = float(np.abs(req.q_posture[7:] - req.q_start[7:]).max())
+            duration = max(duration, self._reach_duration(0.0, travel))
         n = round((duration + self.options.final_hold_s) / DT_S) + 1
         frame = standing_frame(
             n,
@@ -378,12 +382,17 @@ class ReachPlanner:
         hand, rot, gaze = self._references(req, frame, s, frame["body_yaw_rad"])
         posture = None
         if req.q_posture is not None:
-            # The requested final posture reached with the hand (its joints; the base follows the feet),
-            # and its CoM: the footstep plan kept it inside this support polygon (paper 000 eq. 11),
-            # reached slowly (ZMP reference on the CoM, corrected by the second preview stage).
-            posture = req.q_start[None, :] + s[:, None] * (req.q_posture - req.q_start)[None, :]
-            com_end = self._com_on_these_feet(req.q_posture, left, right)
-            com_xy = frame["com_xy_m"][0] + s[:, None] * (com_end - frame["com_xy_m"][0])[None, :]
+            # The requested final posture reached with the hand: its joints (the hand's references along
+            # the same blend: :mod:`services.reaching.posture`) and its CoM, which the footstep plan
+            # kept inside this support polygon (paper 000 eq. 11), reached slowly (ZMP reference on
+            # the CoM, corrected by the second preview stage).
+            posture = blended_postures(req.q_start, req.q_posture, s)
+            hand, rot, com_xy = posture_references(
+                robot, req.hand, posture, s, req.q_start, req.target_world_m, req.R_world_hand
+            )
+            # The footstep plan's posture has its own gaze task on the object (paper 000 §4): the blend
+            # carries the head there; a second gaze task above the posture drove the arm off it.
+            gaze = None
             frame = {**frame, "com_xy_m": com_xy, "zmp_planned_m": com_xy, "zmp_reference_m": com_xy}
         return MotionSpec(
             hand_ref_m=hand,
@@ -393,18 +402,6 @@ class ReachPlanner:
             posture_ref=posture,
             **frame,
         )
-
-    def _com_on_these_feet(self, q: np.ndarray, left: SolePose, right: SolePose) -> np.ndarray:
-        """The horizontal CoM [m] (world) of configuration ``q`` placed on the soles ``left``/``right``:
-        its CoM relative to its own mid-feet frame, carried to theirs (a planned posture's stance and
-        the one the robot stands in differ by the walk's few millimetres)."""
-        robot, data = self.robot, self.robot.new_data()
-        x0, y0, yaw0 = mid_pose(*(sole_pose_at(robot, q, side, data) for side in ("left", "right")))
-        x1, y1, yaw1 = mid_pose(left, right)
-        com = robot.com(q)[:2] - (x0, y0)
-        turn = yaw1 - yaw0
-        c, s = math.cos(turn), math.sin(turn)
-        return np.array([x1 + c * com[0] - s * com[1], y1 + s * com[0] + c * com[1]])
 
     def _stepping_spec(self, req: ReachRequest, pattern: WalkPattern) -> MotionSpec:
         frame = pattern_frame(pattern)

@@ -29,9 +29,10 @@ class ReachRequest:
         gaze: keep the gaze on the target (task iv).
         allow_stepping: the support polygon may be reshaped by stepping.
         q_posture: optional (nq,) final whole-body posture to go to on the way (a footstep plan's final
-            posture for this stance, paper 000 §7): a task below the paper's four, used in the motion
-            on the current support polygon only (a reshaping step changes the stance it was planned
-            for); its joints within their limits.
+            posture for this stance, paper 000 §7), its joints within their limits: the hand's, CoM's
+            and joints' references follow the joints' interpolation to it
+            (:mod:`services.reaching.posture`; its own gaze replaces the gaze task), in the motion on
+            the current support polygon only (a reshaping step changes the stance it was planned for).
     """
 
     hand: str
