@@ -35,6 +35,7 @@ def posture_references(
     q_start: np.ndarray,
     target_m: np.ndarray,
     R_target: np.ndarray | None,
+    clear_m: float = 0.03,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """The hand's and the CoM's references along ``postures`` (n, nq): where each puts the grasp frame
     of ``hand`` and the CoM relative to its left sole, carried to the left sole of ``q_start`` (world:
@@ -55,6 +56,13 @@ def posture_references(
         points[k], rotations[k] = T.translation, T.rotation
         com[k] = to_world.act(robot.com(postures[k], data))[:2]
     points += s[:, None] * (np.asarray(target_m, dtype=float) - points[-1])[None, :]
+    # Not lower than the straight line from the hand to the target on the way (the target is above the
+    # object: the blend's hand dipped 5 cm below it and the wrist touched the ball, fetch seed 6): the
+    # path raised by an arc over the whole motion, its height the largest dip plus ``clear_m``.
+    line = points[0, 2] + s * (points[-1, 2] - points[0, 2])
+    dip = float(np.max(line - points[:, 2]))
+    if dip > 0.0:
+        points[:, 2] += (dip + clear_m) * np.sin(np.pi * s)
     if R_target is None:
         return points, None, com
     log_end = pin.log3(rotations[-1].T @ np.asarray(R_target, dtype=float))
