@@ -388,11 +388,13 @@ class ManipulationActions:
 
         The jaws' line is what keeps them clear of the ``near`` points, so the hand turned by half a
         turn is as clear (:func:`jaws_clear_of`); either hand is tried, ``jaws`` first. A stance is
-        kept when reaching, from its final posture (the hand above the object, as the lift leaves it),
-        brings the hand to the carry point without stepping (:meth:`_carry_refused`): on fetch seed 6
-        the stance for the jaws at -46 deg put the ball 57 deg to the right of the heading, the arm
-        stretched sideways and the wrist turned, and the carry after the grasp was refused there
-        (manipulability 5.4e-5, then a wrist joint at its limit); the hand at 134 deg is carried."""
+        kept when what follows the grasp can be planned from its final posture (the hand above the
+        object, as the lift leaves it: :meth:`_what_follows_refused`): on fetch seed 6 the stance for
+        the jaws at -46 deg put the ball 57 deg to the right of the heading, the arm stretched
+        sideways and the wrist turned, and the carry after the grasp was refused there
+        (manipulability 5.4e-5, then a wrist joint at its limit); the hand at 134 deg was carried,
+        but from that posture (the waist rolled 22 deg) no walk could start (the step back before
+        the turn: an arm joint at ~100 rad/s)."""
         if not self.config.last_steps:
             return None, jaws
         felt = ", ".join(f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near)
@@ -413,9 +415,9 @@ class ManipulationActions:
             except (InfeasibleError, RequestTimeoutError) as exc:
                 self.progress(f"{what}: footsteps/plan found no steps ({exc.message})")
                 continue
-            refused = self._carry_refused(hand, decided.q_final)
+            refused = self._what_follows_refused(hand, decided.q_final)
             if refused is not None:
-                self.progress(f"{what}: {decided.found}; not taken: no carry from there ({refused})")
+                self.progress(f"{what}: {decided.found}; not taken: {refused}")
                 continue
             if decided.walk is None:
                 self.progress(f"{what}: {decided.found}: no step needed")
@@ -425,10 +427,13 @@ class ManipulationActions:
             return decided, yaw
         return None, jaws
 
-    def _carry_refused(self, hand: str, q_final: np.ndarray) -> str | None:
-        """Why reaching refuses to bring the ``hand`` from footsteps/plan's final posture ``q_final`` to
-        the carry point of that stance without stepping (what the grasp does after the lift:
-        ``_lift_and_carry``), or None when it plans it. A dry run: nothing is executed."""
+    def _what_follows_refused(self, hand: str, q_final: np.ndarray) -> str | None:
+        """Why what follows a grasp from footsteps/plan's final posture ``q_final`` cannot be planned, or
+        None when it can (dry runs: nothing is executed): reaching brings the ``hand`` to the carry
+        point of that stance without stepping (what the grasp does after the lift:
+        ``_lift_and_carry``), and, from that posture with the chest straightened (as before every
+        walk), ``walking/goal`` steps back ``jaws_step_back_m`` (the turn that follows steps back from
+        the object's support first)."""
         x, y, yaw = self.body.base_xy_yaw()
         carry = self._carry_point(hand)  # in front of the chest at the stance now ...
         c, s = math.cos(yaw), math.sin(yaw)
@@ -440,7 +445,17 @@ class ManipulationActions:
         try:
             self.planners.reach(hand, there, allow_stepping=False, q_start=q_final)
         except InfeasibleError as exc:
-            return exc.message
+            return f"no carry from there ({exc.message})"
+        robot = self.body.robot
+        straight = np.array(q_final, dtype=float)
+        for joint in robot.info.chest_joints:
+            straight[robot.index(joint)] = robot.q_half_sitting[robot.index(joint)]
+        back = self.config.jaws_step_back_m
+        try:
+            step_back = walk_msg.GoalRequest(q_start=straight, kind="pose", pose=[-back, 0.0, 0.0])
+            self.planners.walk_goal(step_back)
+        except InfeasibleError as exc:
+            return f"no step back from there ({exc.message})"
         return None
 
     def _where_it_was_aimed(self, target: str) -> None:
