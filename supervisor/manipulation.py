@@ -327,8 +327,8 @@ class ManipulationActions:
         # The jaws' posture: its stance was planned for it, the hand's lag on the way is no reason to
         # refuse it (reaching's 4e-5 m is the paper's trigger for stepping; 0.2 mm refused it on seed 37)
         lag = self.config.jaws_lag_m if jaws_quat is not None else None
-        # ... and the whole final posture planned with it when it was planned above the object (the jaws)
-        posture = decided.q_final if decided is not None and final is not None and jaws_quat else None
+        # ... and the whole final posture planned with it (reaching executes it: paper 000 §7)
+        posture = decided.q_final if decided is not None and final is not None else None
         steps = self._as_planned(
             hand, above, f"reach above {target}", [], final, target, lag_m=lag, posture=posture
         )
