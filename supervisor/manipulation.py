@@ -596,8 +596,8 @@ class ManipulationActions:
         when ``quat`` is None or reaching refuses it (the caller then reaches position only, stepping
         if it must: the object moved). ``lag_m``: the hand's lag behind its reference reaching accepts
         [m] (None: its default). ``posture``: footsteps/plan's whole final posture (nq,), which reaching
-        then goes to with the hand (its joints and CoM, below the hand and gaze tasks) rather than to
-        one its own IK finds (without it the planned hand was refused: the multibody ZMP 374-1609 mm
+        then goes to with the hand (its joints, CoM and hand path; its gaze replaces reaching's) rather
+        than to one its own IK finds (without it the planned hand was refused: the multibody ZMP 374-1609 mm
         out of the support polygon; with it the motion ends in the posture the footstep IK checked)."""
         if quat is None:
             return None
