@@ -101,7 +101,10 @@ class SupervisorConfig:
             where it was aimed; jaws_lag_m: reaching then accepts the hand this far [m] behind its
             reference on the way to that planned posture (its default, the paper's 4e-5 m, is a
             trigger for stepping; the hand 0.24 mm behind refused it on seed 37); from that stance
-            reaching does not step (seed 6: 8 steps into the box). felt_obstacle_radius_m: the felt
+            reaching does not step (seed 6: 8 steps into the box). Of that hand and the hand turned
+            half a turn round (the jaws' line is the same), the first stance from whose final
+            posture reaching carries the object and walking steps back jaws_step_back_m [m] is kept
+            (dry runs; none: as without it). felt_obstacle_radius_m: the felt
             points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
             that the arm (forearm, upper arm) keeps out of, with the object itself.
     Perception and remedies:
@@ -152,6 +155,7 @@ class SupervisorConfig:
     jaws_step_region_scale: float = 0.8
     relocalized_jump_m: float = 0.05
     jaws_lag_m: float = 0.001
+    jaws_step_back_m: float = 0.15
     felt_obstacle_radius_m: float = 0.03
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1

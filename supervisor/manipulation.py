@@ -255,22 +255,9 @@ class ManipulationActions:
         jaws_quat = None
         decided = None
         if jaws is not None and self.config.jaws_planned:
-            jaws_quat = Rotation.from_euler("z", jaws).as_quat().tolist()
-            point = self._grasp_point(hand, target, jaws)
-            # planned above it: the posture reaching goes to first; the lowering keeps its orientation
-            over = point + np.array([0.0, 0.0, self.config.approach_m])
-            felt = ", ".join(
-                f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near
-            )
-            decided = self._last_steps(
-                hand,
-                over,
-                point,
-                f"step up to {target}, the jaws at {math.degrees(jaws):.0f} deg (felt at {felt} deg from it)",
-                hand_obstacles=keep_out,
-                orientation=jaws_quat,
-                step_region_scale=self.config.jaws_step_region_scale,
-            )
+            decided, jaws = self._jaws_stance(hand, target, centre, near, jaws, keep_out)
+            if decided is not None:
+                jaws_quat = Rotation.from_euler("z", jaws).as_quat().tolist()
         if decided is None:
             # Planned without it (none found with it): walked around what the hand felt ahead of the
             # fingers first.
@@ -314,7 +301,11 @@ class ManipulationActions:
         # The jaws' posture: its stance was planned for it, the hand's lag on the way is no reason to
         # refuse it (reaching's 4e-5 m is the paper's trigger for stepping; 0.2 mm refused it on seed 37)
         lag = self.config.jaws_lag_m if jaws_quat is not None else None
-        steps = self._as_planned(hand, above, f"reach above {target}", [], final, target, lag_m=lag)
+        # ... and the whole final posture planned with it (reaching executes it: paper 000 §7)
+        posture = decided.q_final if decided is not None and final is not None else None
+        steps = self._as_planned(
+            hand, above, f"reach above {target}", [], final, target, lag_m=lag, posture=posture
+        )
         if steps is None and jaws is not None:
             steps = self._fingers_down(hand, above, f"reach above {target}", jaws)
         if steps is None:
@@ -354,6 +345,92 @@ class ManipulationActions:
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
+
+    def _jaws_stance(
+        self,
+        hand: str,
+        target: str,
+        centre: np.ndarray,
+        near: list[np.ndarray],
+        jaws: float,
+        keep_out: list[tuple[np.ndarray, float]],
+    ) -> tuple[LastSteps | None, float]:
+        """The stance for the fingers-down hand above ``target`` at the jaws' yaw ``jaws`` [rad] (world),
+        planned by footsteps/plan with that hand as a task (paper 000 §4: the tasks decide where the feet
+        go), checked for what follows the grasp, and walked: (what it decided, the yaw it was planned
+        for), or (None, ``jaws``) when no stance passed (the caller approaches as without it).
+
+        The jaws' line is what keeps them clear of the ``near`` points, so the hand turned by half a
+        turn is as clear (:func:`jaws_clear_of`); either hand is tried, ``jaws`` first. A stance is
+        kept when what follows the grasp can be planned from its final posture (the hand above the
+        object, as the lift leaves it: :meth:`_what_follows_refused`): on fetch seed 6 the stance for
+        the jaws at -46 deg put the ball 57 deg to the right of the heading, the arm stretched
+        sideways and the wrist turned, and the carry after the grasp was refused there
+        (manipulability 5.4e-5, then a wrist joint at its limit); the hand at 134 deg was carried,
+        but from that posture (the waist rolled 22 deg) no walk could start (the step back before
+        the turn: an arm joint at ~100 rad/s)."""
+        if not self.config.last_steps:
+            return None, jaws
+        felt = ", ".join(f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near)
+        # Upright first: the walk is planned from the posture it starts in (as in ``_last_steps``).
+        self.body.straighten()
+        for yaw in (jaws, math.remainder(jaws + math.pi, math.tau)):
+            quat = Rotation.from_euler("z", yaw).as_quat().tolist()
+            point = self._grasp_point(hand, target, yaw)
+            # planned above it: the posture reaching goes to first; the lowering keeps its orientation
+            over = point + np.array([0.0, 0.0, self.config.approach_m])
+            what = (
+                f"step up to {target}, the jaws at {math.degrees(yaw):.0f} deg (felt at {felt} deg from it)"
+            )
+            try:
+                decided = self.planners.last_steps(
+                    hand, over, point, keep_out, quat, self.config.jaws_step_region_scale
+                )
+            except (InfeasibleError, RequestTimeoutError) as exc:
+                self.progress(f"{what}: footsteps/plan found no steps ({exc.message})")
+                continue
+            refused = self._what_follows_refused(hand, decided.q_final)
+            if refused is not None:
+                self.progress(f"{what}: {decided.found}; not taken: {refused}")
+                continue
+            if decided.walk is None:
+                self.progress(f"{what}: {decided.found}: no step needed")
+            else:
+                self.progress(f"{what}: {decided.found}; {decided.walk.describe()}")
+                self.body.execute(decided.walk.q, what=what, progress=self.progress)
+            return decided, yaw
+        return None, jaws
+
+    def _what_follows_refused(self, hand: str, q_final: np.ndarray) -> str | None:
+        """Why what follows a grasp from footsteps/plan's final posture ``q_final`` cannot be planned, or
+        None when it can (dry runs: nothing is executed): reaching brings the ``hand`` to the carry
+        point of that stance without stepping (what the grasp does after the lift:
+        ``_lift_and_carry``), and, from that posture with the chest straightened (as before every
+        walk), ``walking/goal`` steps back ``jaws_step_back_m`` (the turn that follows steps back from
+        the object's support first)."""
+        x, y, yaw = self.body.base_xy_yaw()
+        carry = self._carry_point(hand)  # in front of the chest at the stance now ...
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = carry[0] - x, carry[1] - y
+        ahead, left = c * dx + s * dy, -s * dx + c * dy
+        fx, fy, fyaw = self.body.robot.mid_feet_pose(q_final)  # ... moved to the planned stance
+        c, s = math.cos(fyaw), math.sin(fyaw)
+        there = np.array([fx + c * ahead - s * left, fy + s * ahead + c * left, carry[2]])
+        try:
+            self.planners.reach(hand, there, allow_stepping=False, q_start=q_final)
+        except InfeasibleError as exc:
+            return f"no carry from there ({exc.message})"
+        robot = self.body.robot
+        straight = np.array(q_final, dtype=float)
+        for joint in robot.info.chest_joints:
+            straight[robot.index(joint)] = robot.q_half_sitting[robot.index(joint)]
+        back = self.config.jaws_step_back_m
+        try:
+            step_back = walk_msg.GoalRequest(q_start=straight, kind="pose", pose=[-back, 0.0, 0.0])
+            self.planners.walk_goal(step_back)
+        except InfeasibleError as exc:
+            return f"no step back from there ({exc.message})"
+        return None
 
     def _where_it_was_aimed(self, target: str) -> None:
         """Before choosing the jaws' yaw from what the hand felt beside ``target``: when the sighting of
@@ -484,6 +561,7 @@ class ManipulationActions:
         quat: list[float] | None,
         target: str,
         lag_m: float | None = None,
+        posture: np.ndarray | None = None,
     ) -> int | None:
         """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
         stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
@@ -491,12 +569,20 @@ class ManipulationActions:
         its manipulability trigger fires on the way, paper 001 Fig. 4). The steps taken (0), or None
         when ``quat`` is None or reaching refuses it (the caller then reaches position only, stepping
         if it must: the object moved). ``lag_m``: the hand's lag behind its reference reaching accepts
-        [m] (None: its default)."""
+        [m] (None: its default). ``posture``: footsteps/plan's whole final posture (nq,), which reaching
+        then goes to with the hand (its joints, CoM and hand path; its gaze replaces reaching's) rather
+        than to one its own IK finds (without it the planned hand was refused: the multibody ZMP 374-1609 mm
+        out of the support polygon; with it the motion ends in the posture the footstep IK checked)."""
         if quat is None:
             return None
         try:
             plan = self.planners.reach(
-                hand, point, orientation=quat, allow_stepping=False, ee_error_threshold_m=lag_m
+                hand,
+                point,
+                orientation=quat,
+                allow_stepping=False,
+                ee_error_threshold_m=lag_m,
+                posture=posture,
             )
         except InfeasibleError as exc:
             self.progress(f"{what}: the hand as in footsteps/plan's final posture refused ({exc.message})")

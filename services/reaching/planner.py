@@ -44,6 +44,7 @@ from services.reaching.envelope import ReachEnvelope, measure_envelope
 from services.reaching.monitors import MonitorSeries, Violation
 from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
 from services.reaching.options import CRITERIA, ReachingOptions
+from services.reaching.posture import blended_postures, posture_references
 from services.reaching.references import body_frame_path, body_frame_rotations, minimum_jerk
 from services.reaching.request import ReachRequest
 from services.reaching.result import Attempt, ReachResult
@@ -365,6 +366,9 @@ class ReachPlanner:
         if req.R_world_hand is not None:
             turn = float(np.linalg.norm(pin.log3(T_hand0.rotation.T @ req.R_world_hand)))
         duration = self._reach_duration(float(np.linalg.norm(req.target_world_m - hand0)), turn)
+        if req.q_posture is not None:  # the joints' travel to the posture, at the hand's turning speed
+            travel = float(np.abs(req.q_posture[7:] - req.q_start[7:]).max())
+            duration = max(duration, self._reach_duration(0.0, travel))
         n = round((duration + self.options.final_hold_s) / DT_S) + 1
         frame = standing_frame(
             n,
@@ -376,7 +380,28 @@ class ReachPlanner:
         )
         s = minimum_jerk(frame["times_s"], 0.0, duration)
         hand, rot, gaze = self._references(req, frame, s, frame["body_yaw_rad"])
-        return MotionSpec(hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=duration, **frame)
+        posture = None
+        if req.q_posture is not None:
+            # The requested final posture reached with the hand: its joints (the hand's references along
+            # the same blend: :mod:`services.reaching.posture`) and its CoM, which the footstep plan
+            # kept inside this support polygon (paper 000 eq. 11), reached slowly (ZMP reference on
+            # the CoM, corrected by the second preview stage).
+            posture = blended_postures(req.q_start, req.q_posture, s)
+            hand, rot, com_xy = posture_references(
+                robot, req.hand, posture, s, req.q_start, req.target_world_m, req.R_world_hand
+            )
+            # The footstep plan's posture has its own gaze task on the object (paper 000 §4): the blend
+            # carries the head there; a second gaze task above the posture drove the arm off it.
+            gaze = None
+            frame = {**frame, "com_xy_m": com_xy, "zmp_planned_m": com_xy, "zmp_reference_m": com_xy}
+        return MotionSpec(
+            hand_ref_m=hand,
+            hand_rot=rot,
+            gaze_ref_m=gaze,
+            reach_end_s=duration,
+            posture_ref=posture,
+            **frame,
+        )
 
     def _stepping_spec(self, req: ReachRequest, pattern: WalkPattern) -> MotionSpec:
         frame = pattern_frame(pattern)

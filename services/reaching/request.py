@@ -28,6 +28,11 @@ class ReachRequest:
             only (the paper's experiment).
         gaze: keep the gaze on the target (task iv).
         allow_stepping: the support polygon may be reshaped by stepping.
+        q_posture: optional (nq,) final whole-body posture to go to on the way (a footstep plan's final
+            posture for this stance, paper 000 §7), its joints within their limits: the hand's, CoM's
+            and joints' references follow the joints' interpolation to it
+            (:mod:`services.reaching.posture`; its own gaze replaces the gaze task), in the motion on
+            the current support polygon only (a reshaping step changes the stance it was planned for).
     """
 
     hand: str
@@ -36,6 +41,7 @@ class ReachRequest:
     R_world_hand: np.ndarray | None = None
     gaze: bool = True
     allow_stepping: bool = True
+    q_posture: np.ndarray | None = field(default=None, repr=False)
 
     def validated(self, robot: Any) -> ReachRequest:
         """A copy with arrays checked and converted; InvalidRequestError naming the field otherwise."""
@@ -53,6 +59,23 @@ class ReachRequest:
                 raise InvalidRequestError("orientation must be a 3x3 rotation matrix")
             if np.abs(rotation @ rotation.T - np.eye(3)).max() > 1e-6 or np.linalg.det(rotation) < 0:
                 raise InvalidRequestError("orientation is not a rotation matrix (R R^T != I or det < 0)")
+        posture = None
+        if self.q_posture is not None:
+            posture = np.asarray(self.q_posture, dtype=float).reshape(-1)
+            if posture.shape != q.shape or not np.all(np.isfinite(posture)):
+                raise InvalidRequestError(
+                    f"posture must be {q.shape[0]} finite numbers (a configuration of {robot.name}), "
+                    f"got {posture.size}"
+                )
+            joints = slice(7, None)  # the free flyer's 7 coordinates first
+            lower, upper = np.asarray(robot.q_lower)[joints], np.asarray(robot.q_upper)[joints]
+            outside = np.flatnonzero((posture[joints] < lower - 1e-6) | (posture[joints] > upper + 1e-6))
+            if outside.size:
+                name = robot.joint_names[int(outside[0])]
+                raise InvalidRequestError(
+                    f"posture: joint {name} at {posture[7 + outside[0]]:.3f} rad is outside its limits "
+                    f"[{lower[outside[0]]:.3f}, {upper[outside[0]]:.3f}] rad"
+                )
         data = robot.new_data()
         for side in ("left", "right"):
             T = robot.sole_pose(q, side, data)
@@ -64,7 +87,9 @@ class ReachRequest:
                     f"and {MAX_SOLE_TILT_RAD} rad); "
                     "plan from the robot's measured standing configuration"
                 )
-        return ReachRequest(self.hand, target, q.copy(), rotation, bool(self.gaze), bool(self.allow_stepping))
+        return ReachRequest(
+            self.hand, target, q.copy(), rotation, bool(self.gaze), bool(self.allow_stepping), posture
+        )
 
 
 def quaternion_to_matrix(quaternion_xyzw: Any) -> np.ndarray:

@@ -116,6 +116,7 @@ class ReachingService(Service):
                     R_world_hand=rotation,
                     gaze=request.gaze,
                     allow_stepping=request.allow_stepping,
+                    q_posture=None if request.posture is None else np.asarray(request.posture, dtype=float),
                 )
             )
         return to_reply(result, list(self.robot.joint_names))

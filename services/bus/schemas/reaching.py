@@ -52,6 +52,10 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     # None: the robot's (the paper's 4e-5 m, a trigger for support polygon reshaping). A motion whose
     # stance a footstep plan chose (no stepping) may allow the hand a larger lag on its way.
     ee_error_threshold_m: Margin | None = None
+    # (nq,) float64 final whole-body posture to go to with the hand (a footstep plan's final posture
+    # for the stance the robot stands in, paper 000 §7), a task below the paper's four, in the motion
+    # without stepping; None: none (the robot's own IK decides). Joints within their limits.
+    posture: np.ndarray | None = None
     # wall-clock planning budget [s] (<= 60); None: the service's time_budget_s. Past it: ``timeout``
     # with the stage reached and the attempts made (``details.stage``, ``attempts``).
     time_budget_s: Budget | None = None
