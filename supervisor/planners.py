@@ -246,11 +246,13 @@ class Planners:
         gaze: bool = True,
         orientation: list[float] | None = None,
         ee_error_threshold_m: float | None = None,
+        timing: dict[str, float] | None = None,
     ) -> Plan:
         """``reaching/reach``: the ``hand`` grasp frame to ``target_m`` [m], from above: the grasp frame
         upright (fingers down, jaws closing sideways) turned by ``yaw_rad`` (None: position only), or
         at ``orientation`` ([qx, qy, qz, qw] in the world) when given; ``ee_error_threshold_m``: the
-        lag of the hand behind its reference [m] reaching accepts (None: its default)."""
+        lag of the hand behind its reference [m] reaching accepts (None: its default); ``timing``: the
+        request's timing fields (``SupervisorConfig.arm_timing``; None or empty: reaching's default)."""
         if orientation is None and yaw_rad is not None:
             orientation = [0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)]
         q = self.body.plan_q()
@@ -262,6 +264,7 @@ class Planners:
             gaze=gaze,
             allow_stepping=allow_stepping,
             ee_error_threshold_m=ee_error_threshold_m,
+            **(timing or {}),
         )
         reply = self.bus.call(reach_msg.REACH, request, self.config.plan_timeout_s)
         return Plan(
