@@ -16,7 +16,8 @@ completed; the smallest planned multibody ZMP margin; the fastest knee (LEG_JOIN
 plan over its 4.0 rad/s limit; the walk's duration. JSON lines to ``--out`` as it goes (resumable
 reading), a table at the end.
 
-Usage: .venv/bin/python scripts/walk_timing_study.py [--n 12] [--settings 0.7/0.2,0.7/0.1,...] [--out F]
+Usage: .venv/bin/python scripts/walk_timing_study.py [--n 12] [--start I] [--settings 0.7/0.2,0.7/0.1,...]
+[--out F] [--summarize]
 """
 
 from __future__ import annotations
@@ -187,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=12, help="walks (goto, turn, back in turn)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--start", type=int, default=0, help="first walk index (resume a run)")
     parser.add_argument("--settings", default="0.7/0.2,0.7/0.1,0.6/0.2,0.6/0.1", help="ss/ds pairs [s]")
     parser.add_argument("--out", default="/tmp/walk_timing_study.jsonl")
     parser.add_argument("--summarize", action="store_true", help="only print the table of --out")
@@ -195,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.summarize:
         settings = [tuple(float(v) for v in s.split("/")) for s in args.settings.split(",")]
         with out.open("a") as f:
-            for index, kind, carrying, values in walks(args.n, args.seed):
+            for index, kind, carrying, values in walks(args.n, args.seed)[args.start :]:
                 for setting in settings:
                     row = run_one(index, kind, carrying, values, setting)  # type: ignore[arg-type]
                     f.write(json.dumps(row) + "\n")
