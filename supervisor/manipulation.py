@@ -112,13 +112,20 @@ class ManipulationActions:
         upright: bool = False,
         orientation: list[float] | None = None,
         lag_m: float | None = None,
+        motion: str | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
         reaching refuses that (or ``config.upright_hand`` is off); ``orientation``: the grasp frame at
         that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
         posture, or fingers down), position only when reaching refuses it; else position only.
-        ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m]."""
+        ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m].
+        ``motion``: an unguarded motion's kind (``config.arm_timing``: fast if configured so), position
+        only; None: reaching's default timing."""
+        if motion is not None:
+            timing = self.config.arm_timing(motion)
+            plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping, timing=timing)
+            return self._play(plan, what, allowed)
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
                 plan = self.planners.reach(
@@ -208,7 +215,7 @@ class ManipulationActions:
         ahead = float(np.dot(here[:2] - (x, y), forward[:2]))
         point = here + forward * max(0.0, self.config.raise_ahead_m - ahead)
         point[2] = height_m
-        self._move_hand(hand, point, what, allowed=allowed, stepping=False, yaw_rad=yaw)
+        self._move_hand(hand, point, what, allowed=allowed, stepping=False, yaw_rad=yaw, motion="raise")
 
     def _grasp_point(self, hand: str, target: str, yaw_rad: float) -> np.ndarray:
         """Where the grasp frame goes for ``target``: its centre (perception), moved so that the object
@@ -694,16 +701,24 @@ class ManipulationActions:
         c, s = math.cos(yaw), math.sin(yaw)
         return np.array([x + c * forward - s * lateral, y + s * forward + c * lateral, height])
 
-    def _lift_and_carry(self, hand: str, allowed: list[str], what: str) -> None:
-        """Raise the hand by ``lift_m``, then bring it to the carry point (no stepping)."""
+    def _lift_and_carry(self, hand: str, allowed: list[str], what: str, *, withdraw: bool = False) -> None:
+        """Raise the hand by ``lift_m``, then bring it to the carry point (no stepping); timed as the
+        config's "lift" and "carry" motions, or both as "withdraw" (the emptied hand after a put)."""
         q = self.body.q()
         robot = self.body.robot
         here = robot.grasp_position(q, hand)
         yaw = self._heading()
         up = here + np.array([0.0, 0.0, self.config.lift_m])
-        self._move_hand(hand, up, f"{what}: lift", allowed=allowed, stepping=False, yaw_rad=yaw)
+        lift, carry = ("withdraw", "withdraw") if withdraw else ("lift", "carry")
+        self._move_hand(hand, up, f"{what}: lift", allowed=allowed, stepping=False, yaw_rad=yaw, motion=lift)
         self._move_hand(
-            hand, self._carry_point(hand), f"{what}: carry", allowed=allowed, stepping=False, yaw_rad=yaw
+            hand,
+            self._carry_point(hand),
+            f"{what}: carry",
+            allowed=allowed,
+            stepping=False,
+            yaw_rad=yaw,
+            motion=carry,
         )
 
     def do_grasp(self, step: Step) -> ActionReport:

@@ -248,13 +248,16 @@ class Planners:
         ee_error_threshold_m: float | None = None,
         q_start: np.ndarray | None = None,
         posture: np.ndarray | None = None,
+        timing: dict[str, float] | None = None,
     ) -> Plan:
         """``reaching/reach``: the ``hand`` grasp frame to ``target_m`` [m], from above: the grasp frame
         upright (fingers down, jaws closing sideways) turned by ``yaw_rad`` (None: position only), or
         at ``orientation`` ([qx, qy, qz, qw] in the world) when given; ``ee_error_threshold_m``: the
         lag of the hand behind its reference [m] reaching accepts (None: its default); ``q_start``: the
         configuration to plan from, standing (None: the robot's now); ``posture``: the whole-body posture
-        (nq,) the motion goes to with the hand (footsteps/plan's final posture), None: reaching's own."""
+        (nq,) the motion goes to with the hand (footsteps/plan's final posture), None: reaching's own;
+        ``timing``: the request's timing fields (``SupervisorConfig.arm_timing``; None or empty:
+        reaching's default)."""
         if orientation is None and yaw_rad is not None:
             orientation = [0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)]
         q = self.body.plan_q() if q_start is None else q_start
@@ -267,6 +270,7 @@ class Planners:
             allow_stepping=allow_stepping,
             ee_error_threshold_m=ee_error_threshold_m,
             posture=None if posture is None else np.ascontiguousarray(posture, dtype=float),
+            **(timing or {}),
         )
         reply = self.bus.call(reach_msg.REACH, request, self.config.plan_timeout_s)
         return Plan(

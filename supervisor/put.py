@@ -130,9 +130,23 @@ class PutActions:
             # Measured: the place's map rectangle holds a point with nothing under it.
             self.memory.drop_footprint(place)
             missed = point
-            self._move_hand(hand, point, f"raise {obj} again", allowed=allowed, stepping=False, yaw_rad=yaw)
+            self._move_hand(
+                hand,
+                point,
+                f"raise {obj} again",
+                allowed=allowed,
+                stepping=False,
+                yaw_rad=yaw,
+                motion="raise",
+            )
             self._move_hand(  # carried again for the next last steps
-                hand, self._carry_point(hand), f"carry {obj}", allowed=allowed, stepping=False, yaw_rad=yaw
+                hand,
+                self._carry_point(hand),
+                f"carry {obj}",
+                allowed=allowed,
+                stepping=False,
+                yaw_rad=yaw,
+                motion="carry",
             )
             if self._view_again(place, point):
                 missed = None  # mapped anew from a whole view: the put point comes from that rectangle
@@ -147,7 +161,7 @@ class PutActions:
         self.progress(f"released {obj} on {place}: withdrawing the {hand} hand")
         note = ""
         try:
-            self._lift_and_carry(hand, [place, obj], f"withdraw from {place}")
+            self._lift_and_carry(hand, [place, obj], f"withdraw from {place}", withdraw=True)
         except WorldOutcomeError as exc:  # the object is on the place: the put is done, the withdrawal is not
             note = f" (withdrawing the hand stopped: {exc.message})"
             touched = [c.other for c in exc.details.get("collisions", [])]
