@@ -85,14 +85,10 @@ class LocomotionActions:
         """Step back when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
         would sweep the arms into it, and a car-like path needs room to turn at its start (a start
         inside an obstacle's margin is navigation's to leave: it computes the way out)."""
-        x, y, _yaw = self.body.base_xy_yaw()
-        near = [(distance_to_box(box, x, y), box.name) for box in boxes(self.memory)]
-        if not near:
+        room = self._room_needed()
+        if room is None:
             return
-        distance, name = min(near)
-        if distance >= self.config.clearance_m:
-            return
-        back = min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m)
+        back, name = room
         try:
             plan = self.planners.step_back(back)
         except InfeasibleError as exc:  # something behind too: the planner that follows decides
@@ -100,6 +96,19 @@ class LocomotionActions:
             return
         self.progress(f"{what}: stepping back {back:.2f} m from {name} ({plan.describe()})")
         self.body.execute(plan.q, what=f"step back from {name}", progress=self.progress)
+
+    def _room_needed(self) -> tuple[float, str] | None:
+        """How far [m] to step back, and from which object, for the objects seen to be at least
+        ``clearance_m`` from the robot's mid-feet point (at most ``max_step_back_m``); None when they
+        are."""
+        x, y, _yaw = self.body.base_xy_yaw()
+        near = [(distance_to_box(box, x, y), box.name) for box in boxes(self.memory)]
+        if not near:
+            return None
+        distance, name = min(near)
+        if distance >= self.config.clearance_m:
+            return None
+        return min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m), name
 
     def _approach(self, name: str) -> None:
         """Far objects are seen roughly (a table 3 m away: its silhouette is a thin top on thin legs):
@@ -184,7 +193,20 @@ class LocomotionActions:
         if abs(angle_rad) < math.radians(2.0):
             return 0
         self.body.straighten()
-        self._make_room(f"room to {what}")
+        room = self._room_needed()
+        if room is not None:
+            # Stepping back for room and the turn: one walk of the walking planner (one start, one stop),
+            # checked against the map where each part is (the turn's room where it starts).
+            back, name = room
+            try:
+                plan = self.planners.turn(angle_rad, back_m=back)
+            except InfeasibleError as exc:
+                self.progress(f"{what}: no step back {back:.2f} m from {name} and turn ({exc.message})")
+            else:
+                self.progress(f"{what}, stepping back {back:.2f} m from {name} first: {plan.describe()}")
+                self.body.execute(plan.q, what=what, progress=self.progress)
+                return plan.n_steps
+            self._make_room(f"room to {what}")
         plan = self.planners.turn(angle_rad)
         self.progress(f"{what}: {plan.describe()}")
         self.body.execute(plan.q, what=what, progress=self.progress)
