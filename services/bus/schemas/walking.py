@@ -91,10 +91,10 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     single_support_s: Phase = 0.7
     double_support_s: Phase = 0.3  # between two steps (0.1 is fragile in the sim: see the README)
     initial_double_support_s: Phase = 0.8  # first weight transfer onto the first stance foot
-    final_double_support_s: Phase = 0.7  # last weight transfer back between the feet
+    final_double_support_s: Phase = 0.5  # last weight transfer back between the feet
     initial_hold_s: Phase = 0.6  # standing still before the first transfer (preview lead-in)
     stop_at_end: bool = True  # stand still final_hold_s at the end (else end with the last transfer)
-    final_hold_s: Phase = 0.4
+    final_hold_s: Phase = 0.2  # (the pattern comes to rest over the last transfer and this hold)
     # pattern options
     # swing apex [m]; None: the robot's parameter
     step_height_m: Annotated[float, Meta(gt=0.0, le=0.5)] | None = None
