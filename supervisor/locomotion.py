@@ -41,6 +41,11 @@ def away_from(box: BoxEstimate, x_m: float, y_m: float, yaw_rad: float) -> tuple
     return forward, left
 
 
+# The way out of :meth:`LocomotionActions._room_needed` counts as straight back when its forward component
+# is below minus this (cos 15 deg): the step back and the turn are then one walk of ``walking/goal``.
+_STRAIGHT_BACK = math.cos(math.radians(15.0))
+
+
 class LocomotionActions:
     """The locomotion actions (a part of :class:`supervisor.actions.Actions`)."""
 
@@ -104,15 +109,10 @@ class LocomotionActions:
         object's map box (:func:`away_from`: straight back when it is ahead; a table or chair beside
         the robot, the step goes sideways too: straight back the hand beside the chair touched it,
         fetch seed 18), else, when walking refuses that, straight back."""
-        x, y, yaw = self.body.base_xy_yaw()
-        near = [(distance_to_box(box, x, y), box.name, box) for box in boxes(self.memory)]
-        if not near:
+        room = self._room_needed()
+        if room is None:
             return
-        distance, name, box = min(near, key=lambda item: item[0])
-        if distance >= self.config.clearance_m:
-            return
-        back = min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m)
-        forward, left = away_from(box, x, y, yaw)
+        back, name, forward, left = room
         try:
             plan = self.planners.walk(back * forward, back * left, 0.0)
         except InfeasibleError as exc:
@@ -126,6 +126,21 @@ class LocomotionActions:
         direction = f"{math.degrees(math.atan2(left, forward)):+.0f} deg from ahead"
         self.progress(f"{what}: stepping {back:.2f} m away from {name}, {direction} ({plan.describe()})")
         self.body.execute(plan.q, what=f"step back from {name}", progress=self.progress)
+
+    def _room_needed(self) -> tuple[float, str, float, float] | None:
+        """How far [m] to step, from which object, and in which unit direction (forward, left) of the
+        robot's frame (:func:`away_from` its map box), for the objects seen to be at least
+        ``clearance_m`` from the robot's mid-feet point (at most ``max_step_back_m``); None when they
+        are."""
+        x, y, yaw = self.body.base_xy_yaw()
+        near = [(distance_to_box(box, x, y), box.name, box) for box in boxes(self.memory)]
+        if not near:
+            return None
+        distance, name, box = min(near, key=lambda item: item[0])
+        if distance >= self.config.clearance_m:
+            return None
+        back = min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m)
+        return (back, name, *away_from(box, x, y, yaw))
 
     def _approach(self, name: str) -> None:
         """Far objects are seen roughly (a table 3 m away: its silhouette is a thin top on thin legs):
@@ -210,7 +225,22 @@ class LocomotionActions:
         if abs(angle_rad) < math.radians(2.0):
             return 0
         self.body.straighten()
-        self._make_room(f"room to {what}")
+        room = self._room_needed()
+        if room is not None and room[2] < -_STRAIGHT_BACK:
+            # Stepping back for room and the turn: one walk of the walking planner (one start, one stop),
+            # checked against the map where each part is (the turn's room where it starts). Only when the
+            # way out is straight back (an object beside the robot: :meth:`_make_room` steps sideways).
+            back, name = room[:2]
+            try:
+                plan = self.planners.turn(angle_rad, back_m=back)
+            except InfeasibleError as exc:
+                self.progress(f"{what}: no step back {back:.2f} m from {name} and turn ({exc.message})")
+            else:
+                self.progress(f"{what}, stepping back {back:.2f} m from {name} first: {plan.describe()}")
+                self.body.execute(plan.q, what=what, progress=self.progress)
+                return plan.n_steps
+        if room is not None:
+            self._make_room(f"room to {what}")
         plan = self.planners.turn(angle_rad)
         self.progress(f"{what}: {plan.describe()}")
         self.body.execute(plan.q, what=what, progress=self.progress)

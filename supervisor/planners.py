@@ -148,12 +148,13 @@ class Planners:
         return self._goto(goal_pose=[x_m, y_m, math.remainder(yaw_rad, 2 * math.pi)])
 
     # walking ----------------------------------------------------------------------------------------------
-    def turn(self, angle_rad: float) -> Plan:
+    def turn(self, angle_rad: float, *, back_m: float = 0.0) -> Plan:
         """Turn on the spot by ``angle_rad`` (> 0: left) with ``walking/goal`` (a staggered stance, as after
-        a reaching step, is squared up first; no box of the map nearer than its turning room); a held
-        object is carried (the arm keeps its posture, walking's lowest level)."""
+        a reaching step, is squared up first; no box of the map nearer than its turning room), after
+        stepping straight back by ``back_m`` [m] in the same walk when > 0; a held object is carried
+        (the arm keeps its posture, walking's lowest level)."""
         return self.walk_goal(
-            walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="turn", angle_rad=angle_rad)
+            walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="turn", angle_rad=angle_rad, back_m=back_m)
         )
 
     # footsteps ----------------------------------------------------------------------------------------
