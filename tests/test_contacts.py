@@ -106,10 +106,29 @@ def test_non_coplanar_region_differs_from_the_hull_and_the_force_qp_agrees_with_
     assert agree > 150
 
 
+def test_the_warm_started_lps_give_the_regions_of_cold_ones():
+    """The projection's LPs re-solved on one HiGHS model (stability._WarmLP) find the same region as
+    each solved anew by linprog: flat, non-coplanar, and with a load bound on the high contact."""
+    up = np.array([0.0, 0.0, 1.0])
+    feet = [ContactPatch(_square(0.0, 0.1, 0.0), up, 0.8), ContactPatch(_square(0.0, -0.1, 0.0), up, 0.8)]
+    tilted = np.array([0.0, -0.4, 1.0]) / math.hypot(0.4, 1.0)
+    cases = (
+        feet,
+        [*feet, ContactPatch(_square(0.5, 0.0, 0.8), up, 0.8)],
+        [*feet, ContactPatch(_square(0.5, 0.0, 0.8), tilted, 0.5, max_load=0.2)],
+        [feet[0], ContactPatch(_square(0.4, 0.2, 0.7), up, 0.8, max_load=0.22)],
+    )
+    for patches in cases:
+        warm = equilibrium_region(patches)
+        cold = equilibrium_region(patches, warm=False)
+        assert warm.shape == cold.shape
+        assert max(np.linalg.norm(cold - v, axis=1).min() for v in warm) < 1e-7
+        assert _area(warm) == pytest.approx(_area(cold), abs=1e-9)
+
+
 def _area(polygon: np.ndarray) -> float:
     x, y = polygon[:, 0], polygon[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-
 
 
 # ------------------------------------------------------------------------------------------ tasks
@@ -168,6 +187,57 @@ def test_capsule_box_distances_and_jacobian(chair):
     F = _fd_check(task, gen.model, q, atol=1e-4)
     compute_kinematics(gen.model, data, q, False)
     np.testing.assert_allclose(F, 0.01 - task.distances(data))
+
+
+def test_the_broad_phase_leaves_out_only_pairs_beyond_the_activation_distance(chair):
+    """compute() checks only the pairs the broad phase keeps: its rows must be those of every pair
+    within margin + activation, bit for bit, in random postures near the chair and the table."""
+    robot, env, gen, q0, start = chair
+    boxes = [ObstacleBox(b.name, b.T_world_box, b.half_extents_m) for b in env.boxes]
+    task = CapsuleBoxTask(gen.model, gen.capsules, boxes, gen.box_pairs([c.pair for c in start]), 0.015)
+    data = gen.model.createData()
+    rng = np.random.default_rng(3)
+    rows = 0
+    for _ in range(40):
+        q = q0.copy()
+        q[:3] += rng.normal(0.0, 0.15, 3)
+        q[7:] = np.clip(q[7:] + rng.normal(0.0, 0.4, q.size - 7), robot.q_lower[7:], robot.q_upper[7:])
+        compute_kinematics(gen.model, data, q, False)
+        errors, J = task.compute(q, data)
+        distances = task.distances(data)
+        near = distances <= task.margin_m + task.activation_m
+        np.testing.assert_array_equal(errors, task.margin_m - distances[near])
+        assert J.shape == (int(near.sum()), gen.model.nv)
+        rows += errors.shape[0]
+    assert rows > 40  # the postures do come near the boxes
+
+
+def test_a_posture_generation_depends_on_its_inputs_only(chair):
+    """The QPs' warm starts do not carry over from one generation to the next: the same request after
+    another one gives the same witness, bit for bit (plans are reproducible)."""
+    robot, env, gen, q0, start = chair
+    T = RoughTrajectory(gen.model, chair_egress.key_postures(robot, env, q0))
+    rest = start[1:]
+    first = gen.generate(start, rest, q0, PotentialTask(T))
+    gen.generate(start, start[:2], q0, PotentialTask(T))
+    again = gen.generate(start, rest, q0, PotentialTask(T))
+    assert first.ok and again.ok
+    np.testing.assert_array_equal(first.q, again.q)
+
+
+def test_the_search_stops_at_its_cpu_budget(chair):
+    robot, env, gen, q0, start = chair
+    T = RoughTrajectory(gen.model, chair_egress.key_postures(robot, env, q0))
+    planner = ContactPlanner(
+        gen,
+        T,
+        Goal("y", 0.6, chair_egress.FINAL_PAIRS),
+        chair_egress.PAIRS,
+        SearchConfig(time_budget_s=120.0, cpu_budget_s=0.5),
+    )
+    result = planner.plan(start, q0)
+    assert result.status == "timeout" and "CPU budget" in result.message
+    assert 0.5 <= result.plan_cpu_s < 30.0 and result.nodes_generated >= 1
 
 
 # ------------------------------------------------------------------------------------------ f_T
