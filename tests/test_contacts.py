@@ -19,7 +19,7 @@ from services.contacts.interpolate import deepest_collision
 from services.contacts.posture import Floating, PostureGenerator
 from services.contacts.potential import PotentialTask, RoughTrajectory, base_point
 from services.contacts.search import ContactPlanner, Goal, SearchConfig
-from services.contacts.sets import Contact, contact_at, patch_of
+from services.contacts.sets import Contact, contact_at, patch_of, sets_close, turn_moving_corners_by
 from services.contacts.spots import robot_spots
 from services.contacts.stability import ContactPatch, equilibrium_region, is_statically_stable
 from services.contacts.volumes import SearchVolume, around, full_volume, subtract
@@ -346,6 +346,32 @@ def test_first_expansion_one_leaf_per_pair_and_removals(chair):
             assert len(pairs) == len(set(pairs))
         assert sum(s.change.startswith("-") for s in sons) >= 2
     assert counts[False] > counts[True]
+
+
+def test_a_small_patch_turned_is_the_same_contact_with_patch_turns(chair):
+    """SearchConfig.patch_turns: V's angle and the "too close" angle of a spot are at least the turn
+    that moves its patch's corners by half of V's / close_m's length: a hand (6 x 6 cm) turned by 0.9
+    rad is too close to itself, a sole (22 x 12 cm) keeps close_rad."""
+    _robot, _env, gen, q0, _start = chair
+    hand, sole = gen.spots["right_hand"], gen.spots["right_sole"]
+    assert turn_moving_corners_by(hand, 0.04) == pytest.approx(
+        2.0 * math.asin(0.04 / (2.0 * math.hypot(0.03, 0.03)))
+    )
+    assert turn_moving_corners_by(hand, 0.2) == math.pi  # no turn moves its corners that far
+    assert turn_moving_corners_by(sole, 0.04) < 0.4
+    a = (Contact("right_hand", "table.top", 0.1, 0.2, 0.0), Contact("right_sole", "floor", 0.3, 0.2, 0.0))
+    turned_hand = (Contact("right_hand", "table.top", 0.12, 0.2, 0.9), a[1])
+    turned_sole = (a[0], Contact("right_sole", "floor", 0.3, 0.2, 0.5))
+    tols = {s.name: max(0.4, turn_moving_corners_by(s, 0.04)) for s in (hand, sole)}
+    assert not sets_close(a, turned_hand, 0.08, 0.4)
+    assert sets_close(a, turned_hand, 0.08, 0.4, tols)
+    assert not sets_close(a, turned_sole, 0.08, 0.4, tols)
+    ahead = q0.copy()
+    ahead[0] += 0.3
+    planner = ContactPlanner(
+        gen, RoughTrajectory(gen.model, [q0, ahead]), Goal("y", 0.6), (), SearchConfig(patch_turns=True)
+    )
+    assert planner._v_rad["right_hand"] > 2.0 and planner._v_rad["right_sole"] == 0.8
 
 
 def test_goal_needs_the_coordinate_and_the_final_contacts():
