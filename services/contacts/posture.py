@@ -51,6 +51,7 @@ from services.ik import (
     SelfCollisionTask,
     Task,
 )
+from services.ik.solver import SolverConfig
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox
 from services.model import RobotModel
 
@@ -116,7 +117,12 @@ class PostureGenerator:
         self.spots = {s.name: s for s in spots}
         self.config = config or PostureConfig()
         self.model = model_with_spots(robot.model, spots)
-        self.solver = HierarchicalSolver(self.model, robot.q_lower, robot.q_upper)
+        # Goldfarb-Idnani's dual active set (services/ik/active_set.py): the same optima as proxsuite's
+        # working set to the feasibility tolerance, bitwise reproducible, and about a quarter less CPU
+        # per posture generation here (services/contacts/README.md, plan time)
+        self.solver = HierarchicalSolver(
+            self.model, robot.q_lower, robot.q_upper, config=SolverConfig(qp_method="dual_active_set")
+        )
         self.data = self.model.createData()
         self.capsules = planner_capsules(robot)  # the model's capsules + the URDF's foot boxes
         self.boxes = tuple(ObstacleBox(b.name, b.T_world_box, b.half_extents_m) for b in env.boxes)
@@ -213,6 +219,7 @@ class PostureGenerator:
         a moving body, §3.3). ``config`` overrides the generator's settings for this call."""
         start = time.perf_counter()
         self.calls += 1
+        self.solver.reset()  # the QPs' warm starts within this generation only: it depends on its inputs
         cfg = config or self.config
         try:
             region = self.region(stable)
