@@ -117,3 +117,31 @@ def test_a_saved_plan_reads_back(tmp_path):
     np.savez(tmp_path / "other.npz", witnesses=witnesses)
     with pytest.raises(InvalidRequestError, match="not a saved contact plan"):
         load_plan(tmp_path / "other.npz")
+
+
+def test_an_execution_regenerates_a_witness_bitwise_the_same_whatever_came_before():
+    # closed_loop.execution_generator: the dual active-set QPs, no warm start across generations; with
+    # proxsuite (warm-started QP objects, 1e-15 noise) two replays of one plan parted at transition 2
+    from services.contacts import chair_egress
+    from services.contacts.closed_loop import execution_generator, regenerate_witness
+    from services.contacts.posture import Floating
+    from services.contacts.volumes import SearchVolume
+    from sim.world import start_configuration
+
+    robot = load_robot("hrp2_like")
+    lay = layout(load_scene("chair_egress"))
+    ex = execution_generator(robot, environment_of(lay))
+    q0 = start_configuration(robot, lay)
+    start = tuple(
+        contact_at(ex.spots[s], e, ex.env, ex.spot_pose(q0, s)) for s, e in chair_egress.START_PAIRS
+    )
+    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
+    planned = ex.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
+    assert planned.ok, planned.reason
+    s2 = (*start, planned.contact)
+    measured = q0.copy()
+    measured[0] += 0.02  # slid 2 cm on the seat
+    first = regenerate_witness(ex, start, s2, planned.q, measured)[2]
+    ex.generate(start[:3], start[:3], q0, PostureTask(ex.model, q0))  # something else in between
+    again = regenerate_witness(ex, start, s2, planned.q, measured)[2]
+    assert first is not None and np.array_equal(first, again)

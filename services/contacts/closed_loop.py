@@ -34,13 +34,23 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from services import budget
+from services.contacts.environment import Environment
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
 from services.contacts.limb_load import limb_joints
-from services.contacts.posture import ARM_SPOTS, Floating, PostureConfig, PostureGenerator
+from services.contacts.posture import (
+    ARM_SPOTS,
+    REPRODUCIBLE_SOLVER,
+    Floating,
+    PostureConfig,
+    PostureGenerator,
+    posture_config,
+)
 from services.contacts.sets import Contact, ContactSet, contact_at
+from services.contacts.spots import robot_spots
 from services.contacts.volumes import around
 from services.errors import InfeasibleError
 from services.ik import PostureTask
+from services.model import RobotModel
 
 # plays (N, nq) samples every dt [s] with the joints' effort scales (name -> fraction of the limit);
 # returns (outcome, message): outcome "completed" goes on
@@ -90,6 +100,14 @@ SUPPORT_EFFORT_SCALE = 0.6
 # a new contact the measured supports do not admit where it was planned is searched again in this
 # volume around its planned place (x [m], y [m], theta [rad] half sizes)
 FLOAT_HALF = (0.05, 0.05, 0.25)
+
+
+def execution_generator(robot: RobotModel, env: Environment, limb_load: bool = False) -> PostureGenerator:
+    """The posture generator of an execution (every contact spot of ``robot`` in ``env``, the arms'
+    limb-load bound on or off) with the reproducible QP method (``posture.REPRODUCIBLE_SOLVER``): the
+    same plan played from the same state re-plans every transition identically, so a run can be
+    replayed and a fall analysed (with proxsuite, two replays of one plan parted after transition 2)."""
+    return PostureGenerator(robot, env, robot_spots(robot), posture_config(limb_load), REPRODUCIBLE_SOLVER)
 
 
 def measured_contacts(
