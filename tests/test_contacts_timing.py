@@ -145,3 +145,31 @@ def test_an_execution_regenerates_a_witness_bitwise_the_same_whatever_came_befor
     ex.generate(start[:3], start[:3], q0, PostureTask(ex.model, q0))  # something else in between
     again = regenerate_witness(ex, start, s2, planned.q, measured)[2]
     assert first is not None and np.array_equal(first, again)
+
+
+def test_a_released_hand_unloads_along_its_force_profile():
+    # contact_forces.py: the hand held from S1 gets the force QP's normal force at the start; removed
+    # at q2 (a removal), its planned force goes down to zero at the transition's end
+    from services.contacts import chair_egress
+    from services.contacts.contact_forces import force_targets, normal_forces
+    from services.contacts.posture import Floating
+    from services.contacts.volumes import SearchVolume
+    from sim.world import start_configuration
+
+    robot = load_robot("hrp2_like")
+    lay = layout(load_scene("chair_egress"))
+    g = PostureGenerator(robot, environment_of(lay), robot_spots(robot))
+    q0 = start_configuration(robot, lay)
+    start = tuple(contact_at(g.spots[s], e, g.env, g.spot_pose(q0, s)) for s, e in chair_egress.START_PAIRS)
+    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
+    leaning = g.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
+    assert leaning.ok, leaning.reason
+    s1 = (*start, leaning.contact)
+    q = np.array([leaning.q] * 30)
+    (target,) = force_targets(g, s1, start, q, 0.005)
+    assert target.joints[0] == "RARM_JOINT5" and target.other == "table"
+    assert target.normal == pytest.approx((0.0, 0.0, 1.0))
+    com = pin.centerOfMass(g.model, g.data, leaning.q)
+    assert target.force_n[0] == pytest.approx(normal_forces(g, s1, com)[leaning.contact.pair])
+    assert target.force_n[0] > 1.0 and target.force_n[-1] == pytest.approx(0.0, abs=1e-6)
+    assert force_targets(g, start, start, q, 0.005) == ()  # no arm in contact: nothing to follow

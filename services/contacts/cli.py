@@ -65,8 +65,10 @@ def _closed_loop(
 
     gen = execution_generator(robot, environment, limb_load)
 
-    def play(q, dt, effort_scale):
-        executed = world.execute(q, dt, supports=SUPPORTS, effort_scale=effort_scale)
+    def play(q, dt, effort_scale, force_targets):
+        executed = world.execute(
+            q, dt, supports=SUPPORTS, effort_scale=effort_scale, force_targets=force_targets
+        )
         return executed.outcome, executed.message
 
     def report(r: TransitionReport) -> None:
