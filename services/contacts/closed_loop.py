@@ -99,6 +99,10 @@ REGENERATE_TOL_M = 5e-3
 REGENERATE_ITERS = 150
 # the effort of an arm in contact (hand or forearm) during a transition, as a fraction of its limits
 SUPPORT_EFFORT_SCALE = 0.6
+# a regenerated witness is first sought statically stable on the contacts other than the arms' (the
+# hands and forearms in contact kept as geometry, helpers): on the chair egress the sim's hand carried
+# 30-50 N where the plan needed 173 N, and the robot, its CoM past its stance sole's edge, tipped over
+PREFER_UNASSISTED = True
 # the limbs in contact follow their planned contact forces (sim.compliance's damping control,
 # contact_forces.py): off, every variant tried on the chair egress fell earlier than without it
 # (services/contacts/README.md, session 9)
@@ -184,6 +188,13 @@ def regenerate_witness(
     reference = PostureTask(gen.model, q2_planned)
     reasons = []
     relaxed = _relaxed(gen)
+    unassisted = tuple(c for c in stable if c.spot not in ARM_SPOTS)
+    if PREFER_UNASSISTED and unassisted and len(unassisted) < len(stable):
+        # the arms in contact as helpers: a witness statically stable without them, if there is one
+        budget.check("the witness's regeneration, try 0 (stable without the arms)")
+        result = gen.generate(geometric, unassisted, q_measured, reference, config=relaxed)
+        if result.ok:
+            return s1, s2, result.q, ""
     for k, start in enumerate((q_measured, q2_planned)):
         budget.check(f"the witness's regeneration, try {k + 1}")
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
