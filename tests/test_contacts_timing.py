@@ -173,3 +173,24 @@ def test_a_released_hand_unloads_along_its_force_profile():
     assert target.force_n[0] == pytest.approx(normal_forces(g, s1, com)[leaning.contact.pair])
     assert target.force_n[0] > 1.0 and target.force_n[-1] == pytest.approx(0.0, abs=1e-6)
     assert force_targets(g, start, start, q, 0.005) == ()  # no arm in contact: nothing to follow
+
+
+def test_a_hand_goes_up_and_forward_over_a_tables_edge():
+    # interpolate._over_the_edge: from beside the thigh to the table's top, the hand rises while it
+    # moves forward (straight up from beside the thigh, the body was pulled 17 cm back), and it is
+    # above the top's level before it is past the halfway point (the edge is near the target)
+    from services.contacts.interpolate import EDGE_CLEARANCE_M, RISE_FORWARD, _over_the_edge
+
+    T1 = pin.SE3(np.eye(3), np.array([0.13, 0.39, 0.495]))
+    T2 = pin.SE3(np.eye(3), np.array([0.48, 0.30, 0.64]))
+    up = np.array([0.0, 0.0, 1.0])
+    frames = _over_the_edge(T1, T2, T1.translation, up, 40, (0.0, 0.0))
+    points = np.array([f.translation for f in frames])
+    across = np.linalg.norm(points[:, :2] - T1.translation[:2], axis=1) / np.linalg.norm(
+        (T2.translation - T1.translation)[:2]
+    )
+    rising = points[:, 2] < 0.64 + EDGE_CLEARANCE_M - 1e-9
+    first_above = int(np.argmin(rising))
+    assert 0.05 < across[first_above // 2] < RISE_FORWARD  # forward while rising, not straight up
+    assert np.all(across[:first_above] <= RISE_FORWARD + 1e-9)  # above the level before the halfway point
+    assert np.allclose(points[-1], T2.translation)
