@@ -21,7 +21,7 @@ import contextlib
 import math
 import os
 import sys
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +33,7 @@ from services.model import RobotModel, load_robot
 from services.model.pybullet_robot import PybulletRobot
 from services.model.specs import check_side
 from sim import grasp, render
+from sim.compliance import Admittance, ForceTarget
 from sim.config import SimConfig
 from sim.contacts import Contact, ContactRules, floor_force
 from sim.objects import build_scene
@@ -363,11 +364,14 @@ class World:
         leaving: tuple[str, ...] = (),
         supports: tuple[str, ...] = (),
         effort_scale: Mapping[str, float] | None = None,
+        force_targets: Sequence[ForceTarget] = (),
     ) -> ExecutionResult:
         """Play a joint trajectory through position control; ``effort_scale`` (joint name -> a fraction
         in (0, 1] of its effort limit) caps those joints' motors during this execution only: a compliant
         limb in a closed kinematic loop (a hand on a table while a sole is on the floor: under full
-        effort the rigid loop's internal forces drove the arm to its torque limits, sim/README.md).
+        effort the rigid loop's internal forces drove the arm to its torque limits, sim/README.md);
+        ``force_targets``: limbs in contact whose commanded positions yield to their contact force
+        against its planned profile (damping control, :mod:`sim.compliance`).
         Other arguments: :meth:`_execute`."""
         forces = list(self._body_force)
         for name, scale in (effort_scale or {}).items():
@@ -385,7 +389,14 @@ class World:
         saved, self._body_force = self._body_force, forces
         try:
             return self._execute(
-                q_trajectory, dt_s, allowed_contacts, stop_on_collision, hold_s, leaving, supports
+                q_trajectory,
+                dt_s,
+                allowed_contacts,
+                stop_on_collision,
+                hold_s,
+                leaving,
+                supports,
+                force_targets,
             )
         finally:
             if effort_scale:  # the motors back at their full effort, holding the last command
@@ -401,6 +412,7 @@ class World:
         hold_s: float,
         leaving: tuple[str, ...],
         supports: tuple[str, ...],
+        force_targets: Sequence[ForceTarget] = (),
     ) -> ExecutionResult:
         """Play a joint trajectory through position control.
 
@@ -417,6 +429,7 @@ class World:
             supports: objects any link may touch during the whole motion (a multi-contact motion's
                 supports: a chair the robot gets up from, a table it leans on; ``floor`` lets any link
                 touch the floor).
+            force_targets: limbs whose commands yield to their contact force (:mod:`sim.compliance`).
         """
         cfg = self.config
         q_traj = self._check_trajectory(q_trajectory)
@@ -429,6 +442,21 @@ class World:
         if hold_s < 0:
             raise InvalidRequestError(f"hold_s must be >= 0, got {hold_s}")
         rules = self.contact_rules(tuple(allowed_contacts), tuple(leaving), tuple(supports))
+        admittance = (
+            Admittance(
+                self.robot,
+                self.client,
+                self.robot_id,
+                {**self.bodies, "floor": self.floor_id},
+                {n: int(i) for n, i in zip(self.robot.joint_names, self.pyrobot.joint_ids, strict=True)},
+                self._body_joint_names,
+                force_targets,
+                len(q_traj),
+                dt,
+            )
+            if force_targets
+            else None
+        )
         rules.already_touching = rules.touching_pairs()
         n_hold = round(hold_s / dt)
         monitor = _Monitor(self)
@@ -446,7 +474,8 @@ class World:
             q_next = q_traj[k_next]
             b_prev, b_next = body[k_prev], body[k_next]
             v_ff = ((b_next - b_prev) / dt).tolist()
-            for target in ((1.0 - a) * b_prev + a * b_next).tolist():
+            offsets = 0.0 if admittance is None else admittance.update(k_prev, self.pyrobot.read_q())
+            for target in ((1.0 - a) * b_prev + a * b_next + offsets).tolist():
                 self._command_joints(target, v_ff)
                 self.step(1)
             self.q_cmd = q_next.copy()

@@ -117,3 +117,80 @@ def test_a_saved_plan_reads_back(tmp_path):
     np.savez(tmp_path / "other.npz", witnesses=witnesses)
     with pytest.raises(InvalidRequestError, match="not a saved contact plan"):
         load_plan(tmp_path / "other.npz")
+
+
+def test_an_execution_regenerates_a_witness_bitwise_the_same_whatever_came_before():
+    # closed_loop.execution_generator: the dual active-set QPs, no warm start across generations; with
+    # proxsuite (warm-started QP objects, 1e-15 noise) two replays of one plan parted at transition 2
+    from services.contacts import chair_egress
+    from services.contacts.closed_loop import execution_generator, regenerate_witness
+    from services.contacts.posture import Floating
+    from services.contacts.volumes import SearchVolume
+    from sim.world import start_configuration
+
+    robot = load_robot("hrp2_like")
+    lay = layout(load_scene("chair_egress"))
+    ex = execution_generator(robot, environment_of(lay))
+    q0 = start_configuration(robot, lay)
+    start = tuple(
+        contact_at(ex.spots[s], e, ex.env, ex.spot_pose(q0, s)) for s, e in chair_egress.START_PAIRS
+    )
+    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
+    planned = ex.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
+    assert planned.ok, planned.reason
+    s2 = (*start, planned.contact)
+    measured = q0.copy()
+    measured[0] += 0.02  # slid 2 cm on the seat
+    first = regenerate_witness(ex, start, s2, planned.q, measured)[2]
+    ex.generate(start[:3], start[:3], q0, PostureTask(ex.model, q0))  # something else in between
+    again = regenerate_witness(ex, start, s2, planned.q, measured)[2]
+    assert first is not None and np.array_equal(first, again)
+
+
+def test_a_released_hand_unloads_along_its_force_profile():
+    # contact_forces.py: the hand held from S1 gets the force QP's normal force at the start; removed
+    # at q2 (a removal), its planned force goes down to zero at the transition's end
+    from services.contacts import chair_egress
+    from services.contacts.contact_forces import force_targets, normal_forces
+    from services.contacts.posture import Floating
+    from services.contacts.volumes import SearchVolume
+    from sim.world import start_configuration
+
+    robot = load_robot("hrp2_like")
+    lay = layout(load_scene("chair_egress"))
+    g = PostureGenerator(robot, environment_of(lay), robot_spots(robot))
+    q0 = start_configuration(robot, lay)
+    start = tuple(contact_at(g.spots[s], e, g.env, g.spot_pose(q0, s)) for s, e in chair_egress.START_PAIRS)
+    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
+    leaning = g.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
+    assert leaning.ok, leaning.reason
+    s1 = (*start, leaning.contact)
+    q = np.array([leaning.q] * 30)
+    (target,) = force_targets(g, s1, start, q, 0.005)
+    assert target.joints[0] == "RARM_JOINT5" and target.other == "table"
+    assert target.normal == pytest.approx((0.0, 0.0, 1.0))
+    com = pin.centerOfMass(g.model, g.data, leaning.q)
+    assert target.force_n[0] == pytest.approx(normal_forces(g, s1, com)[leaning.contact.pair])
+    assert target.force_n[0] > 1.0 and target.force_n[-1] == pytest.approx(0.0, abs=1e-6)
+    assert force_targets(g, start, start, q, 0.005) == ()  # no arm in contact: nothing to follow
+
+
+def test_a_hand_goes_up_and_forward_over_a_tables_edge():
+    # interpolate._over_the_edge: from beside the thigh to the table's top, the hand rises while it
+    # moves forward (straight up from beside the thigh, the body was pulled 17 cm back), and it is
+    # above the top's level before it is past the halfway point (the edge is near the target)
+    from services.contacts.interpolate import EDGE_CLEARANCE_M, RISE_FORWARD, _over_the_edge
+
+    T1 = pin.SE3(np.eye(3), np.array([0.13, 0.39, 0.495]))
+    T2 = pin.SE3(np.eye(3), np.array([0.48, 0.30, 0.64]))
+    up = np.array([0.0, 0.0, 1.0])
+    frames = _over_the_edge(T1, T2, T1.translation, up, 40, (0.0, 0.0))
+    points = np.array([f.translation for f in frames])
+    across = np.linalg.norm(points[:, :2] - T1.translation[:2], axis=1) / np.linalg.norm(
+        (T2.translation - T1.translation)[:2]
+    )
+    rising = points[:, 2] < 0.64 + EDGE_CLEARANCE_M - 1e-9
+    first_above = int(np.argmin(rising))
+    assert 0.05 < across[first_above // 2] < RISE_FORWARD  # forward while rising, not straight up
+    assert np.all(across[:first_above] <= RISE_FORWARD + 1e-9)  # above the level before the halfway point
+    assert np.allclose(points[-1], T2.translation)

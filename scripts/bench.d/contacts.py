@@ -115,8 +115,14 @@ def run(best_first: bool, budget_s: float, n: int, execute: bool, limb_load: boo
     with World(robot, "chair_egress") as world:
         t0 = time.perf_counter()
 
-        def play(q_segment, dt, effort_scale):
-            executed = world.execute(q_segment, dt, supports=("chair", "table"), effort_scale=effort_scale)
+        def play(q_segment, dt, effort_scale, force_targets):
+            executed = world.execute(
+                q_segment,
+                dt,
+                supports=("chair", "table"),
+                effort_scale=effort_scale,
+                force_targets=force_targets,
+            )
             return executed.outcome, executed.message
 
         def report(r):

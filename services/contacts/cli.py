@@ -60,15 +60,15 @@ def _closed_loop(
 ) -> tuple[str, str]:
     """Play the plan set by set in ``world``, each transition re-planned from the measured state
     (``services.contacts.closed_loop``); prints one line per transition; (outcome, message)."""
-    from services.contacts.closed_loop import TransitionReport, execute_set_by_set
+    from services.contacts.closed_loop import TransitionReport, execute_set_by_set, execution_generator
     from services.contacts.interpolate import InterpolationConfig
-    from services.contacts.posture import PostureGenerator, posture_config
-    from services.contacts.spots import robot_spots
 
-    gen = PostureGenerator(robot, environment, robot_spots(robot), posture_config(limb_load))
+    gen = execution_generator(robot, environment, limb_load)
 
-    def play(q, dt, effort_scale):
-        executed = world.execute(q, dt, supports=SUPPORTS, effort_scale=effort_scale)
+    def play(q, dt, effort_scale, force_targets):
+        executed = world.execute(
+            q, dt, supports=SUPPORTS, effort_scale=effort_scale, force_targets=force_targets
+        )
         return executed.outcome, executed.message
 
     def report(r: TransitionReport) -> None:

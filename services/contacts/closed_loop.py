@@ -34,17 +34,28 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from services import budget
+from services.contacts.contact_forces import force_targets
+from services.contacts.environment import Environment
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
 from services.contacts.limb_load import limb_joints
-from services.contacts.posture import ARM_SPOTS, Floating, PostureConfig, PostureGenerator
+from services.contacts.posture import (
+    ARM_SPOTS,
+    Floating,
+    PostureConfig,
+    PostureGenerator,
+    posture_config,
+)
 from services.contacts.sets import Contact, ContactSet, contact_at
+from services.contacts.spots import robot_spots
 from services.contacts.volumes import around
 from services.errors import InfeasibleError
 from services.ik import PostureTask
+from services.model import RobotModel
+from sim.compliance import ForceTarget
 
-# plays (N, nq) samples every dt [s] with the joints' effort scales (name -> fraction of the limit);
-# returns (outcome, message): outcome "completed" goes on
-PlaySegment = Callable[[np.ndarray, float, dict[str, float]], tuple[str, str]]
+# plays (N, nq) samples every dt [s] with the joints' effort scales (name -> fraction of the limit) and
+# the arms' force targets (sim.compliance); returns (outcome, message): outcome "completed" goes on
+PlaySegment = Callable[[np.ndarray, float, dict[str, float], tuple[ForceTarget, ...]], tuple[str, str]]
 Measure = Callable[[], np.ndarray]  # the measured configuration q (pinocchio layout, world base)
 StepHook = Callable[["TransitionReport"], None]
 
@@ -87,9 +98,26 @@ REGENERATE_TOL_M = 5e-3
 REGENERATE_ITERS = 150
 # the effort of an arm in contact (hand or forearm) during a transition, as a fraction of its limits
 SUPPORT_EFFORT_SCALE = 0.6
+# a regenerated witness is first sought statically stable on the contacts other than the arms' (the
+# hands and forearms in contact kept as geometry, helpers): on the chair egress the sim's hand carried
+# 30-50 N where the plan needed 173 N, and the robot, its CoM past its stance sole's edge, tipped over
+PREFER_UNASSISTED = True
+# the limbs in contact follow their planned contact forces (sim.compliance's damping control,
+# contact_forces.py): off, every variant tried on the chair egress fell earlier than without it
+# (services/contacts/README.md, session 9)
+FORCE_CONTROL = False
 # a new contact the measured supports do not admit where it was planned is searched again in this
 # volume around its planned place (x [m], y [m], theta [rad] half sizes)
 FLOAT_HALF = (0.05, 0.05, 0.25)
+
+
+def execution_generator(robot: RobotModel, env: Environment, limb_load: bool = False) -> PostureGenerator:
+    """The posture generator of an execution (every contact spot of ``robot`` in ``env``, the arms'
+    limb-load bound on or off). Its QPs are the dual active-set method's, reset at every generation
+    (:class:`PostureGenerator`): the same plan played from the same state re-plans every transition
+    identically, so a run can be replayed and a fall analysed (with proxsuite, two replays of one plan
+    parted after transition 2)."""
+    return PostureGenerator(robot, env, robot_spots(robot), posture_config(limb_load))
 
 
 def measured_contacts(
@@ -160,6 +188,13 @@ def regenerate_witness(
     reference = PostureTask(gen.model, q2_planned)
     reasons = []
     relaxed = _relaxed(gen)
+    unassisted = tuple(c for c in stable if c.spot not in ARM_SPOTS)
+    if PREFER_UNASSISTED and unassisted and len(unassisted) < len(stable):
+        # the arms in contact as helpers: a witness statically stable without them, if there is one
+        budget.check("the witness's regeneration, try 0 (stable without the arms)")
+        result = gen.generate(geometric, unassisted, q_measured, reference, config=relaxed)
+        if result.ok:
+            return s1, s2, result.q, ""
     for k, start in enumerate((q_measured, q2_planned)):
         budget.check(f"the witness's regeneration, try {k + 1}")
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
@@ -196,6 +231,7 @@ class ReplannedTransition:
     support_error_m: float
     collision: str
     effort_scale: dict[str, float] = field(default_factory=dict)  # joints played with less effort
+    force_targets: tuple[ForceTarget, ...] = ()  # the arms' planned contact forces (contact_forces.py)
 
 
 def replan_transition(
@@ -231,7 +267,8 @@ def replan_transition(
         segment = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
         collision = f"{collision}; {segment}" if collision else segment
     scale = support_effort_scale(gen, s1)  # held from q1 (a contact made now: its arm still moves)
-    return ReplannedTransition(timed, config.dt_s, q2, error, collision, scale)
+    targets = force_targets(gen, s1, s2, timed, config.dt_s) if FORCE_CONTROL else ()
+    return ReplannedTransition(timed, config.dt_s, q2, error, collision, scale, targets)
 
 
 def execute_set_by_set(
@@ -265,7 +302,7 @@ def execute_set_by_set(
             out.outcome, out.message = "infeasible", message
             return out
         replan_s = time.perf_counter() - t0
-        outcome, message = play(step.q, step.dt_s, step.effort_scale)
+        outcome, message = play(step.q, step.dt_s, step.effort_scale, step.force_targets)
         report = TransitionReport(
             k, outcome, message, True, step.collision, step.support_error_m, len(step.q), replan_s
         )

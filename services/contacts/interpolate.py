@@ -170,6 +170,7 @@ def _on_surface(gen: PostureGenerator, T: pin.SE3) -> np.ndarray | None:
 
 RISE_M = 0.05  # a body coming onto a surface this much higher goes over its edge (_over_the_edge)
 EDGE_CLEARANCE_M = 0.12  # height above the surface the body passes at [m] (a hand capsule's radius + margin)
+RISE_FORWARD = 0.5  # the rise reaches that height this fraction of the way across (_over_the_edge)
 
 
 def _over_the_edge(
@@ -181,7 +182,11 @@ def _over_the_edge(
     constraints then hold the body under the edge until the witness makes it jump through (§4)."""
     p2 = T2.translation
     above = p2 + EDGE_CLEARANCE_M * n2
-    rise = np.array([a[0], a[1], above[2]])
+    # up and forward at once, to the level above the surface halfway across (a surface is reached near
+    # its edge, past the halfway point): straight up from a hand beside the thigh, the posture
+    # generator pulled the body 17 cm back and the chest struck the chair's backrest (session 9)
+    mid = a[:2] + RISE_FORWARD * (above[:2] - a[:2])
+    rise = np.array([mid[0], mid[1], above[2]])
     points = [T1.translation, a, rise, above, p2]
     chord = (above - rise)[:2]
     across = np.array([-chord[1], chord[0], 0.0]) / max(float(np.linalg.norm(chord)), 1e-9)

@@ -49,9 +49,9 @@ from services.ik import (
     HierarchicalSolver,
     Level,
     SelfCollisionTask,
+    SolverConfig,
     Task,
 )
-from services.ik.solver import SolverConfig
 from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox
 from services.model import RobotModel
 
@@ -118,8 +118,10 @@ class PostureGenerator:
         self.config = config or PostureConfig()
         self.model = model_with_spots(robot.model, spots)
         # Goldfarb-Idnani's dual active set (services/ik/active_set.py): the same optima as proxsuite's
-        # working set to the feasibility tolerance, bitwise reproducible, and about a quarter less CPU
-        # per posture generation here (services/contacts/README.md, plan time)
+        # working set to the feasibility tolerance, bitwise reproducible (proxsuite's results vary from
+        # run to run at the 1e-15 level, which a closed-loop execution amplified into a replay that fell
+        # in one run and held in the next), and about a quarter less CPU per posture generation here
+        # (services/contacts/README.md, plan time)
         self.solver = HierarchicalSolver(
             self.model, robot.q_lower, robot.q_upper, config=SolverConfig(qp_method="dual_active_set")
         )

@@ -31,14 +31,13 @@ import numpy as np
 from services import budget
 from services.bus.schemas import contacts as msg
 from services.bus.service import Service, handles, run_service
-from services.contacts.closed_loop import replan_transition
+from services.contacts.closed_loop import execution_generator, replan_transition
 from services.contacts.environment import environment_of
 from services.contacts.interpolate import InterpolationConfig
 from services.contacts.planner import Plan, PlanProblem, plan
-from services.contacts.posture import PostureGenerator, posture_config
+from services.contacts.posture import PostureGenerator
 from services.contacts.search import Goal, Node, SearchConfig
 from services.contacts.sets import Contact, ContactSet
-from services.contacts.spots import robot_spots
 from services.errors import InvalidRequestError
 from services.model import RobotModel, load_robot
 from services.model.options import add_model_argument, with_model
@@ -134,13 +133,12 @@ class ContactsService(Service):
         )
 
     def _generator(self, scene: str, limb_load: bool) -> PostureGenerator:
-        """The posture generator of a scene (every contact spot of the robot; the arms' limb-load bound
-        on or off; cached)."""
+        """The posture generator of a scene's transitions (``closed_loop.execution_generator``: every
+        contact spot of the robot, the arms' limb-load bound on or off, reproducible; cached)."""
         key = (scene, limb_load)
         if key not in self._generators:
             env = environment_of(layout(load_scene(scene)))
-            config = posture_config(limb_load)
-            self._generators[key] = PostureGenerator(self.robot, env, robot_spots(self.robot), config)
+            self._generators[key] = execution_generator(self.robot, env, limb_load)
         return self._generators[key]
 
 
