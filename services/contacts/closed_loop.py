@@ -195,6 +195,12 @@ def regenerate_witness(
         result = gen.generate(geometric, unassisted, q_measured, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
+        if added:  # the new contact placed by the posture generator near its planned place (§2.6)
+            new = added[0]
+            floating = Floating(new.spot, new.surface, around((new.x, new.y, new.theta), FLOAT_HALF))
+            result = gen.generate(s1, unassisted, q_measured, reference, floating, config=relaxed)
+            if result.ok and result.contact is not None:
+                return s1, tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""
     for k, start in enumerate((q_measured, q2_planned)):
         budget.check(f"the witness's regeneration, try {k + 1}")
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
