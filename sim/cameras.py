@@ -1,47 +1,22 @@
 """Pinhole camera math for rendering with pybullet: view/projection matrices from a camera pose and its
 intrinsics, projection of world points to pixels, and linear depth from the depth buffer.
 
-Conventions: the optical frame has z forward along the optical axis, x right and y down in the image
-(as ``services.model.CameraSpec``). Pixel coordinates (u, v) [px] have (0, 0) at the top-left corner of
-the top-left pixel, u to the right and v down; the centre of the pixel in row i, column j is
-(j + 0.5, i + 0.5). A world point at ``p_optical = (X, Y, Z)`` projects to
+Conventions (those of ``services.model.specs.Intrinsics``, the type used here): the optical frame has z
+forward along the optical axis, x right and y down in the image. Pixel coordinates (u, v) [px] have (0, 0)
+at the top-left corner of the top-left pixel, u to the right and v down; the centre of the pixel in
+row i, column j is (j + 0.5, i + 0.5). A world point at ``p_optical = (X, Y, Z)`` projects to
 ``u = fx X / Z + cx``, ``v = fy Y / Z + cy``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from services.errors import InvalidRequestError
+from services.model.specs import Intrinsics
 
 # OpenGL cameras look along -z with y up: R_optical_gl = diag(1, -1, -1).
 _OPTICAL_TO_GL = np.diag([1.0, -1.0, -1.0])
-
-
-@dataclass(frozen=True)
-class Intrinsics:
-    """Pinhole intrinsics for an image of ``width_px`` x ``height_px`` [px]."""
-
-    width_px: int
-    height_px: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-
-    @property
-    def K(self) -> np.ndarray:  # noqa: N802 (the usual name of the intrinsic matrix)
-        """3x3 intrinsic matrix [px]."""
-        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
-
-    def scaled(self, width_px: int, height_px: int) -> Intrinsics:
-        """The same field of view rendered at another resolution."""
-        if width_px <= 0 or height_px <= 0:
-            raise InvalidRequestError(f"image size must be positive, got {width_px}x{height_px}")
-        sx, sy = width_px / self.width_px, height_px / self.height_px
-        return Intrinsics(width_px, height_px, self.fx * sx, self.fy * sy, self.cx * sx, self.cy * sy)
 
 
 def view_matrix(T_world_optical: np.ndarray) -> list[float]:

@@ -19,8 +19,8 @@ import pybullet as p
 from services import budget
 from services.bus.limits import MAX_IMAGE_PX
 from services.errors import InvalidRequestError
-from services.model.specs import CameraSpec
-from sim.cameras import Intrinsics, linear_depth, look_at, projection_matrix, view_matrix
+from services.model.specs import CameraSpec, Intrinsics
+from sim.cameras import linear_depth, look_at, projection_matrix, view_matrix
 from sim.results import CameraImage
 
 if TYPE_CHECKING:
@@ -132,9 +132,7 @@ def render_camera(
 ) -> CameraImage:
     """Render one head camera at ``width_px`` x ``height_px`` (same field of view as ``spec``)."""
     check_size(width_px, height_px)
-    intr = Intrinsics(spec.width_px, spec.height_px, spec.fx, spec.fy, spec.cx, spec.cy).scaled(
-        width_px, height_px
-    )
+    intr = spec.scaled(width_px, height_px)
     rgb, depth_m, mask = _draw(world, intr, T_world_camera, want_depth=depth, want_segmentation=segmentation)
     labels = {}
     if segmentation:

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim.cameras import Intrinsics
+from services.model.specs import Intrinsics
 from sim.contacts import Contact
 
 OUTCOMES = ("completed", "fell", "collision")

@@ -12,8 +12,8 @@ world outcomes (FellError, CollisionError, NotGraspedError, StoppedError);
 the runner turns both into failed reports and applies the retry policy.
 
 The actions are split by concern: ``looking.py`` (detect, localize, look_at), ``locomotion.py`` (goto,
-turn, walk), ``manipulation.py`` (reach, grasp, open, put), ``remedies.py`` (relocalize, replan,
-wait_service); this module assembles them into the runner's tables.
+turn, walk), ``manipulation.py`` (reach, grasp, open), ``put.py`` (put), ``remedies.py`` (relocalize,
+replan, wait_service); this module assembles them into the runner's tables.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from supervisor.manipulation import ManipulationActions
 from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import Planners
+from supervisor.put import PutActions
 from supervisor.remedies import Remedies
 from supervisor.report import ActionReport
 from supervisor.runner import Action, Remedy
@@ -38,7 +39,7 @@ from supervisor.script import Step
 from supervisor.stand_up import stand_up
 
 
-class Actions(LookingActions, LocomotionActions, ManipulationActions, Remedies):
+class Actions(LookingActions, LocomotionActions, ManipulationActions, PutActions, Remedies):
     """The action table and remedies over the services (see the module docstring)."""
 
     def __init__(

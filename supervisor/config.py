@@ -15,7 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from services.bus.config import load_section
+from services.bus.schemas import reaching as reach_msg
 from services.errors import InvalidRequestError
+
+FAST_ARM_MOTIONS = ("raise", "lift", "carry", "withdraw")
+"""The unguarded arm motions ``SupervisorConfig.fast_arm_motions`` may name."""
 
 
 @dataclass(frozen=True)
@@ -31,10 +35,10 @@ class SupervisorConfig:
             and not at all when there is none to a face either);
         retry_budget_s, retry_turning_radius_m: when navigation finds no path in its default budget,
             the second search's budget and turning radius (the first's is navigation's 0.5 m);
-        walk_double_support_s: double support between the steps of a walk (before the sim's
-            spring-damper soles, with 0.1 s the simulated robot fell in about half of the 60-90 deg
-            turns and 0.3 s turned every time; with them 0.2 s, the fetch's walks shorter by 0.1 s a
-            step).
+        walk_double_support_s: double support between the steps of a walk: Kajita's HRP-2 0.1 s
+            (session 9's fall study, ``scripts/walk_timing_study.py``: 0 falls in the fetch-like walks
+            at 0.7 / 0.1 s as at 0.7 / 0.2 s, while 0.6 / 0.1 s fell twice in 12; before the sim's
+            spring-damper soles 0.1 s fell in about half of the 60-90 deg turns, so 0.3 s, then 0.2 s).
     Manipulation:
         last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
             the end of the approach) for the last steps, within last_steps_max steps and
@@ -67,6 +71,17 @@ class SupervisorConfig:
             approach, once); put_view_m: after a put that touched nothing, navigation walks back to
             this far from the point that missed and perception maps the place again from there (its
             whole outline in view, beyond perception's footprint depth);
+        fast_arm_motions: the unguarded arm motions (no object near the hand's path) that reaching
+            times with fast_arm_speed_m_s (the hand's mean speed at most [m/s]), fast_arm_min_s (the
+            shortest motion [s]) and fast_arm_hold_s (the final hold [s]) instead of its default, the
+            paper's slow reach (0.2 m/s, at least 1.4 s, 0.3 s hold): reaching slows them down where a
+            joint would be too fast, and never steps for them. "raise": the hand raised before
+            reaching above an object, the held object raised before a put (and again after a put
+            that touched nothing); "carry": the held object brought to the carry point; "withdraw":
+            the emptied hand's lift and carry after a put; "lift": the grasped object lifted off its
+            support (off by default: its neighbours are near). The guarded motions near objects
+            (above an object, down onto it, the put) keep the default timing (session 8: all at
+            0.25 m/s and 1.0 s, two fetches failed in the hand's part);
         approach_m: the hand first goes this far above a reach or put point, then down;
         lift_m: a grasped object (or an emptied hand) is raised by this first;
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
@@ -101,7 +116,10 @@ class SupervisorConfig:
             where it was aimed; jaws_lag_m: reaching then accepts the hand this far [m] behind its
             reference on the way to that planned posture (its default, the paper's 4e-5 m, is a
             trigger for stepping; the hand 0.24 mm behind refused it on seed 37); from that stance
-            reaching does not step (seed 6: 8 steps into the box). felt_obstacle_radius_m: the felt
+            reaching does not step (seed 6: 8 steps into the box). Of that hand and the hand turned
+            half a turn round (the jaws' line is the same), the first stance from whose final
+            posture reaching carries the object and walking steps back jaws_step_back_m [m] is kept
+            (dry runs; none: as without it). felt_obstacle_radius_m: the felt
             points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
             that the arm (forearm, upper arm) keeps out of, with the object itself.
     Perception and remedies:
@@ -120,7 +138,7 @@ class SupervisorConfig:
     near_face_m: float = 1.0
     retry_budget_s: float = 4.0
     retry_turning_radius_m: float = 0.3
-    walk_double_support_s: float = 0.2
+    walk_double_support_s: float = 0.1
     last_steps: bool = True
     last_steps_max: int = 6
     last_steps_budget_s: float = 5.0
@@ -138,6 +156,10 @@ class SupervisorConfig:
     put_edge_shift_m: float = 0.12
     put_edge_tries: int = 2
     put_view_m: float = 1.6
+    fast_arm_motions: tuple[str, ...] = ("raise", "carry", "withdraw")
+    fast_arm_speed_m_s: float = 0.4
+    fast_arm_min_s: float = 0.6
+    fast_arm_hold_s: float = 0.15
     approach_m: float = 0.12
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
@@ -152,6 +174,7 @@ class SupervisorConfig:
     jaws_step_region_scale: float = 0.8
     relocalized_jump_m: float = 0.05
     jaws_lag_m: float = 0.001
+    jaws_step_back_m: float = 0.15
     felt_obstacle_radius_m: float = 0.03
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
@@ -171,8 +194,46 @@ class SupervisorConfig:
             raise InvalidRequestError(
                 f"supervisor config: last_steps_posture takes 'grasp' and 'put', got {sorted(unknown)}"
             )
+        unknown = set(self.fast_arm_motions) - set(FAST_ARM_MOTIONS)
+        if unknown:
+            raise InvalidRequestError(
+                f"supervisor config: fast_arm_motions takes {list(FAST_ARM_MOTIONS)}, got {sorted(unknown)}"
+            )
+        low, high = reach_msg.MIN_DURATION_RANGE_S
+        for name, value, ok, bounds in (
+            (
+                "fast_arm_speed_m_s",
+                self.fast_arm_speed_m_s,
+                0.0 < self.fast_arm_speed_m_s <= reach_msg.MAX_HAND_SPEED_M_S,
+                f"(0, {reach_msg.MAX_HAND_SPEED_M_S}]",
+            ),
+            ("fast_arm_min_s", self.fast_arm_min_s, low <= self.fast_arm_min_s <= high, f"[{low}, {high}]"),
+            (
+                "fast_arm_hold_s",
+                self.fast_arm_hold_s,
+                self.fast_arm_hold_s <= reach_msg.MAX_FINAL_HOLD_S,
+                f"[0, {reach_msg.MAX_FINAL_HOLD_S}]",
+            ),
+        ):
+            if not ok:
+                raise InvalidRequestError(
+                    f"supervisor config: {name} must be in {bounds} (reaching's bounds), got {value}"
+                )
         if len(self.carry_m) != 3:
             raise InvalidRequestError("supervisor config: carry_m must be [forward, lateral, height] m")
+
+    def arm_timing(self, motion: str) -> dict[str, float]:
+        """The ``reaching/reach`` timing fields of the arm ``motion`` (one of ``FAST_ARM_MOTIONS``):
+        the fast ones' when it is in ``fast_arm_motions``, else none (reaching's default)."""
+        if motion not in FAST_ARM_MOTIONS:
+            raise ValueError(f"unknown arm motion {motion!r}; known: {list(FAST_ARM_MOTIONS)}")
+        if motion not in self.fast_arm_motions:
+            return {}
+        return {
+            "hand_speed_m_s": self.fast_arm_speed_m_s,
+            "min_duration_s": self.fast_arm_min_s,
+            "final_hold_s": self.fast_arm_hold_s,
+        }
 
 
 def load_supervisor_config(path: str | Path | None) -> SupervisorConfig:

@@ -21,8 +21,29 @@ from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import Plan, Planners
 from supervisor.report import ActionReport
-from supervisor.scene_map import box_estimate, boxes, distance_to_box, is_obstacle
+from supervisor.scene_map import BoxEstimate, box_estimate, boxes, distance_to_box, is_obstacle
 from supervisor.script import Step, parse_point
+
+
+def away_from(box: BoxEstimate, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float]:
+    """The unit direction (forward, left) in the robot's frame at (x, y, yaw) [m, rad] (its mid-feet
+    frame) away from ``box``'s floor rectangle: from its point nearest the robot to the robot (an
+    object straight ahead: straight back, the usual step before turning away from it; one beside the
+    robot: sideways); straight back when the robot stands inside it."""
+    rect = box.footprint
+    away = np.array([x_m, y_m]) - rect.nearest_point((x_m, y_m))
+    norm = float(np.linalg.norm(away))
+    if norm < 1e-6:
+        return -1.0, 0.0
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    forward = (c * away[0] + s * away[1]) / norm
+    left = (-s * away[0] + c * away[1]) / norm
+    return forward, left
+
+
+# The way out of :meth:`LocomotionActions._room_needed` counts as straight back when its forward component
+# is below minus this (cos 15 deg): the step back and the turn are then one walk of ``walking/goal``.
+_STRAIGHT_BACK = math.cos(math.radians(15.0))
 
 
 class LocomotionActions:
@@ -82,24 +103,44 @@ class LocomotionActions:
         raise AssertionError("unreachable")
 
     def _make_room(self, what: str) -> None:
-        """Step back when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
+        """Step away when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
         would sweep the arms into it, and a car-like path needs room to turn at its start (a start
-        inside an obstacle's margin is navigation's to leave: it computes the way out)."""
-        x, y, _yaw = self.body.base_xy_yaw()
-        near = [(distance_to_box(box, x, y), box.name) for box in boxes(self.memory)]
-        if not near:
+        inside an obstacle's margin is navigation's to leave: it computes the way out). Away from the
+        object's map box (:func:`away_from`: straight back when it is ahead; a table or chair beside
+        the robot, the step goes sideways too: straight back the hand beside the chair touched it,
+        fetch seed 18), else, when walking refuses that, straight back."""
+        room = self._room_needed()
+        if room is None:
             return
-        distance, name = min(near)
-        if distance >= self.config.clearance_m:
-            return
-        back = min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m)
+        back, name, forward, left = room
         try:
-            plan = self.planners.step_back(back)
-        except InfeasibleError as exc:  # something behind too: the planner that follows decides
-            self.progress(f"{what}: no step back from {name}: {exc.message}")
-            return
-        self.progress(f"{what}: stepping back {back:.2f} m from {name} ({plan.describe()})")
+            plan = self.planners.walk(back * forward, back * left, 0.0)
+        except InfeasibleError as exc:
+            self.progress(f"{what}: no step away from {name}: {exc.message}; straight back")
+            try:
+                plan = self.planners.step_back(back)
+            except InfeasibleError as exc:  # something behind too: the planner that follows decides
+                self.progress(f"{what}: no step back from {name}: {exc.message}")
+                return
+            forward, left = -1.0, 0.0
+        direction = f"{math.degrees(math.atan2(left, forward)):+.0f} deg from ahead"
+        self.progress(f"{what}: stepping {back:.2f} m away from {name}, {direction} ({plan.describe()})")
         self.body.execute(plan.q, what=f"step back from {name}", progress=self.progress)
+
+    def _room_needed(self) -> tuple[float, str, float, float] | None:
+        """How far [m] to step, from which object, and in which unit direction (forward, left) of the
+        robot's frame (:func:`away_from` its map box), for the objects seen to be at least
+        ``clearance_m`` from the robot's mid-feet point (at most ``max_step_back_m``); None when they
+        are."""
+        x, y, yaw = self.body.base_xy_yaw()
+        near = [(distance_to_box(box, x, y), box.name, box) for box in boxes(self.memory)]
+        if not near:
+            return None
+        distance, name, box = min(near, key=lambda item: item[0])
+        if distance >= self.config.clearance_m:
+            return None
+        back = min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m)
+        return (back, name, *away_from(box, x, y, yaw))
 
     def _approach(self, name: str) -> None:
         """Far objects are seen roughly (a table 3 m away: its silhouette is a thin top on thin legs):
@@ -184,7 +225,22 @@ class LocomotionActions:
         if abs(angle_rad) < math.radians(2.0):
             return 0
         self.body.straighten()
-        self._make_room(f"room to {what}")
+        room = self._room_needed()
+        if room is not None and room[2] < -_STRAIGHT_BACK:
+            # Stepping back for room and the turn: one walk of the walking planner (one start, one stop),
+            # checked against the map where each part is (the turn's room where it starts). Only when the
+            # way out is straight back (an object beside the robot: :meth:`_make_room` steps sideways).
+            back, name = room[:2]
+            try:
+                plan = self.planners.turn(angle_rad, back_m=back)
+            except InfeasibleError as exc:
+                self.progress(f"{what}: no step back {back:.2f} m from {name} and turn ({exc.message})")
+            else:
+                self.progress(f"{what}, stepping back {back:.2f} m from {name} first: {plan.describe()}")
+                self.body.execute(plan.q, what=what, progress=self.progress)
+                return plan.n_steps
+        if room is not None:
+            self._make_room(f"room to {what}")
         plan = self.planners.turn(angle_rad)
         self.progress(f"{what}: {plan.describe()}")
         self.body.execute(plan.q, what=what, progress=self.progress)

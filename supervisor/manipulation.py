@@ -1,4 +1,5 @@
-"""Manipulation actions: ``reach``, ``grasp``, ``open``, ``put``.
+"""Manipulation actions: ``reach``, ``grasp``, ``open`` (``put`` is in ``put.py``; it uses the hand
+motions of this module).
 
 "Hand reaching to a position in 3D ... gripper opening and closing" (Fig. 11 of
 ``001_771c0ce3779b0683.txt``): ``reaching/reach`` plans the whole-body motions (support polygon
@@ -9,31 +10,28 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from services.bus.schemas import sim as sim_msg
 from services.bus.schemas import walking as walk_msg
 from services.errors import (
     CollisionError,
     HumanoidError,
     InfeasibleError,
-    InvalidRequestError,
     NotFoundError,
     NotGraspedError,
     RequestTimeoutError,
-    WorldOutcomeError,
 )
-from supervisor.body import Body, Executed, Progress
+from supervisor.body import Body, Progress
 from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import LastSteps, Plan, Planners
 from supervisor.report import ActionReport
-from supervisor.scene_map import box_estimate, is_obstacle, ray_entry
+from supervisor.scene_map import box_estimate, is_obstacle
 from supervisor.script import Step, parse_point
 
 
@@ -61,30 +59,6 @@ def turns_clear_of(
         return []
     turns = sorted((math.radians(d) * sign for d in turns_deg for sign in (1.0, -1.0)), key=abs)
     return [t for t in turns if clear(bearing + t)]
-
-
-def toward_edge(centre: np.ndarray, contacts: list[np.ndarray], edge_deg: float) -> np.ndarray | None:
-    """Whether a lowered object touched a surface only on its side: every contact point [m] (world)
-    more than ``edge_deg`` off straight below ``centre`` (the object's, or the grasp frame's) [m] (its
-    side on an edge, the object hanging over it: released there it falls off). The horizontal unit
-    vector from ``centre`` toward those contacts (where the surface is), or None when a contact lies
-    under it (it stands on the top) or there is none."""
-    sideways = np.zeros(2)
-    for contact in contacts:
-        offset = np.asarray(contact, dtype=float) - np.asarray(centre, dtype=float)
-        across = float(np.linalg.norm(offset[:2]))
-        if math.degrees(math.atan2(across, -offset[2])) <= edge_deg:
-            return None
-        sideways += offset[:2] / max(across, 1e-9)
-    norm = float(np.linalg.norm(sideways))
-    return sideways / norm if norm > 1e-9 else None
-
-
-def arm_only(collisions: Sequence[sim_msg.Contact], obj: str) -> bool:
-    """Whether a lowering that stopped on the place was stopped by the robot's own links only, not by
-    the held object ``obj`` (its contacts' ``robot_link`` is ``held:<obj>``): a wrist force sensor
-    feels both alike, but only the object's contact says it stands on the place."""
-    return bool(collisions) and all(c.robot_link != f"held:{obj}" for c in collisions)
 
 
 def jaws_clear_of(
@@ -138,13 +112,20 @@ class ManipulationActions:
         upright: bool = False,
         orientation: list[float] | None = None,
         lag_m: float | None = None,
+        motion: str | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
         reaching refuses that (or ``config.upright_hand`` is off); ``orientation``: the grasp frame at
         that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
         posture, or fingers down), position only when reaching refuses it; else position only.
-        ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m]."""
+        ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m].
+        ``motion``: an unguarded motion's kind (``config.arm_timing``: fast if configured so), position
+        only; None: reaching's default timing."""
+        if motion is not None:
+            timing = self.config.arm_timing(motion)
+            plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping, timing=timing)
+            return self._play(plan, what, allowed)
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
                 plan = self.planners.reach(
@@ -234,7 +215,7 @@ class ManipulationActions:
         ahead = float(np.dot(here[:2] - (x, y), forward[:2]))
         point = here + forward * max(0.0, self.config.raise_ahead_m - ahead)
         point[2] = height_m
-        self._move_hand(hand, point, what, allowed=allowed, stepping=False, yaw_rad=yaw)
+        self._move_hand(hand, point, what, allowed=allowed, stepping=False, yaw_rad=yaw, motion="raise")
 
     def _grasp_point(self, hand: str, target: str, yaw_rad: float) -> np.ndarray:
         """Where the grasp frame goes for ``target``: its centre (perception), moved so that the object
@@ -281,22 +262,9 @@ class ManipulationActions:
         jaws_quat = None
         decided = None
         if jaws is not None and self.config.jaws_planned:
-            jaws_quat = Rotation.from_euler("z", jaws).as_quat().tolist()
-            point = self._grasp_point(hand, target, jaws)
-            # planned above it: the posture reaching goes to first; the lowering keeps its orientation
-            over = point + np.array([0.0, 0.0, self.config.approach_m])
-            felt = ", ".join(
-                f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near
-            )
-            decided = self._last_steps(
-                hand,
-                over,
-                point,
-                f"step up to {target}, the jaws at {math.degrees(jaws):.0f} deg (felt at {felt} deg from it)",
-                hand_obstacles=keep_out,
-                orientation=jaws_quat,
-                step_region_scale=self.config.jaws_step_region_scale,
-            )
+            decided, jaws = self._jaws_stance(hand, target, centre, near, jaws, keep_out)
+            if decided is not None:
+                jaws_quat = Rotation.from_euler("z", jaws).as_quat().tolist()
         if decided is None:
             # Planned without it (none found with it): walked around what the hand felt ahead of the
             # fingers first.
@@ -340,7 +308,11 @@ class ManipulationActions:
         # The jaws' posture: its stance was planned for it, the hand's lag on the way is no reason to
         # refuse it (reaching's 4e-5 m is the paper's trigger for stepping; 0.2 mm refused it on seed 37)
         lag = self.config.jaws_lag_m if jaws_quat is not None else None
-        steps = self._as_planned(hand, above, f"reach above {target}", [], final, target, lag_m=lag)
+        # ... and the whole final posture planned with it (reaching executes it: paper 000 §7)
+        posture = decided.q_final if decided is not None and final is not None else None
+        steps = self._as_planned(
+            hand, above, f"reach above {target}", [], final, target, lag_m=lag, posture=posture
+        )
         if steps is None and jaws is not None:
             steps = self._fingers_down(hand, above, f"reach above {target}", jaws)
         if steps is None:
@@ -380,6 +352,92 @@ class ManipulationActions:
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
+
+    def _jaws_stance(
+        self,
+        hand: str,
+        target: str,
+        centre: np.ndarray,
+        near: list[np.ndarray],
+        jaws: float,
+        keep_out: list[tuple[np.ndarray, float]],
+    ) -> tuple[LastSteps | None, float]:
+        """The stance for the fingers-down hand above ``target`` at the jaws' yaw ``jaws`` [rad] (world),
+        planned by footsteps/plan with that hand as a task (paper 000 §4: the tasks decide where the feet
+        go), checked for what follows the grasp, and walked: (what it decided, the yaw it was planned
+        for), or (None, ``jaws``) when no stance passed (the caller approaches as without it).
+
+        The jaws' line is what keeps them clear of the ``near`` points, so the hand turned by half a
+        turn is as clear (:func:`jaws_clear_of`); either hand is tried, ``jaws`` first. A stance is
+        kept when what follows the grasp can be planned from its final posture (the hand above the
+        object, as the lift leaves it: :meth:`_what_follows_refused`): on fetch seed 6 the stance for
+        the jaws at -46 deg put the ball 57 deg to the right of the heading, the arm stretched
+        sideways and the wrist turned, and the carry after the grasp was refused there
+        (manipulability 5.4e-5, then a wrist joint at its limit); the hand at 134 deg was carried,
+        but from that posture (the waist rolled 22 deg) no walk could start (the step back before
+        the turn: an arm joint at ~100 rad/s)."""
+        if not self.config.last_steps:
+            return None, jaws
+        felt = ", ".join(f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near)
+        # Upright first: the walk is planned from the posture it starts in (as in ``_last_steps``).
+        self.body.straighten()
+        for yaw in (jaws, math.remainder(jaws + math.pi, math.tau)):
+            quat = Rotation.from_euler("z", yaw).as_quat().tolist()
+            point = self._grasp_point(hand, target, yaw)
+            # planned above it: the posture reaching goes to first; the lowering keeps its orientation
+            over = point + np.array([0.0, 0.0, self.config.approach_m])
+            what = (
+                f"step up to {target}, the jaws at {math.degrees(yaw):.0f} deg (felt at {felt} deg from it)"
+            )
+            try:
+                decided = self.planners.last_steps(
+                    hand, over, point, keep_out, quat, self.config.jaws_step_region_scale
+                )
+            except (InfeasibleError, RequestTimeoutError) as exc:
+                self.progress(f"{what}: footsteps/plan found no steps ({exc.message})")
+                continue
+            refused = self._what_follows_refused(hand, decided.q_final)
+            if refused is not None:
+                self.progress(f"{what}: {decided.found}; not taken: {refused}")
+                continue
+            if decided.walk is None:
+                self.progress(f"{what}: {decided.found}: no step needed")
+            else:
+                self.progress(f"{what}: {decided.found}; {decided.walk.describe()}")
+                self.body.execute(decided.walk.q, what=what, progress=self.progress)
+            return decided, yaw
+        return None, jaws
+
+    def _what_follows_refused(self, hand: str, q_final: np.ndarray) -> str | None:
+        """Why what follows a grasp from footsteps/plan's final posture ``q_final`` cannot be planned, or
+        None when it can (dry runs: nothing is executed): reaching brings the ``hand`` to the carry
+        point of that stance without stepping (what the grasp does after the lift:
+        ``_lift_and_carry``), and, from that posture with the chest straightened (as before every
+        walk), ``walking/goal`` steps back ``jaws_step_back_m`` (the turn that follows steps back from
+        the object's support first)."""
+        x, y, yaw = self.body.base_xy_yaw()
+        carry = self._carry_point(hand)  # in front of the chest at the stance now ...
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = carry[0] - x, carry[1] - y
+        ahead, left = c * dx + s * dy, -s * dx + c * dy
+        fx, fy, fyaw = self.body.robot.mid_feet_pose(q_final)  # ... moved to the planned stance
+        c, s = math.cos(fyaw), math.sin(fyaw)
+        there = np.array([fx + c * ahead - s * left, fy + s * ahead + c * left, carry[2]])
+        try:
+            self.planners.reach(hand, there, allow_stepping=False, q_start=q_final)
+        except InfeasibleError as exc:
+            return f"no carry from there ({exc.message})"
+        robot = self.body.robot
+        straight = np.array(q_final, dtype=float)
+        for joint in robot.info.chest_joints:
+            straight[robot.index(joint)] = robot.q_half_sitting[robot.index(joint)]
+        back = self.config.jaws_step_back_m
+        try:
+            step_back = walk_msg.GoalRequest(q_start=straight, kind="pose", pose=[-back, 0.0, 0.0])
+            self.planners.walk_goal(step_back)
+        except InfeasibleError as exc:
+            return f"no step back from there ({exc.message})"
+        return None
 
     def _where_it_was_aimed(self, target: str) -> None:
         """Before choosing the jaws' yaw from what the hand felt beside ``target``: when the sighting of
@@ -510,6 +568,7 @@ class ManipulationActions:
         quat: list[float] | None,
         target: str,
         lag_m: float | None = None,
+        posture: np.ndarray | None = None,
     ) -> int | None:
         """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
         stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
@@ -517,12 +576,20 @@ class ManipulationActions:
         its manipulability trigger fires on the way, paper 001 Fig. 4). The steps taken (0), or None
         when ``quat`` is None or reaching refuses it (the caller then reaches position only, stepping
         if it must: the object moved). ``lag_m``: the hand's lag behind its reference reaching accepts
-        [m] (None: its default)."""
+        [m] (None: its default). ``posture``: footsteps/plan's whole final posture (nq,), which reaching
+        then goes to with the hand (its joints, CoM and hand path; its gaze replaces reaching's) rather
+        than to one its own IK finds (without it the planned hand was refused: the multibody ZMP 374-1609 mm
+        out of the support polygon; with it the motion ends in the posture the footstep IK checked)."""
         if quat is None:
             return None
         try:
             plan = self.planners.reach(
-                hand, point, orientation=quat, allow_stepping=False, ee_error_threshold_m=lag_m
+                hand,
+                point,
+                orientation=quat,
+                allow_stepping=False,
+                ee_error_threshold_m=lag_m,
+                posture=posture,
             )
         except InfeasibleError as exc:
             self.progress(f"{what}: the hand as in footsteps/plan's final posture refused ({exc.message})")
@@ -634,16 +701,24 @@ class ManipulationActions:
         c, s = math.cos(yaw), math.sin(yaw)
         return np.array([x + c * forward - s * lateral, y + s * forward + c * lateral, height])
 
-    def _lift_and_carry(self, hand: str, allowed: list[str], what: str) -> None:
-        """Raise the hand by ``lift_m``, then bring it to the carry point (no stepping)."""
+    def _lift_and_carry(self, hand: str, allowed: list[str], what: str, *, withdraw: bool = False) -> None:
+        """Raise the hand by ``lift_m``, then bring it to the carry point (no stepping); timed as the
+        config's "lift" and "carry" motions, or both as "withdraw" (the emptied hand after a put)."""
         q = self.body.q()
         robot = self.body.robot
         here = robot.grasp_position(q, hand)
         yaw = self._heading()
         up = here + np.array([0.0, 0.0, self.config.lift_m])
-        self._move_hand(hand, up, f"{what}: lift", allowed=allowed, stepping=False, yaw_rad=yaw)
+        lift, carry = ("withdraw", "withdraw") if withdraw else ("lift", "carry")
+        self._move_hand(hand, up, f"{what}: lift", allowed=allowed, stepping=False, yaw_rad=yaw, motion=lift)
         self._move_hand(
-            hand, self._carry_point(hand), f"{what}: carry", allowed=allowed, stepping=False, yaw_rad=yaw
+            hand,
+            self._carry_point(hand),
+            f"{what}: carry",
+            allowed=allowed,
+            stepping=False,
+            yaw_rad=yaw,
+            motion=carry,
         )
 
     def do_grasp(self, step: Step) -> ActionReport:
@@ -679,252 +754,3 @@ class ManipulationActions:
         return ActionReport(
             "open", step.args, message=f"{hand} hand open{released}", details={"released": reply.released}
         )
-
-    def do_put(self, step: Step) -> ActionReport:
-        """Put the held object on a place: look at the place, step up to it (footsteps/plan), bring the
-        object above it, lower it until it touches the place (a guarded move: perception's estimate of
-        a table's height is rough), open the hand, withdraw it. Lowered down to ``put_lowest_m``
-        without touching: raise it, localize the place again from here and try once more."""
-        obj = step.args[0]
-        place = step.kwargs.get("on")
-        if not place:
-            raise InvalidRequestError("put needs a place: `put OBJECT on=PLACE`")
-        held = self.body.held()
-        hand = next((side for side, name in held.items() if name == obj), None)
-        if hand is None:
-            holding = ", ".join(f"{n} in the {s} hand" for s, n in held.items()) or "nothing"
-            raise NotGraspedError(f"cannot put {obj}: the robot holds {holding}", {"object": obj})
-        allowed = [obj]
-        missed: np.ndarray | None = None  # where the object went down onto nothing
-        for attempt in (1, 2):
-            # Look at the place (again, on the second attempt: from nearer, with the object above it).
-            self.progress(self.do_look_at(Step(step.line, "look_at", (place,))).message)
-            point = self._put_point(place, missed=missed)
-            decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
-            if decided is None and self._walk_nearer(place, point, f"step up to {place}"):
-                self.do_look_at(Step(step.line, "look_at", (place,)))
-                point = self._put_point(place, missed=missed)
-                decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
-            yaw = self._heading()
-            self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
-            final = self._final_hand(decided, place, "put")
-            if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final, place) is None:
-                self._move_hand(
-                    hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
-                )
-            what = f"lower {obj} onto {place}"
-            executed, low_z = self._lower_onto(hand, point, place, final, allowed, what)
-            if executed.touched:
-                executed = self._onto_the_top(hand, obj, place, executed, allowed, final)
-                break
-            if attempt == 2:
-                raise NotFoundError(
-                    f"lowered {obj} down to {low_z:.2f} m twice without touching {place}: it is not "
-                    f"where perception saw it, even seen again from here",
-                    {"object": place, "reason": "no_surface"},
-                )
-            self.progress(
-                f"lowered {obj} down to {low_z:.2f} m without touching {place}: raising it and "
-                f"localizing {place} again"
-            )
-            # Measured: the place's map rectangle holds a point with nothing under it.
-            self.memory.drop_footprint(place)
-            missed = point
-            self._move_hand(hand, point, f"raise {obj} again", allowed=allowed, stepping=False, yaw_rad=yaw)
-            self._move_hand(  # carried again for the next last steps
-                hand, self._carry_point(hand), f"carry {obj}", allowed=allowed, stepping=False, yaw_rad=yaw
-            )
-            if self._view_again(place, point):
-                missed = None  # mapped anew from a whole view: the put point comes from that rectangle
-        robot = self.body.robot
-        at = robot.grasp_position(executed.q, hand)
-        reply = self.body.gripper(hand, "open")
-        self.memory.holding.pop(hand, None)
-        if reply.released != obj:
-            raise NotGraspedError(
-                f"opening the {hand} hand released {reply.released or 'nothing'}, not {obj}"
-            )
-        self.progress(f"released {obj} on {place}: withdrawing the {hand} hand")
-        note = ""
-        try:
-            self._lift_and_carry(hand, [place, obj], f"withdraw from {place}")
-        except WorldOutcomeError as exc:  # the object is on the place: the put is done, the withdrawal is not
-            note = f" (withdrawing the hand stopped: {exc.message})"
-            touched = [c.other for c in exc.details.get("collisions", [])]
-            with contextlib.suppress(HumanoidError):
-                self._back_off(hand, sorted({*touched, place, obj}))
-        return ActionReport(
-            "put",
-            step.args,
-            message=f"{obj} put on {place} at ({at[0]:.2f}, {at[1]:.2f}, {at[2]:.2f}) m{note}",
-            details={"point": at.tolist(), "on": place, "hand": hand},
-        )
-
-    def _view_again(self, place: str, missed: np.ndarray) -> bool:
-        """After a put at ``missed`` (world [m]) touched nothing: see ``place`` again from where its
-        whole outline is in view. From beside it (nearer than perception's footprint depth, cut by the
-        image borders, the arm and the held object in front) it has no floor rectangle, and the middle
-        of its silhouette was no better (fetch seeds 21, 23). Navigation walks back to ``put_view_m``
-        from the point that missed (checked against the map), facing it; there perception maps it
-        from its outline again (occluded edges left out). Whether it got a floor rectangle (else the
-        retry goes toward the middle of its silhouette, as before)."""
-        x, y, _yaw = self.body.base_xy_yaw()
-        away = np.array([x, y]) - missed[:2]
-        u = away / max(float(np.linalg.norm(away)), 1e-6)
-        stand = missed[:2] + u * self.config.put_view_m
-        what = f"view {place} again"
-        self.body.straighten()
-        try:
-            plan = self.planners.goto_pose(float(stand[0]), float(stand[1]), math.atan2(-u[1], -u[0]))
-        except InfeasibleError as exc:
-            self.progress(f"{what}: no walk back to {self.config.put_view_m:.1f} m from it ({exc.message})")
-            return False
-        self.progress(
-            f"{what}: from {self.config.put_view_m:.1f} m, its whole outline in view ({plan.describe()})"
-        )
-        self.body.execute(plan.q, what=what, progress=self.progress)
-        self.body.straighten()
-        with contextlib.suppress(NotFoundError):
-            self.eyes.look_at(missed, f"look at {place}")
-            self.eyes.localize(place, turn=lambda *_: None, progress=self.progress, look_around=False)
-        sighting = self.memory.sightings.get(place)
-        if sighting is not None:
-            self.progress(f"{what}: {sighting.describe()}")
-        return sighting is not None and sighting.footprint is not None
-
-    @staticmethod
-    def _contacts(executed: Executed) -> str:
-        """The contacts that stopped ``executed``, for the transcript: link (x, y, z) m, ..."""
-        return ", ".join(
-            f"{k.robot_link} at ({k.position[0]:.2f}, {k.position[1]:.2f}, {k.position[2]:.2f})"
-            for k in executed.reply.collisions
-        )
-
-    def _beside_edge(self, hand: str, obj: str, executed: Executed) -> np.ndarray | None:
-        """:func:`toward_edge` of the contacts of the held ``obj`` that stopped ``executed``, seen from
-        the ``hand``'s grasp frame; None when it stands on the top, or when only the arm touched
-        (:func:`arm_only`, :meth:`_onto_the_top`)."""
-        held = [c.position for c in executed.reply.collisions if c.robot_link == f"held:{obj}"]
-        if not held:
-            return None
-        centre = self.body.robot.grasp_position(executed.q, hand)
-        return toward_edge(centre, [np.asarray(p, dtype=float) for p in held], self.config.put_edge_deg)
-
-    def _onto_the_top(
-        self,
-        hand: str,
-        obj: str,
-        place: str,
-        executed: Executed,
-        allowed: list[str],
-        final: list[float] | None,
-    ) -> Executed:
-        """After a lowering stopped on touching ``place``, until the held object itself stands on it:
-
-        * only the arm touched (:func:`arm_only`: the wrist below the object came onto the top, the
-          object hanging beside or above it; released there it rolled off the near edge, fetch seed
-          52): a collision, not a put. The touch measured the top there; the object is lifted by
-          ``put_height_m``, moved ``put_edge_shift_m`` further along the approach (from the robot's
-          mid-feet point toward the object: the arm reaches over the near edge, the top lies ahead)
-          and lowered again, once; an arm touch after that move is taken as the object on the top;
-        * the object touched only on its side (:meth:`_beside_edge`: hanging over an edge; released
-          there it falls off, fetch seed 5): raised by ``put_height_m``, moved ``put_edge_shift_m``
-          toward the contacts (onto the top) and lowered again.
-
-        At most ``put_edge_tries`` such moves. The last lowering's execution."""
-        c = self.config
-        moved_for_arm = False
-        for _ in range(c.put_edge_tries):
-            here = self.body.robot.grasp_position(executed.q, hand)
-            if arm_only(executed.reply.collisions, obj) and not moved_for_arm:
-                x, y, _yaw = self.body.base_xy_yaw(executed.q)
-                ahead = here[:2] - (x, y)
-                inward = ahead / max(float(np.linalg.norm(ahead)), 1e-6)
-                moved_for_arm = True
-                self.progress(
-                    f"the arm, not {obj}, touched {place}: lifting it and moving it "
-                    f"{c.put_edge_shift_m:.2f} m further onto the top"
-                )
-            else:
-                inward = self._beside_edge(hand, obj, executed)
-                if inward is None:
-                    return executed
-                self.progress(
-                    f"{obj} touched {place} on its side (over an edge): moving it "
-                    f"{c.put_edge_shift_m:.2f} m onto the top and lowering it again"
-                )
-            up = here + np.array([0.0, 0.0, c.put_height_m])
-            off = [*allowed, place]  # it starts on the top or its edge
-            self._move_hand(hand, up, f"lift {obj} off {place}", allowed=off, stepping=False, yaw_rad=None)
-            over = up + np.array([inward[0], inward[1], 0.0]) * c.put_edge_shift_m
-            self._move_hand(hand, over, f"{obj} over the top", allowed=allowed, stepping=False, yaw_rad=None)
-            what = f"lower {obj} onto {place} again"
-            executed, low_z = self._lower_onto(hand, over, place, final, allowed, what)
-            if not executed.touched:
-                raise NotFoundError(
-                    f"moved {obj} {c.put_edge_shift_m:.2f} m onto the top of {place} and "
-                    f"lowered it to {low_z:.2f} m without touching it",
-                    {"object": place, "reason": "no_surface"},
-                )
-        return executed
-
-    def _lower_onto(
-        self,
-        hand: str,
-        above: np.ndarray,
-        place: str,
-        final: list[float] | None,
-        allowed: list[str],
-        what: str,
-    ) -> tuple[Executed, float]:
-        """Lower the held object from ``above`` (world [m]) by ``put_depth_m`` (not below
-        ``put_lowest_m``) until it touches ``place``: the execution (its ``touched`` reported) and the
-        lowest height planned [m]."""
-        low = above.copy()
-        low[2] = max(self.config.put_lowest_m, above[2] - self.config.put_depth_m)
-        plan = self._lowering(hand, low, final)
-        self.progress(
-            f"{what} from ({above[0]:.2f}, {above[1]:.2f}, {above[2]:.2f}) m: {plan.describe()}, "
-            "until it touches"
-        )
-        executed = self.body.execute(
-            plan.q, what=what, allowed_contacts=allowed, progress=self.progress, touch=place
-        )
-        if executed.touched:
-            self.progress(f"{what}: touched by {self._contacts(executed)}")
-        return executed, float(low[2])
-
-    def _lowering(self, hand: str, low: np.ndarray, final: list[float] | None) -> Plan:
-        """The guarded lowering of a held object to ``low`` (no stepping): the hand keeping the
-        orientation of footsteps/plan's final posture when it is in it (``final``), else position only
-        (also when reaching refuses the former)."""
-        if final is not None and self._hand_at(hand, final):
-            with contextlib.suppress(InfeasibleError):
-                return self.planners.reach(hand, low, orientation=final, allow_stepping=False)
-        return self.planners.reach(hand, low, yaw_rad=None, allow_stepping=False)
-
-    def _put_point(self, place: str, *, missed: np.ndarray | None = None) -> np.ndarray:
-        """Where the object goes before being lowered: inside the place's near face (as the map
-        estimates it), above the highest its top can be (capped: a rough silhouette overestimates).
-        After a put that went down at ``missed`` onto nothing: from there toward the middle of the
-        place's silhouette in its last sighting (a point on the place itself, whatever the map's
-        rectangle), by ``put_retry_shift_m`` at most (the feet stay near where they are: a map box from
-        a close-up silhouette can be smaller than the place, the legs of a table outside it)."""
-        sighting = self.memory.get(place)
-        box = box_estimate(sighting)
-        top = min(box.top_z_m, self.config.put_highest_m)
-        if missed is not None:
-            to_middle = sighting.position_m[:2] - missed[:2]
-            dist = float(np.linalg.norm(to_middle))
-            shift = min(dist, self.config.put_retry_shift_m) / max(dist, 1e-6)
-            xy = missed[:2] + shift * to_middle
-            return np.array([xy[0], xy[1], top + self.config.put_height_m])
-        x, y, _ = self.body.base_xy_yaw()
-        centre = np.array(box.center_m[:2])
-        to_centre = centre - (x, y)
-        dist = float(np.linalg.norm(to_centre))
-        u = to_centre / max(dist, 1e-6)
-        face = min(dist, ray_entry(box, np.array([x, y]), u))
-        ahead = min(dist, max(0.0, face) + self.config.put_inside_m)
-        xy = np.array([x, y]) + u * ahead
-        return np.array([xy[0], xy[1], top + self.config.put_height_m])

@@ -17,6 +17,12 @@ from services.errors import NotFoundError
 
 #: A sighting without a footprint inherits the last one when it lies this close to it [m].
 KEEP_FOOTPRINT_MARGIN_M = 0.25
+#: Two footprints of one object disagree when their centres are farther apart than this [m] or a side
+#: differs by more than ``DISAGREE_SIZE_M`` [m]; the one less of whose outline was hidden is kept when
+#: the other's hidden fraction is larger by more than ``HIDDEN_SLACK``.
+DISAGREE_CENTRE_M = 0.1
+DISAGREE_SIZE_M = 0.15
+HIDDEN_SLACK = 0.05
 
 
 @dataclass(frozen=True)
@@ -51,6 +57,19 @@ class Sighting:
         return text
 
 
+def hidden_fraction(fp: FootprintMsg) -> float:
+    """The fraction of a footprint's outline edges left out next to an occluder (not seen)."""
+    return fp.n_hidden / max(1, fp.n_points + fp.n_hidden)
+
+
+def disagree(a: FootprintMsg, b: FootprintMsg) -> bool:
+    """Whether two footprints of one object place it differently (``DISAGREE_CENTRE_M``,
+    ``DISAGREE_SIZE_M``)."""
+    centre = float(np.linalg.norm(np.subtract(a.center, b.center)))
+    sides = np.abs(np.sort(a.size) - np.sort(b.size))
+    return centre > DISAGREE_CENTRE_M or bool((sides > DISAGREE_SIZE_M).any())
+
+
 @dataclass
 class Memory:
     """Latest sighting per object name, and what each hand holds (from grasp/open outcomes)."""
@@ -76,20 +95,25 @@ class Memory:
         self.posture_touched.clear()
         self.aimed.clear()
 
-    def remember(self, sighting: Sighting) -> None:
-        """Keep ``sighting`` as the latest of its object. Seen without a footprint (cut by the image
-        border: close up, or half out of view), it keeps the last footprint of the object when its
-        position lies within that rectangle grown by ``KEEP_FOOTPRINT_MARGIN_M``: objects stay where
-        they are unless seen elsewhere."""
+    def remember(self, sighting: Sighting) -> Sighting:
+        """Keep ``sighting`` as the latest of its object; what is kept. Seen without a footprint (cut by
+        the image border: close up, or half out of view), it keeps the last footprint of the object
+        when its position lies within that rectangle grown by ``KEEP_FOOTPRINT_MARGIN_M``: objects stay
+        where they are unless seen elsewhere. Seen with a footprint that disagrees with the last one
+        (:func:`disagree`), the better-supported of the two is kept (:func:`hidden_fraction`: a view
+        from close up with the robot's arm and the held object in front of the table hides part of
+        its outline; the rectangle fitted to the rest is the less sure one)."""
         last = self.sightings.get(sighting.name)
-        if (
-            sighting.footprint is None
-            and last is not None
-            and last.footprint is not None
-            and last.footprint.rectangle.grown(KEEP_FOOTPRINT_MARGIN_M).contains(sighting.position_m[:2])
-        ):
-            sighting = replace(sighting, footprint=last.footprint)
+        if last is not None and last.footprint is not None:
+            new, old = sighting.footprint, last.footprint
+            if new is None:
+                keep = old.rectangle.grown(KEEP_FOOTPRINT_MARGIN_M).contains(sighting.position_m[:2])
+            else:
+                keep = disagree(new, old) and hidden_fraction(new) > hidden_fraction(old) + HIDDEN_SLACK
+            if keep:
+                sighting = replace(sighting, footprint=last.footprint)
         self.sightings[sighting.name] = sighting
+        return sighting
 
     def drop_footprint(self, name: str) -> None:
         """Forget the floor rectangle of ``name`` (a measurement proved it wrong: an object lowered

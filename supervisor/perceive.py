@@ -59,9 +59,8 @@ class Eyes:
             camera_m=T[:3, 3].copy(),
             footprint=reply.footprint,
         )
-        self.memory.remember(sighting)
         self._last_box = (reply.box_left.u_px, reply.box_left.v_px)
-        return sighting
+        return self.memory.remember(sighting)  # (with the better-supported footprint)
 
     def survey(self, progress: Progress, exclude: set[str]) -> list[str]:
         """Localize, in the current view, every learned object that is not a ball (models of shape

@@ -148,12 +148,13 @@ class Planners:
         return self._goto(goal_pose=[x_m, y_m, math.remainder(yaw_rad, 2 * math.pi)])
 
     # walking ----------------------------------------------------------------------------------------------
-    def turn(self, angle_rad: float) -> Plan:
+    def turn(self, angle_rad: float, *, back_m: float = 0.0) -> Plan:
         """Turn on the spot by ``angle_rad`` (> 0: left) with ``walking/goal`` (a staggered stance, as after
-        a reaching step, is squared up first; no box of the map nearer than its turning room); a held
-        object is carried (the arm keeps its posture, walking's lowest level)."""
+        a reaching step, is squared up first; no box of the map nearer than its turning room), after
+        stepping straight back by ``back_m`` [m] in the same walk when > 0; a held object is carried
+        (the arm keeps its posture, walking's lowest level)."""
         return self.walk_goal(
-            walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="turn", angle_rad=angle_rad)
+            walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="turn", angle_rad=angle_rad, back_m=back_m)
         )
 
     # footsteps ----------------------------------------------------------------------------------------
@@ -246,14 +247,21 @@ class Planners:
         gaze: bool = True,
         orientation: list[float] | None = None,
         ee_error_threshold_m: float | None = None,
+        q_start: np.ndarray | None = None,
+        posture: np.ndarray | None = None,
+        timing: dict[str, float] | None = None,
     ) -> Plan:
         """``reaching/reach``: the ``hand`` grasp frame to ``target_m`` [m], from above: the grasp frame
         upright (fingers down, jaws closing sideways) turned by ``yaw_rad`` (None: position only), or
         at ``orientation`` ([qx, qy, qz, qw] in the world) when given; ``ee_error_threshold_m``: the
-        lag of the hand behind its reference [m] reaching accepts (None: its default)."""
+        lag of the hand behind its reference [m] reaching accepts (None: its default); ``q_start``: the
+        configuration to plan from, standing (None: the robot's now); ``posture``: the whole-body posture
+        (nq,) the motion goes to with the hand (footsteps/plan's final posture), None: reaching's own;
+        ``timing``: the request's timing fields (``SupervisorConfig.arm_timing``; None or empty:
+        reaching's default)."""
         if orientation is None and yaw_rad is not None:
             orientation = [0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)]
-        q = self.body.plan_q()
+        q = self.body.plan_q() if q_start is None else q_start
         request = reach_msg.ReachRequest(
             hand=hand,
             target=[float(v) for v in target_m],
@@ -262,6 +270,8 @@ class Planners:
             gaze=gaze,
             allow_stepping=allow_stepping,
             ee_error_threshold_m=ee_error_threshold_m,
+            posture=None if posture is None else np.ascontiguousarray(posture, dtype=float),
+            **(timing or {}),
         )
         reply = self.bus.call(reach_msg.REACH, request, self.config.plan_timeout_s)
         return Plan(

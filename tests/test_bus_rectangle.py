@@ -40,6 +40,9 @@ def test_ray_entry_distance_containment_and_growth_against_sampling():
                 assert entry == math.inf
             d = rect.distance(origin)
             assert d == pytest.approx(max(0.0, float(rect.signed_distance(origin)[0])))
+            nearest = rect.nearest_point(origin)
+            assert np.linalg.norm(origin - nearest) == pytest.approx(d, abs=1e-9)
+            assert rect.grown(1e-9).contains(nearest)
             assert (d == 0.0) == rect.contains(origin)
             margin = float(rng.uniform(0.0, 0.3))
             local = np.abs(rect.to_local(origin)[0])

@@ -19,7 +19,7 @@ from services.contacts.interpolate import deepest_collision
 from services.contacts.posture import Floating, PostureGenerator
 from services.contacts.potential import PotentialTask, RoughTrajectory, base_point
 from services.contacts.search import ContactPlanner, Goal, SearchConfig
-from services.contacts.sets import Contact, contact_at, patch_of
+from services.contacts.sets import Contact, contact_at, patch_of, sets_close, turn_moving_corners_by
 from services.contacts.spots import robot_spots
 from services.contacts.stability import ContactPatch, equilibrium_region, is_statically_stable
 from services.contacts.volumes import SearchVolume, around, full_volume, subtract
@@ -106,10 +106,29 @@ def test_non_coplanar_region_differs_from_the_hull_and_the_force_qp_agrees_with_
     assert agree > 150
 
 
+def test_the_warm_started_lps_give_the_regions_of_cold_ones():
+    """The projection's LPs re-solved on one HiGHS model (stability._WarmLP) find the same region as
+    each solved anew by linprog: flat, non-coplanar, and with a load bound on the high contact."""
+    up = np.array([0.0, 0.0, 1.0])
+    feet = [ContactPatch(_square(0.0, 0.1, 0.0), up, 0.8), ContactPatch(_square(0.0, -0.1, 0.0), up, 0.8)]
+    tilted = np.array([0.0, -0.4, 1.0]) / math.hypot(0.4, 1.0)
+    cases = (
+        feet,
+        [*feet, ContactPatch(_square(0.5, 0.0, 0.8), up, 0.8)],
+        [*feet, ContactPatch(_square(0.5, 0.0, 0.8), tilted, 0.5, max_load=0.2)],
+        [feet[0], ContactPatch(_square(0.4, 0.2, 0.7), up, 0.8, max_load=0.22)],
+    )
+    for patches in cases:
+        warm = equilibrium_region(patches)
+        cold = equilibrium_region(patches, warm=False)
+        assert warm.shape == cold.shape
+        assert max(np.linalg.norm(cold - v, axis=1).min() for v in warm) < 1e-7
+        assert _area(warm) == pytest.approx(_area(cold), abs=1e-9)
+
+
 def _area(polygon: np.ndarray) -> float:
     x, y = polygon[:, 0], polygon[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-
 
 
 # ------------------------------------------------------------------------------------------ tasks
@@ -168,6 +187,57 @@ def test_capsule_box_distances_and_jacobian(chair):
     F = _fd_check(task, gen.model, q, atol=1e-4)
     compute_kinematics(gen.model, data, q, False)
     np.testing.assert_allclose(F, 0.01 - task.distances(data))
+
+
+def test_the_broad_phase_leaves_out_only_pairs_beyond_the_activation_distance(chair):
+    """compute() checks only the pairs the broad phase keeps: its rows must be those of every pair
+    within margin + activation, bit for bit, in random postures near the chair and the table."""
+    robot, env, gen, q0, start = chair
+    boxes = [ObstacleBox(b.name, b.T_world_box, b.half_extents_m) for b in env.boxes]
+    task = CapsuleBoxTask(gen.model, gen.capsules, boxes, gen.box_pairs([c.pair for c in start]), 0.015)
+    data = gen.model.createData()
+    rng = np.random.default_rng(3)
+    rows = 0
+    for _ in range(40):
+        q = q0.copy()
+        q[:3] += rng.normal(0.0, 0.15, 3)
+        q[7:] = np.clip(q[7:] + rng.normal(0.0, 0.4, q.size - 7), robot.q_lower[7:], robot.q_upper[7:])
+        compute_kinematics(gen.model, data, q, False)
+        errors, J = task.compute(q, data)
+        distances = task.distances(data)
+        near = distances <= task.margin_m + task.activation_m
+        np.testing.assert_array_equal(errors, task.margin_m - distances[near])
+        assert J.shape == (int(near.sum()), gen.model.nv)
+        rows += errors.shape[0]
+    assert rows > 40  # the postures do come near the boxes
+
+
+def test_a_posture_generation_depends_on_its_inputs_only(chair):
+    """The QPs' warm starts do not carry over from one generation to the next: the same request after
+    another one gives the same witness, bit for bit (plans are reproducible)."""
+    robot, env, gen, q0, start = chair
+    T = RoughTrajectory(gen.model, chair_egress.key_postures(robot, env, q0))
+    rest = start[1:]
+    first = gen.generate(start, rest, q0, PotentialTask(T))
+    gen.generate(start, start[:2], q0, PotentialTask(T))
+    again = gen.generate(start, rest, q0, PotentialTask(T))
+    assert first.ok and again.ok
+    np.testing.assert_array_equal(first.q, again.q)
+
+
+def test_the_search_stops_at_its_cpu_budget(chair):
+    robot, env, gen, q0, start = chair
+    T = RoughTrajectory(gen.model, chair_egress.key_postures(robot, env, q0))
+    planner = ContactPlanner(
+        gen,
+        T,
+        Goal("y", 0.6, chair_egress.FINAL_PAIRS),
+        chair_egress.PAIRS,
+        SearchConfig(time_budget_s=120.0, cpu_budget_s=0.5),
+    )
+    result = planner.plan(start, q0)
+    assert result.status == "timeout" and "CPU budget" in result.message
+    assert 0.5 <= result.plan_cpu_s < 30.0 and result.nodes_generated >= 1
 
 
 # ------------------------------------------------------------------------------------------ f_T
@@ -276,6 +346,32 @@ def test_first_expansion_one_leaf_per_pair_and_removals(chair):
             assert len(pairs) == len(set(pairs))
         assert sum(s.change.startswith("-") for s in sons) >= 2
     assert counts[False] > counts[True]
+
+
+def test_a_small_patch_turned_is_the_same_contact_with_patch_turns(chair):
+    """SearchConfig.patch_turns: V's angle and the "too close" angle of a spot are at least the turn
+    that moves its patch's corners by half of V's / close_m's length: a hand (6 x 6 cm) turned by 0.9
+    rad is too close to itself, a sole (22 x 12 cm) keeps close_rad."""
+    _robot, _env, gen, q0, _start = chair
+    hand, sole = gen.spots["right_hand"], gen.spots["right_sole"]
+    assert turn_moving_corners_by(hand, 0.04) == pytest.approx(
+        2.0 * math.asin(0.04 / (2.0 * math.hypot(0.03, 0.03)))
+    )
+    assert turn_moving_corners_by(hand, 0.2) == math.pi  # no turn moves its corners that far
+    assert turn_moving_corners_by(sole, 0.04) < 0.4
+    a = (Contact("right_hand", "table.top", 0.1, 0.2, 0.0), Contact("right_sole", "floor", 0.3, 0.2, 0.0))
+    turned_hand = (Contact("right_hand", "table.top", 0.12, 0.2, 0.9), a[1])
+    turned_sole = (a[0], Contact("right_sole", "floor", 0.3, 0.2, 0.5))
+    tols = {s.name: max(0.4, turn_moving_corners_by(s, 0.04)) for s in (hand, sole)}
+    assert not sets_close(a, turned_hand, 0.08, 0.4)
+    assert sets_close(a, turned_hand, 0.08, 0.4, tols)
+    assert not sets_close(a, turned_sole, 0.08, 0.4, tols)
+    ahead = q0.copy()
+    ahead[0] += 0.3
+    planner = ContactPlanner(
+        gen, RoughTrajectory(gen.model, [q0, ahead]), Goal("y", 0.6), (), SearchConfig(patch_turns=True)
+    )
+    assert planner._v_rad["right_hand"] > 2.0 and planner._v_rad["right_sole"] == 0.8
 
 
 def test_goal_needs_the_coordinate_and_the_final_contacts():

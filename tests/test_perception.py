@@ -99,6 +99,7 @@ def test_learn_sim_rewrites_models_that_match_the_committed_ones(tmp_path, model
         assert result.false_hits[name] == 0, name
         fresh, committed = result.models[name].hist, models[name].hist
         assert cv2.compareHist(fresh, committed, cv2.HISTCMP_CORREL) > 0.9, name
+        assert result.models[name].floor_size_m == models[name].floor_size_m, name  # the catalogue's
 
 
 def test_learn_sim_names_the_scene_objects_when_one_is_missing(tmp_path):

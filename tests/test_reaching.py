@@ -15,7 +15,7 @@ import pytest
 from services.bus.schemas.reaching import REASON_STEPPING_NOT_ALLOWED, REASON_TOO_MANY_STEPS
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
-from services.reaching import CRITERIA, ReachingOptions, ReachRequest, plan_reach
+from services.reaching import CRITERIA, ReachingOptions, ReachRequest, ReachTiming, plan_reach
 from services.reaching.monitors import ArmMonitor
 from services.reaching.options import PAPER_CRITERIA
 from services.reaching.planner import planner_for
@@ -201,6 +201,53 @@ def test_a_large_turn_of_the_hand_sets_the_reach_duration():
     turn = 2.0 * opt.min_reach_s * opt.hand_turn_rad_s  # fingers down from a hand pointing forward
     assert planner._reach_duration(0.05, turn) == pytest.approx(2.0 * opt.min_reach_s)
     assert planner._reach_duration(0.05, 100.0) == opt.max_reach_s
+
+
+def test_a_request_timing_shortens_the_motion_within_the_joint_speed_limits():
+    """A reach with its own timing (a faster hand, a shorter minimum and hold) is shorter than at the
+    defaults, its joints within ``timed_velocity_ratio`` of their limits, and does not step even when
+    stepping is allowed (a timed motion is planned on the current polygon)."""
+    robot = load_robot("hrp2_like")
+    planner = planner_for("hrp2_like")
+    target = (0.45, -0.2, 0.8)
+    slow = plan_reach(robot, _request(robot, target))
+    timing = ReachTiming(hand_speed_m_s=0.4, min_duration_s=0.6, final_hold_s=0.15)
+    fast = plan_reach(robot, _request(robot, target, timing=timing))
+    assert fast.duration_s < 0.6 * slow.duration_s
+    assert not fast.stepped and fast.hand_error_m < 1e-3
+    assert planner._joint_speed_ratio(fast.q) <= planner.options.timed_velocity_ratio
+    assert fast.duration_s - fast.reach_end_s == pytest.approx(0.15, abs=0.011)
+
+
+def test_a_request_timing_the_joints_cannot_follow_is_slowed_not_refused():
+    """Lifting the hanging hand by 0.1 m in 0.6 s: the hand lags (``ee_error``) or a joint is too fast;
+    the planner slows the motion down (or takes the defaults' timing) instead of refusing it."""
+    robot = load_robot("hrp2_like")
+    planner = planner_for("hrp2_like")
+    hand0 = robot.frame_pose(robot.q_half_sitting, robot.frames.grasp("right")).translation
+    timing = ReachTiming(hand_speed_m_s=0.5, min_duration_s=0.6, final_hold_s=0.15)
+    lifted = hand0 + np.array([0.0, 0.0, 0.1])
+    with pytest.raises(InfeasibleError):  # at that timing the hand falls behind its reference
+        planner._plan(_request(robot, lifted, timing=timing, allow_stepping=False))
+    result = plan_reach(robot, _request(robot, lifted, timing=timing))
+    assert result.reach_end_s > 0.6 and result.hand_error_m < 1e-3 and not result.stepped
+
+
+@pytest.mark.parametrize(
+    ("timing", "field"),
+    [
+        (ReachTiming(hand_speed_m_s=0.0), "hand_speed_m_s"),
+        (ReachTiming(hand_speed_m_s=2.0), "hand_speed_m_s"),
+        (ReachTiming(min_duration_s=0.1), "min_duration_s"),
+        (ReachTiming(final_hold_s=-0.1), "final_hold_s"),
+        (ReachTiming(final_hold_s=float("nan")), "final_hold_s"),
+    ],
+)
+def test_a_request_timing_out_of_range_is_invalid_naming_the_field(timing, field):
+    robot = load_robot("hrp2_like")
+    with pytest.raises(InvalidRequestError, match=field) as info:
+        plan_reach(robot, _request(robot, WITHIN_REACH["hrp2_like"], timing=timing))
+    assert info.value.details["field"] == field
 
 
 def test_weighted_pseudo_inverse_moves_the_light_arm_more_and_the_heavy_legs_less():

@@ -62,3 +62,15 @@ def test_a_configuration_of_another_robot_is_invalid(services):
             reach_msg.ReachRequest(hand="left", target=[0.5, 0.3, 0.9], q_start=np.zeros(10)),
             timeout_s=30,
         )
+
+
+def test_a_reach_timing_out_of_range_is_invalid_naming_the_field(services):
+    robot = load_robot("hrp2_like")
+    with pytest.raises(InvalidRequestError, match="hand_speed_m_s"):
+        services.call(
+            reach_msg.REACH,
+            reach_msg.ReachRequest(
+                hand="left", target=[0.5, 0.3, 0.9], q_start=robot.q_half_sitting, hand_speed_m_s=2.0
+            ),
+            timeout_s=30,
+        )

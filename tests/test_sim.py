@@ -11,8 +11,9 @@ import pytest
 
 from services.errors import InvalidRequestError, NotFoundError
 from services.footsteps import scenarios
+from services.model.specs import Intrinsics
 from sim import motions
-from sim.cameras import Intrinsics, look_at, project, projection_matrix, view_matrix
+from sim.cameras import look_at, project, projection_matrix, view_matrix
 from sim.config import SimConfig
 from sim.scene import COLOURS, ObjectSpec, available_scenes, layout, load_scene, parse_scene, with_object
 from sim.world import World

@@ -59,6 +59,22 @@ def test_a_ray_enters_a_yawed_box_at_its_face():
     assert ray_entry(box, np.array([0.0, 0.0]), np.array([-1.0, 0.0])) == math.inf  # behind the origin
 
 
+def test_making_room_steps_away_from_the_object_not_always_straight_back():
+    """Straight back from an object ahead; sideways from one beside the robot (fetch seed 18: straight
+    back, the left hand beside the chair touched it); straight back from inside one."""
+    from supervisor.locomotion import away_from
+    from supervisor.scene_map import BoxEstimate
+
+    box = BoxEstimate("chair", (0.0, 0.0, 0.45), (0.45, 0.45, 0.9), 0.0)
+    ahead = away_from(box, -0.6, 0.0, 0.0)  # facing +x, the box 0.6 m ahead
+    assert ahead == pytest.approx((-1.0, 0.0), abs=0.05)
+    beside = away_from(box, 0.0, -0.6, 0.0)  # the box on the robot's left
+    assert beside == pytest.approx((0.0, -1.0), abs=0.05)
+    turned = away_from(box, 0.0, -0.6, math.pi / 2)  # the same place, facing +y: the box ahead
+    assert turned == pytest.approx((-1.0, 0.0), abs=0.05)
+    assert away_from(box, 0.05, 0.0, 1.0) == (-1.0, 0.0)  # inside
+
+
 def test_a_sighting_without_footprint_keeps_the_last_one_where_it_still_fits():
     from dataclasses import replace
 
@@ -74,6 +90,26 @@ def test_a_sighting_without_footprint_keeps_the_last_one_where_it_still_fits():
     moved = replace(_sighting(None), position_m=np.array([4.0, 1.0, 0.5]))  # seen elsewhere: moved
     memory.remember(moved)
     assert memory.get("yellow_table").footprint is None
+
+
+def test_a_footprint_more_hidden_than_the_one_it_disagrees_with_does_not_replace_it():
+    """At the put's start, from 1 m, the gripper and the ball hid part of the table's outline: the
+    rectangle fitted to the rest (1.47 m long, 0.2 m off) replaced the whole-outline one seen from
+    1.25 m, and the put missed (fetch seed 0, session 8). A disagreeing footprint is kept only if as
+    much of its outline was seen; one that agrees, or was seen better, replaces it."""
+    from msgspec import structs
+
+    from supervisor.memory import Memory
+
+    memory = Memory()
+    seen = structs.replace(_fp((2.0, 0.0), (1.0, 0.6), 0.0, 0.72, 550), n_hidden=5)
+    memory.remember(_sighting(seen))
+    partly = structs.replace(_fp((2.2, 0.05), (1.47, 0.6), 0.0, 0.72, 650), n_hidden=130)
+    assert memory.remember(_sighting(partly)).footprint == seen
+    agreeing = structs.replace(_fp((2.03, 0.0), (1.05, 0.6), 0.0, 0.72, 600), n_hidden=130)
+    assert memory.remember(_sighting(agreeing)).footprint == agreeing  # the same table, seen again
+    elsewhere = _fp((3.0, 1.0), (1.0, 0.6), 0.0, 0.72, 400)  # moved, seen whole
+    assert memory.remember(_sighting(elsewhere)).footprint == elsewhere
 
 
 def test_a_footprint_proved_wrong_is_not_inherited_again():
@@ -132,7 +168,7 @@ def test_a_lowered_ball_touching_only_an_edge_is_moved_toward_it():
     """Fetch seed 5: the ball held 5 cm beyond the table's edge touched it on its side (70 deg off
     straight below its centre): the top lies toward the contact; a contact under the ball is a ball
     standing on the top (also with another contact on an edge beside it); no contact, no edge."""
-    from supervisor.manipulation import toward_edge
+    from supervisor.put import toward_edge
 
     centre = np.array([2.48, -2.28, 0.737])
     edge = np.array([2.467, -2.235, 0.72])  # 4.7 cm across, 1.7 cm below
@@ -150,7 +186,7 @@ def test_a_lowering_stopped_by_the_wrist_alone_is_a_collision_not_a_put():
     and just inside it; released, the ball rolled off. Only a contact of the held object says it stands
     on the place."""
     from services.bus.schemas.sim import Contact
-    from supervisor.manipulation import arm_only
+    from supervisor.put import arm_only
 
     wrist = Contact(
         robot_link="RARM_LINK5", other="yellow_table", position=[2.41, -2.44, 0.72], normal_force_n=5.0

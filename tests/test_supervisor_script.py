@@ -154,3 +154,21 @@ def test_supervisor_config_defaults_yaml_override_and_errors(tmp_path):
     path.write_text("supervisor:\n  near_m: 2.5\n")
     with pytest.raises(InvalidRequestError, match=r"near_m .* must be below far_m"):
         load_supervisor_config(path)
+
+
+def test_supervisor_config_arm_timing_per_motion_and_its_bounds():
+    """The unguarded arm motions named in ``fast_arm_motions`` get reaching's timing fields, the others
+    none (reaching's default); names and values outside reaching's bounds are refused at start-up."""
+    from services.errors import InvalidRequestError
+    from supervisor.config import SupervisorConfig
+
+    config = SupervisorConfig()
+    assert config.arm_timing("raise") == {"hand_speed_m_s": 0.4, "min_duration_s": 0.6, "final_hold_s": 0.15}
+    assert config.arm_timing("lift") == {}  # the grasped object off its support: default timing
+    assert SupervisorConfig(fast_arm_motions=()).arm_timing("carry") == {}
+    with pytest.raises(InvalidRequestError, match="fast_arm_motions"):
+        SupervisorConfig(fast_arm_motions=("grasp",))
+    with pytest.raises(InvalidRequestError, match="fast_arm_speed_m_s"):
+        SupervisorConfig(fast_arm_speed_m_s=1.0)
+    with pytest.raises(InvalidRequestError, match="fast_arm_min_s"):
+        SupervisorConfig(fast_arm_min_s=0.1)

@@ -6,6 +6,7 @@ of 5 cm radius, a green box and a yellow table in a textured room.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
@@ -142,6 +143,13 @@ def test_model_round_trips_through_its_file(tmp_path, models):
         models["orange_ball"].n_pixels,
     )
     assert set(load_models(tmp_path)) == {"orange_ball"}
+    assert loaded.floor_size_m is None  # a ball: none catalogued
+    sized = load_model(
+        save_model(dataclasses.replace(models["orange_ball"], floor_size_m=(1.0, 0.6)), tmp_path)
+    )
+    assert sized.floor_size_m == (1.0, 0.6)
+    with pytest.raises(InvalidRequestError, match="floor_size_m"):
+        dataclasses.replace(models["orange_ball"], floor_size_m=(1.0, -0.6))
     assert load_models(tmp_path / "absent") == {}
     with pytest.raises(NotFoundError):
         load_model(tmp_path / "nope.json")

@@ -51,9 +51,18 @@ MIN_SIDE_POINTS = 5
 AREA_SLACK = 0.1
 #: The top is the highest height [m] with at least ``TOP_SUPPORT_FRACTION`` of the points (and
 #: ``MIN_POINTS``) within ``TOP_BAND_M`` below it: edges mismatched behind an occluder (an arm in front
-#: of the table in one image) triangulate nearer, hence higher, but few of them at any one height.
+#: of the table in one image) triangulate nearer, hence higher, but few of them at any one height. A
+#: thin tall part has no such height (a chair's back seen from its side: its edge's points spread over
+#: 0.45 m, and the seat's rows gave the top, 0.5 m instead of 0.9 m; the arms, above 0.53 m, were not
+#: kept clear of it and the walk brushed it, fetch seed 64): the top is also at least the highest point
+#: of every unbroken run of ``CONSISTENCY_WINDOW_ROWS`` rows on one side (a contour seen whole; a
+#: mismatched run that long is not kept by :func:`_consistent`).
 TOP_BAND_M = 0.03
 TOP_SUPPORT_FRACTION = 0.03
+#: A rectangle shorter than the object's known floor size by more than this [m] is grown to it
+#: (:func:`_to_known_size`), from the side with ``ANCHOR_RATIO`` times the points of the other.
+KNOWN_SIZE_TOLERANCE_M = 0.08
+ANCHOR_RATIO = 2.0
 #: An edge whose outside neighbour within this many pixels belongs to an occluder is dropped (the
 #: silhouettes are closed morphologically and anti-aliased: a pixel or two lies between them).
 OCCLUDER_GAP_PX = 2
@@ -62,13 +71,28 @@ OCCLUDER_GAP_PX = 2
 @dataclass(frozen=True)
 class Footprint:
     """A horizontal rectangle on the floor: centre (x, y) [m], size (along its yaw, across) [m], yaw [rad]
-    in (-pi/2, pi/2], its top ``top_z_m`` [m] (world; see ``TOP_BAND_M``), ``n_points`` used."""
+    in (-pi/2, pi/2], its top ``top_z_m`` [m] (world; see ``TOP_BAND_M``), ``n_points`` used,
+    ``n_hidden`` outline edges left out next to an occluder (:class:`Outline`): how much of its outline
+    was not seen."""
 
     center_m: tuple[float, float]
     size_m: tuple[float, float]
     yaw_rad: float
     top_z_m: float
     n_points: int
+    n_hidden: int = 0
+
+
+@dataclass(frozen=True)
+class Outline:
+    """The world points (n, 3) [m] of an object's matched outline edges, and ``n_hidden``: the edges
+    matched in both images but left out next to an occluder (another object, the robot's own body);
+    ``runs``: the indices into ``points`` of each unbroken run of at least ``CONSISTENCY_WINDOW_ROWS``
+    consecutive rows kept on one side (a contour seen whole: a leg, a vertical edge, a chair's back)."""
+
+    points: np.ndarray
+    n_hidden: int = 0
+    runs: tuple[np.ndarray, ...] = ()
 
 
 def outline_points(
@@ -80,7 +104,7 @@ def outline_points(
     T_world_left_camera: np.ndarray,
     occluder_left: np.ndarray | None = None,
     occluder_right: np.ndarray | None = None,
-) -> np.ndarray:
+) -> Outline:
     """World points (n, 3) [m] of the silhouettes' matched left and right edges, row by row.
 
     An edge lies between its object pixel and the background pixel next to it (half a pixel outward);
@@ -94,10 +118,14 @@ def outline_points(
     last_col = rig.intrinsics.width - 1
     rows = sorted(left.keys() & right.keys())
 
+    hidden = 0
+
     def free(r: int, side: int) -> bool:  # no occluder just outside either image's edge on row r
-        return not (
-            _beside(occluder_left, r, left[r][side], side) or _beside(occluder_right, r, right[r][side], side)
-        )
+        nonlocal hidden
+        if _beside(occluder_left, r, left[r][side], side) or _beside(occluder_right, r, right[r][side], side):
+            hidden += 1
+            return False
+        return True
 
     sides = (  # (columns, disparities) of the left edges, then of the right edges
         (
@@ -116,18 +144,29 @@ def outline_points(
         ),
     )
     u, v, d = [], [], []
+    runs = []
     for columns, disparities in sides:
         keep = _consistent(np.asarray(disparities, dtype=float))
+        runs += [len(u) + run for run in _runs(np.asarray(rows)[keep], CONSISTENCY_WINDOW_ROWS)]
         u.extend(np.asarray(columns)[keep])
         v.extend(np.asarray(rows)[keep])
         d.extend(np.asarray(disparities, dtype=float)[keep])
     if not u:
-        return np.zeros((0, 3))
+        return Outline(np.zeros((0, 3)), hidden)
     k = rig.intrinsics
     u_px, v_px, d_px = (np.asarray(a, dtype=float) for a in (u, v, d))
     z = k.fx * rig.baseline_m / d_px
     p_camera = np.stack([(u_px - k.cx) * z / k.fx, (v_px - k.cy) * z / k.fy, z], axis=1)
-    return to_world(p_camera, T_world_left_camera)
+    return Outline(to_world(p_camera, T_world_left_camera), hidden, tuple(runs))
+
+
+def _runs(rows: np.ndarray, min_rows: int) -> list[np.ndarray]:
+    """Index arrays of the runs of consecutive values in the sorted ``rows`` [px] at least ``min_rows``
+    long."""
+    if len(rows) == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(rows) != 1) + 1
+    return [run for run in np.split(np.arange(len(rows)), breaks) if len(run) >= min_rows]
 
 
 def _beside(occluder: np.ndarray | None, row: int, col: int, side: int) -> bool:
@@ -188,9 +227,10 @@ def _rectangle(xy: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]
 
 def _median_sides(
     xy: np.ndarray, centre: tuple[float, float], size: tuple[float, float], yaw: float
-) -> tuple[tuple[float, float], tuple[float, float]]:
+) -> tuple[tuple[float, float], tuple[float, float], tuple[int, int, int, int]]:
     """The rectangle (centre, size along yaw and across) with each side moved to the median of the
-    points nearest to it (at least :data:`MIN_SIDE_POINTS` of them, else the side stays).
+    points nearest to it (at least :data:`MIN_SIDE_POINTS` of them, else the side stays), and the
+    number of points nearest to each side (low and high along the yaw, low and high across).
 
     The outline points of a side scatter about it in depth: each matched edge has a whole-pixel
     disparity, off by up to a pixel (20 cm at 4 m with the wide pair). The minimum-area rectangle wraps
@@ -207,10 +247,54 @@ def _median_sides(
         )
     )
     nearest = np.argmin(to_side, axis=1)
+    n = [int(np.count_nonzero(nearest == side)) for side in range(4)]
+    counts = (n[0], n[1], n[2], n[3])
     for side, (axis, bound) in enumerate(((0, lo), (0, hi), (1, lo), (1, hi))):
         on_side = nearest == side
-        if np.count_nonzero(on_side) >= MIN_SIDE_POINTS:
+        if counts[side] >= MIN_SIDE_POINTS:
             bound[axis] = np.median(local[on_side, axis])
+    middle = R @ (0.5 * (lo + hi)) + np.asarray(centre)
+    return (float(middle[0]), float(middle[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1])), counts
+
+
+def _to_known_size(
+    centre: tuple[float, float],
+    size: tuple[float, float],
+    yaw: float,
+    counts: tuple[int, int, int, int],
+    known: tuple[float, float],
+    camera_xy: np.ndarray | None,
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The rectangle grown to the object's ``known`` floor size [m] where it came out shorter by more
+    than :data:`KNOWN_SIZE_TOLERANCE_M` (part of its outline hidden: by another object in front of
+    one end, by itself behind what is seen): the better-seen side of that axis stays (the one with
+    :data:`ANCHOR_RATIO` times the points of the other, else the one nearer ``camera_xy``, else both
+    move apart evenly) and the other moves out. A side longer than known is left as fitted (the
+    extra points may be the object's as well as another's: nothing says which side to cut)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    R = np.array([[c, -s], [s, c]])
+    along_longer = size[0] >= size[1]
+    big, small = max(known), min(known)
+    target = (big, small) if along_longer else (small, big)
+    lo, hi = -0.5 * np.asarray(size, dtype=float), 0.5 * np.asarray(size, dtype=float)
+    camera = None if camera_xy is None else (np.asarray(camera_xy, dtype=float) - np.asarray(centre)) @ R
+    for axis in (0, 1):
+        grow = target[axis] - (hi[axis] - lo[axis])
+        if grow <= KNOWN_SIZE_TOLERANCE_M:
+            continue
+        n_lo, n_hi = counts[2 * axis], counts[2 * axis + 1]
+        if n_lo >= ANCHOR_RATIO * max(n_hi, 1):
+            hi[axis] += grow
+        elif n_hi >= ANCHOR_RATIO * max(n_lo, 1):
+            lo[axis] -= grow
+        elif camera is not None and abs(camera[axis]) > 1e-6:
+            if camera[axis] < 0.0:  # the low side faces the camera: the high side was hidden
+                hi[axis] += grow
+            else:
+                lo[axis] -= grow
+        else:
+            lo[axis] -= 0.5 * grow
+            hi[axis] += 0.5 * grow
     middle = R @ (0.5 * (lo + hi)) + np.asarray(centre)
     return (float(middle[0]), float(middle[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1]))
 
@@ -238,23 +322,37 @@ def _near(xy: np.ndarray, centre_xy: np.ndarray, max_extent_m: float) -> np.ndar
 
 
 def footprint(
-    points_world: np.ndarray, centre_world: np.ndarray, max_extent_m: float = 1.0
+    points_world: np.ndarray,
+    centre_world: np.ndarray,
+    max_extent_m: float = 1.0,
+    n_hidden: int = 0,
+    runs: tuple[np.ndarray, ...] = (),
+    known_size_m: tuple[float, float] | None = None,
+    camera_xy: np.ndarray | None = None,
 ) -> Footprint | None:
     """The minimum-area rectangle of the points' horizontal projection (see the module docstring).
 
     points_world: (n, 3) [m]; centre_world: the object's located centre [m] (points farther than
-    ``max_extent_m`` from it horizontally are dropped, see :func:`_near`). None with fewer than
-    :data:`MIN_POINTS` points.
+    ``max_extent_m`` from it horizontally are dropped, see :func:`_near`); ``n_hidden``: the outline's
+    edges left out next to an occluder (:class:`Outline`), reported; ``runs``: the outline's unbroken
+    runs (:class:`Outline`), whose highest points bound the top from below (:func:`_top`);
+    ``known_size_m``: the object's floor rectangle [m] when known (its model's catalogue): a rectangle
+    shorter is grown to it (:func:`_to_known_size`, ``camera_xy`` [m] the camera that saw it). None
+    with fewer than :data:`MIN_POINTS` points.
     """
     p = np.asarray(points_world, dtype=float).reshape(-1, 3)
-    p = p[_near(p[:, :2], np.asarray(centre_world, dtype=float)[:2], max_extent_m) & (p[:, 2] > -0.05)]
+    kept = _near(p[:, :2], np.asarray(centre_world, dtype=float)[:2], max_extent_m) & (p[:, 2] > -0.05)
+    run_top = max((float(p[run, 2].max()) for run in runs if kept[run].all()), default=-np.inf)
+    p = p[kept]
     if len(p) < MIN_POINTS:
         return None
     try:
         centre, size, yaw = _rectangle(p[:, :2])
     except ValueError:
         return None
-    (cx, cy), (w, h) = _median_sides(p[:, :2], centre, size, yaw)
+    (cx, cy), (w, h), counts = _median_sides(p[:, :2], centre, size, yaw)
+    if known_size_m is not None:
+        (cx, cy), (w, h) = _to_known_size((cx, cy), (w, h), yaw, counts, known_size_m, camera_xy)
     if w < h:  # the first side along the yaw is the longer one
         w, h, yaw = h, w, yaw + math.pi / 2.0
     yaw = (yaw + math.pi / 2.0) % math.pi - math.pi / 2.0  # a rectangle's yaw is defined modulo pi
@@ -262,6 +360,7 @@ def footprint(
         (float(cx), float(cy)),
         (float(w), float(h)),
         float(yaw),
-        _top(p[:, 2]),
+        max(_top(p[:, 2]), run_top),
         len(p),
+        int(n_hidden),
     )

@@ -71,7 +71,9 @@ class ObjectModel:
 
     hist: (h_bins, s_bins) float32, max 1. n_pixels: coloured pixels it was learned from.
     shape: "blob" (any object) or "sphere" (lets stereo methods that see only the front surface report
-    the centre; see vision.stereo).
+    the centre; see vision.stereo). floor_size_m: the sides of its floor rectangle [m] as catalogued
+    with the views it was learned from (the scene's object description; None: unknown): a footprint
+    seen partly hidden is grown to it (vision.footprint).
     """
 
     name: str
@@ -80,9 +82,16 @@ class ObjectModel:
     n_pixels: int = 0
     shape: str = "blob"
     source: str = ""
+    floor_size_m: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         check_name(self.name)
+        if self.floor_size_m is not None and not (
+            len(self.floor_size_m) == 2 and all(0.0 < v < 100.0 for v in self.floor_size_m)
+        ):
+            raise InvalidRequestError(
+                f"model {self.name!r}: floor_size_m must be two sides in (0, 100) m, got {self.floor_size_m}"
+            )
         if self.shape not in SHAPES:
             raise InvalidRequestError(f"shape must be one of {SHAPES}, got {self.shape!r}")
         expected = (self.config.h_bins, self.config.s_bins)
@@ -191,6 +200,7 @@ def save_model(model: ObjectModel, models_dir: str | Path = DEFAULT_MODELS_DIR) 
         "shape": model.shape,
         "n_pixels": model.n_pixels,
         "source": model.source,
+        **({} if model.floor_size_m is None else {"floor_size_m": [float(v) for v in model.floor_size_m]}),
         "config": asdict(model.config),
         "hist": [[round(float(v), 5) for v in row] for row in model.hist],
     }
@@ -216,7 +226,9 @@ def load_model(path: str | Path) -> ObjectModel:
         config = HistogramConfig(**doc["config"])
         hist = np.asarray(doc["hist"], np.float32)
         n_pixels, source = int(doc["n_pixels"]), doc.get("source", "")
-        return ObjectModel(doc["name"], hist, config, n_pixels, doc["shape"], source)
+        floor = doc.get("floor_size_m")
+        floor_size = None if floor is None else (float(floor[0]), float(floor[1]))
+        return ObjectModel(doc["name"], hist, config, n_pixels, doc["shape"], source, floor_size)
     except (KeyError, TypeError, ValueError) as e:
         raise InvalidRequestError(f"model file {p} is malformed ({type(e).__name__}: {e})") from e
 

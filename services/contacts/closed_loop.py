@@ -40,7 +40,6 @@ from services.contacts.interpolate import InterpolationConfig, interpolate_trans
 from services.contacts.limb_load import limb_joints
 from services.contacts.posture import (
     ARM_SPOTS,
-    REPRODUCIBLE_SOLVER,
     Floating,
     PostureConfig,
     PostureGenerator,
@@ -114,10 +113,11 @@ FLOAT_HALF = (0.05, 0.05, 0.25)
 
 def execution_generator(robot: RobotModel, env: Environment, limb_load: bool = False) -> PostureGenerator:
     """The posture generator of an execution (every contact spot of ``robot`` in ``env``, the arms'
-    limb-load bound on or off) with the reproducible QP method (``posture.REPRODUCIBLE_SOLVER``): the
-    same plan played from the same state re-plans every transition identically, so a run can be
-    replayed and a fall analysed (with proxsuite, two replays of one plan parted after transition 2)."""
-    return PostureGenerator(robot, env, robot_spots(robot), posture_config(limb_load), REPRODUCIBLE_SOLVER)
+    limb-load bound on or off). Its QPs are the dual active-set method's, reset at every generation
+    (:class:`PostureGenerator`): the same plan played from the same state re-plans every transition
+    identically, so a run can be replayed and a fall analysed (with proxsuite, two replays of one plan
+    parted after transition 2)."""
+    return PostureGenerator(robot, env, robot_spots(robot), posture_config(limb_load))
 
 
 def measured_contacts(

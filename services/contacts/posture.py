@@ -57,11 +57,6 @@ from services.model import RobotModel
 
 ARM_SPOTS = ("left_hand", "right_hand", "left_forearm", "right_forearm")
 LIMB_LOAD = False  # the limb-load bound off by default (services/contacts/README.md: why)
-# The IK's QPs by the dual active-set method (services.ik.active_set): bitwise reproducible, where
-# proxsuite's results vary from run to run at the 1e-15 level and its QP objects are warm-started
-# from earlier generations; a closed-loop execution amplified those differences into a replay that
-# fell in one run and held in the next (services/contacts/README.md, session 9)
-REPRODUCIBLE_SOLVER = SolverConfig(qp_method="dual_active_set")
 GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in the best iterate's choice
 
 
@@ -116,16 +111,20 @@ class PostureGenerator:
         env: Environment,
         spots: Sequence[ContactSpot],
         config: PostureConfig | None = None,
-        solver_config: SolverConfig | None = None,
     ) -> None:
-        """``solver_config``: the IK solver's numerical settings (None: ``services.ik``'s defaults;
-        ``REPRODUCIBLE_SOLVER`` makes every posture generation depend on its own inputs only)."""
         self.robot = robot
         self.env = env
         self.spots = {s.name: s for s in spots}
         self.config = config or PostureConfig()
         self.model = model_with_spots(robot.model, spots)
-        self.solver = HierarchicalSolver(self.model, robot.q_lower, robot.q_upper, config=solver_config)
+        # Goldfarb-Idnani's dual active set (services/ik/active_set.py): the same optima as proxsuite's
+        # working set to the feasibility tolerance, bitwise reproducible (proxsuite's results vary from
+        # run to run at the 1e-15 level, which a closed-loop execution amplified into a replay that fell
+        # in one run and held in the next), and about a quarter less CPU per posture generation here
+        # (services/contacts/README.md, plan time)
+        self.solver = HierarchicalSolver(
+            self.model, robot.q_lower, robot.q_upper, config=SolverConfig(qp_method="dual_active_set")
+        )
         self.data = self.model.createData()
         self.capsules = planner_capsules(robot)  # the model's capsules + the URDF's foot boxes
         self.boxes = tuple(ObstacleBox(b.name, b.T_world_box, b.half_extents_m) for b in env.boxes)
@@ -222,7 +221,7 @@ class PostureGenerator:
         a moving body, §3.3). ``config`` overrides the generator's settings for this call."""
         start = time.perf_counter()
         self.calls += 1
-        self.solver.reset()  # no warm start from an earlier generation: the result is this call's own
+        self.solver.reset()  # the QPs' warm starts within this generation only: it depends on its inputs
         cfg = config or self.config
         try:
             region = self.region(stable)

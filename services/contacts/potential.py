@@ -88,6 +88,7 @@ class RoughTrajectory:
             )
         self.pieces = _round_corners(vertices, lengths, corner_deviation)
         self.length = self.pieces[-1].s0 + self.pieces[-1].length
+        self._last_closest: tuple[bytes, tuple[np.ndarray, Projection]] | None = None
 
     def project(self, P_prime: np.ndarray) -> Projection:
         """Q', s', the tangent and u for P' (6)."""
@@ -122,8 +123,16 @@ class RoughTrajectory:
         return q
 
     def closest(self, q: np.ndarray) -> tuple[np.ndarray, Projection]:
+        """(Q, the projection of P') for q. The last answer is kept: the posture generator asks it
+        twice per iteration for the same q (the criterion's error and f_T's value)."""
+        key = np.asarray(q, dtype=float).tobytes()
+        if self._last_closest is not None and self._last_closest[0] == key:
+            Q, projection = self._last_closest[1]
+            return Q.copy(), projection
         projection = self.project(base_point(q))
-        return self.configuration_at(projection), projection
+        Q = self.configuration_at(projection)
+        self._last_closest = (key, (Q, projection))
+        return Q.copy(), projection
 
     def value(self, q: np.ndarray) -> float:
         """f_T(q) = ||q (-) Q||^2 - k s' (eq. 1)."""

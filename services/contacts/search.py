@@ -39,7 +39,7 @@ import numpy as np
 from services import budget
 from services.contacts.posture import Floating, PostureGenerator
 from services.contacts.potential import PotentialTask, RoughTrajectory
-from services.contacts.sets import Contact, ContactSet, canonical, sets_close
+from services.contacts.sets import Contact, ContactSet, canonical, sets_close, turn_moving_corners_by
 from services.contacts.volumes import SearchVolume, around, full_volume, subtract
 from services.errors import InvalidRequestError
 
@@ -50,7 +50,10 @@ class SearchConfig:
 
     best_first_sons: bool = True
     max_nodes: int = 1000
-    time_budget_s: float = 300.0
+    time_budget_s: float = 300.0  # wall clock
+    # CPU time of this process (one core: the BLAS is single-threaded), None: no such bound. On a
+    # loaded machine the wall clock measures the other processes too (scripts/bench contacts --cpu)
+    cpu_budget_s: float | None = None
     reach_m: float = 0.6
     reach_theta_rad: float = 0.8
     reach_z_m: float = 0.7
@@ -65,6 +68,9 @@ class SearchConfig:
     # a new contact's spot at least this far inside its surface's edges [m] (a hand planned 4 mm from
     # a table's corner bore nothing in the sim: its clipped patch was a sliver)
     edge_margin_m: float = 0.05
+    # the angles of V and of "too close" at least the turn that moves the spot's patch corners by
+    # half of v_half's / close_m's length: a small patch (a hand's 6 x 6 cm) turned is the same support
+    patch_turns: bool = False
 
 
 @dataclass(frozen=True)
@@ -128,6 +134,7 @@ class SearchResult:
     plan_s: float
     best: Node
     message: str
+    plan_cpu_s: float = 0.0  # CPU time of the process during the search [s]
 
 
 ProgressHook = Callable[[str, Node, int, int, float], None]
@@ -154,14 +161,29 @@ class ContactPlanner:
         self.progress = progress
         self.criterion = PotentialTask(trajectory)
         self.nodes: list[Node] = []
+        self._by_pairs: dict[tuple[tuple[str, str], ...], list[Node]] = {}  # nodes by their pairs
         self._heap: list[tuple[float, int, int, int, _PairStream | None]] = []
         self._seq = itertools.count()
         self._deadline = math.inf
+        self._cpu_deadline = math.inf
+        cfg = self.config
+        spots = generator.spots.values() if cfg.patch_turns else ()
+        # per spot: V's half angle and the "too close" angle (SearchConfig.patch_turns)
+        self._v_rad = {
+            s.name: max(cfg.v_half[2], turn_moving_corners_by(s, 0.5 * cfg.v_half[0])) for s in spots
+        }
+        self._close_rad = {
+            s.name: max(cfg.close_rad, turn_moving_corners_by(s, 0.5 * cfg.close_m)) for s in spots
+        }
 
     # -------------------------------------------------------------------------------- helpers
     def _too_close(self, contacts: ContactSet) -> bool:
+        """Some node or leaf has the same pairs with every contact close (only those can be close)."""
         cfg = self.config
-        return any(sets_close(contacts, n.contacts, cfg.close_m, cfg.close_rad) for n in self.nodes)
+        same_pairs = self._by_pairs.get(tuple(c.pair for c in contacts), ())
+        return any(
+            sets_close(contacts, n.contacts, cfg.close_m, cfg.close_rad, self._close_rad) for n in same_pairs
+        )
 
     def _add(
         self,
@@ -184,6 +206,7 @@ class ContactPlanner:
             0 if parent is None else parent.depth + 1,
         )
         self.nodes.append(node)
+        self._by_pairs.setdefault(tuple(c.pair for c in contacts), []).append(node)
         heapq.heappush(self._heap, (node.f, -node.depth, next(self._seq), node.index, stream))
         return node
 
@@ -192,6 +215,8 @@ class ContactPlanner:
         (``config.time_budget_s``) or the whole request's (:mod:`services.budget`, issue 16)."""
         if time.perf_counter() > self._deadline:
             return f"the search's time budget of {self.config.time_budget_s:.3g} s spent"
+        if self._cpu_deadline < math.inf and time.process_time() > self._cpu_deadline:
+            return f"the search's CPU budget of {self.config.cpu_budget_s:.3g} s spent"
         if budget.expired():
             request = budget.current()
             assert request is not None
@@ -289,7 +314,8 @@ class ContactPlanner:
                 return
             _, _, contact, q, volume = heapq.heappop(stream.found)
             point = (contact.x, contact.y, _unwrap(contact.theta, volume))
-            stream.pending.extend(subtract(volume, around(point, cfg.v_half), cfg.min_part))
+            v_half = (cfg.v_half[0], cfg.v_half[1], self._v_rad.get(stream.spot, cfg.v_half[2]))
+            stream.pending.extend(subtract(volume, around(point, v_half), cfg.min_part))
             son = self._add(
                 node,
                 (*node.contacts, contact),
@@ -317,8 +343,10 @@ class ContactPlanner:
         """Search from the start set (its witness ``q_start``) until the goal, the budget or the
         tree's exhaustion."""
         cfg = self.config
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.process_time()
         self._deadline = t0 + cfg.time_budget_s
+        if cfg.cpu_budget_s is not None:
+            self._cpu_deadline = cpu0 + cfg.cpu_budget_s
         root = self._add(None, start, np.asarray(q_start, float), "start")
         assert root is not None
         expanded = 0
@@ -356,6 +384,7 @@ class ContactPlanner:
             time.perf_counter() - t0,
             best,
             message,
+            time.process_time() - cpu0,
         )
 
     def path_to(self, node: Node) -> list[Node]:

@@ -52,12 +52,24 @@ def canonical(contacts: ContactSet | list[Contact]) -> ContactSet:
     return tuple(sorted(contacts))
 
 
-def sets_close(a: ContactSet, b: ContactSet, tol_m: float, tol_rad: float) -> bool:
+def sets_close(
+    a: ContactSet, b: ContactSet, tol_m: float, tol_rad: float, tol_rad_of: dict[str, float] | None = None
+) -> bool:
     """Two sets are too close when they have the same pairs and each contact is close to its
-    counterpart (§2.2: such a new leaf is discarded)."""
+    counterpart (§2.2: such a new leaf is discarded); ``tol_rad_of``: a spot's own angle tolerance
+    (default ``tol_rad``)."""
     if len(a) != len(b):
         return False
-    return all(x.close_to(y, tol_m, tol_rad) for x, y in zip(canonical(a), canonical(b), strict=True))
+    tols = tol_rad_of or {}
+    pairs = zip(canonical(a), canonical(b), strict=True)
+    return all(x.close_to(y, tol_m, tols.get(x.spot, tol_rad)) for x, y in pairs)
+
+
+def turn_moving_corners_by(spot: ContactSpot, distance_m: float) -> float:
+    """The rotation about the patch's centre [rad] that moves its farthest corner by ``distance_m``
+    (a chord): pi when no rotation does (a small patch, e.g. a hand's, turned is the same support)."""
+    radius = math.hypot(*spot.half_size_m)
+    return math.pi if distance_m >= 2.0 * radius else 2.0 * math.asin(distance_m / (2.0 * radius))
 
 
 def clip_to_rectangle(polygon: np.ndarray, hx: float, hy: float) -> np.ndarray:

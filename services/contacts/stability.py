@@ -35,7 +35,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import proxsuite
+import scipy.sparse
 from scipy.optimize import linprog
+
+try:  # HiGHS as scipy ships it, driven directly: one model per region, re-solved warm (below)
+    from scipy.optimize._highspy import _core as _highs
+except ImportError:  # pragma: no cover - another scipy layout: linprog (the same LPs, cold)
+    _highs = None
 
 from services.errors import InfeasibleError
 from services.model.ground import convex_hull_indices
@@ -109,9 +115,52 @@ def _load_rows(patches: Sequence[ContactPatch]) -> tuple[np.ndarray, np.ndarray]
     return np.array(rows).reshape(-1, sum(sizes)), np.array(bounds)
 
 
-def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max_lps: int = 60) -> np.ndarray:
+class _WarmLP:
+    """The projection's LPs over one polytope (A_eq x = b_eq, A_ub x <= b_ub, bounds), only the cost
+    changing from one to the next: one HiGHS model, each solve warm-started by the simplex from the
+    last basis (about 0.05 ms an LP against 1.5 ms through ``linprog``, which builds and checks the
+    model anew each time: the regions were an eighth of the search's time)."""
+
+    def __init__(self, A_eq, b_eq, A_ub, b_ub, bounds) -> None:
+        inf = _highs.kHighsInf
+        rows = A_eq if A_ub is None else np.vstack((A_eq, A_ub))
+        n_ub = 0 if A_ub is None else A_ub.shape[0]
+        self.n = A_eq.shape[1]
+        lp = _highs.HighsLp()
+        lp.num_col_, lp.num_row_ = self.n, rows.shape[0]
+        lp.col_cost_ = np.zeros(self.n)
+        lp.col_lower_ = np.array([-inf if lo is None else lo for lo, _ in bounds], dtype=float)
+        lp.col_upper_ = np.array([inf if hi is None else hi for _, hi in bounds], dtype=float)
+        lp.row_lower_ = np.concatenate((b_eq, np.full(n_ub, -inf)))
+        lp.row_upper_ = np.concatenate((b_eq, np.zeros(0) if b_ub is None else b_ub))
+        matrix = scipy.sparse.csc_matrix(rows)
+        lp.a_matrix_.format_ = _highs.MatrixFormat.kColwise
+        lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = self.n, rows.shape[0]
+        lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = (
+            matrix.indptr,
+            matrix.indices,
+            matrix.data,
+        )
+        self.highs = _highs._Highs()
+        self.highs.setOptionValue("output_flag", False)
+        self.highs.passModel(lp)
+        self.columns = np.arange(self.n, dtype=np.int32)
+
+    def __call__(self, cost: np.ndarray) -> np.ndarray | None:
+        """The optimum's last two coordinates (the CoM's x, y) for ``cost``, None if not optimal."""
+        self.highs.changeColsCost(self.n, self.columns, cost)
+        self.highs.run()
+        if self.highs.getModelStatus() != _highs.HighsModelStatus.kOptimal:
+            return None
+        return np.array(self.highs.getSolution().col_value[-2:])
+
+
+def equilibrium_region(
+    patches: Sequence[ContactPatch], tol_m: float = 2e-3, max_lps: int = 60, warm: bool = True
+) -> np.ndarray:
     """The static-equilibrium CoM region (k x 2 counter-clockwise polygon [m]) by Bretl and Lall's
     projection: ``tol_m`` is the largest distance between the inner and outer approximations.
+    ``warm``: the LPs re-solved on one HiGHS model (:class:`_WarmLP`); False: each by ``linprog``.
 
     Raises InfeasibleError when no CoM position is in equilibrium (e.g. one contact too steep).
     """
@@ -127,12 +176,15 @@ def equilibrium_region(patches: Sequence[ContactPatch], tol_m: float = 2e-3, max
         (centre[1] - REGION_BOUND_M, centre[1] + REGION_BOUND_M),
     ]
     lps = 0
+    solve = _WarmLP(A, b, A_ub, b_ub, bounds) if _highs is not None and warm else None
 
     def extreme(direction: np.ndarray) -> np.ndarray | None:
         nonlocal lps
         lps += 1
         cost = np.zeros(n)
         cost[-2:] = -direction
+        if solve is not None:
+            return solve(cost)
         res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A, b_eq=b, bounds=bounds, method="highs")
         return None if res.status != 0 else res.x[-2:]
 

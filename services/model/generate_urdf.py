@@ -142,6 +142,31 @@ class _Builder:
     def joint(self, joint: Joint) -> None:
         self.joints.append(joint)
 
+    def chain(self, prefix: str, parent: str, specs: list, links: list[Link]) -> str:
+        """Add a serial chain of revolute joints ``{prefix}_JOINT{suffix}``, one per link, from ``parent``.
+
+        ``specs`` rows are ``(suffix, axis, xyz [m] in the parent's frame, (lower, upper) [deg],
+        velocity [rad/s], effort [N m])``. Returns the name of the chain's last link.
+        """
+        for (suffix, axis, xyz, (lo, hi), vel, eff), link in zip(specs, links, strict=True):
+            self.link(link)
+            self.joint(
+                Joint(
+                    f"{prefix}_JOINT{suffix}",
+                    "revolute",
+                    parent,
+                    link.name,
+                    xyz,
+                    axis=axis,
+                    lower=lo * DEG,
+                    upper=hi * DEG,
+                    velocity=vel,
+                    effort=eff,
+                )
+            )
+            parent = link.name
+        return parent
+
 
 def _box_inertia(mass_kg: float, size: tuple[float, float, float]) -> tuple[float, float, float]:
     x, y, z = size
@@ -257,24 +282,7 @@ def _leg(b: _Builder, side: str) -> None:
             ),
         ),
     ]
-    parent = "base_link"
-    for (suffix, axis, xyz, (lo, hi), vel, eff), link in zip(specs, link_defs, strict=True):
-        b.link(link)
-        b.joint(
-            Joint(
-                f"{prefix}_JOINT{suffix}",
-                "revolute",
-                parent,
-                link.name,
-                xyz,
-                axis=axis,
-                lower=lo * DEG,
-                upper=hi * DEG,
-                velocity=vel,
-                effort=eff,
-            )
-        )
-        parent = link.name
+    parent = b.chain(prefix, "base_link", specs, link_defs)
     sole = "right_sole" if side == "R" else "left_sole"
     b.link(_frame_link(sole))
     b.joint(Joint(f"{sole}_fixed", "fixed", parent, sole, (0.0, 0.0, -ANKLE_TO_SOLE_M)))
@@ -491,24 +499,7 @@ def _arm(b: _Builder, side: str) -> None:
             ),
         ),
     ]
-    parent = "CHEST_LINK1"
-    for (suffix, axis, xyz, (lo, hi), vel, eff), link in zip(specs, link_defs, strict=True):
-        b.link(link)
-        b.joint(
-            Joint(
-                f"{prefix}_JOINT{suffix}",
-                "revolute",
-                parent,
-                link.name,
-                xyz,
-                axis=axis,
-                lower=lo * DEG,
-                upper=hi * DEG,
-                velocity=vel,
-                effort=eff,
-            )
-        )
-        parent = link.name
+    parent = b.chain(prefix, "CHEST_LINK1", specs, link_defs)
     # Moving finger: at q = 0 its inner face is at -GRIPPER_OPEN_GAP_M / 2 (mirrored); it slides towards
     # the fixed finger. Joint origin on the inner face at the top of the finger.
     moving_origin_y = s * (GRIPPER_OPEN_GAP_M / 2.0)

@@ -115,7 +115,7 @@ def _pinhole(frame: str, hfov_deg: float, width_px: int = 640, height_px: int = 
     """A square-pixel pinhole camera; principal point at the image centre (pixel (0, 0) is the top-left
     corner of the top-left pixel)."""
     f = (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-    return CameraSpec(frame, width_px, height_px, f, f, width_px / 2.0, height_px / 2.0)
+    return CameraSpec(width_px, height_px, f, f, width_px / 2.0, height_px / 2.0, frame=frame)
 
 
 # Camera fields of view [deg]: the wide-baseline (lower) pair looks far with 60 deg, the

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import NamedTuple
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple, Self
 
 import numpy as np
 
@@ -70,13 +70,12 @@ class Capsule:
 
 
 @dataclass(frozen=True)
-class CameraSpec:
-    """A pinhole camera on a robot frame (optical convention: z forward, x right, y down).
+class Intrinsics:
+    """Pinhole intrinsics [px] of a ``width_px`` x ``height_px`` image (optical convention: z forward, x
+    right, y down; pixel (0, 0)'s top-left *corner* at (0, 0), so the centre of row i, column j is at
+    (j + 0.5, i + 0.5)). A point ``(X, Y, Z)`` of the optical frame projects to ``(fx X / Z + cx,
+    fy Y / Z + cy)``. Use :meth:`scaled` for another resolution."""
 
-    Intrinsics [px] are for ``width_px`` x ``height_px``; use :meth:`scaled` for another resolution.
-    """
-
-    frame: str
     width_px: int
     height_px: int
     fx: float
@@ -99,15 +98,27 @@ class CameraSpec:
         """Vertical field of view [rad]."""
         return 2.0 * math.atan2(self.height_px / 2.0, self.fy)
 
-    def scaled(self, width_px: int, height_px: int) -> CameraSpec:
-        """The same camera rendered at another resolution (same field of view)."""
+    def scaled(self, width_px: int, height_px: int) -> Self:
+        """The same field of view rendered at another resolution (same type, other fields kept)."""
         if width_px <= 0 or height_px <= 0:
             raise InvalidRequestError(f"image size must be positive, got {width_px}x{height_px}")
-        sx = width_px / self.width_px
-        sy = height_px / self.height_px
-        return CameraSpec(
-            self.frame, width_px, height_px, self.fx * sx, self.fy * sy, self.cx * sx, self.cy * sy
+        sx, sy = width_px / self.width_px, height_px / self.height_px
+        return replace(
+            self,
+            width_px=width_px,
+            height_px=height_px,
+            fx=self.fx * sx,
+            fy=self.fy * sy,
+            cx=self.cx * sx,
+            cy=self.cy * sy,
         )
+
+
+@dataclass(frozen=True)
+class CameraSpec(Intrinsics):
+    """A pinhole camera on a robot frame: its :class:`Intrinsics` and the ``frame`` of its optical axes."""
+
+    frame: str
 
 
 @dataclass(frozen=True)

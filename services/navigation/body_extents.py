@@ -9,34 +9,15 @@ or holds the bar there, so :func:`with_arms_of` measures them once in that confi
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 from typing import Any
 
-import coal
 import numpy as np
 import pinocchio as pin
 
+from services.model.geometry import shape_points
 from services.navigation.collision3d import part_group
 from services.navigation.geometry import BodyModel
-
-_CORNERS = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
-
-
-def _shape_points(geometry: coal.CollisionGeometry) -> np.ndarray:
-    """Points (m, 3) in the shape's frame whose convex hull contains the shape (boxes, cylinders,
-    capsules, spheres: exact corners or a 16-gon circumscribed to the circles; meshes: their vertices)."""
-    if isinstance(geometry, coal.Box):
-        return _CORNERS * np.asarray(geometry.halfSide)
-    if isinstance(geometry, coal.Sphere):
-        return _CORNERS * geometry.radius
-    if isinstance(geometry, coal.Cylinder | coal.Capsule):
-        r = geometry.radius / math.cos(math.pi / 16)  # circumscribed polygon
-        h = geometry.halfLength + (geometry.radius if isinstance(geometry, coal.Capsule) else 0.0)
-        a = np.linspace(0.0, 2.0 * math.pi, 16, endpoint=False)
-        ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
-        return np.vstack([np.column_stack([ring, np.full(16, z)]) for z in (-h, h)])
-    return np.asarray(geometry.vertices())
 
 
 def arm_extents(robot: Any, q: np.ndarray) -> tuple[tuple[float, float], float, tuple[float, float]]:
@@ -52,7 +33,7 @@ def arm_extents(robot: Any, q: np.ndarray) -> tuple[tuple[float, float], float, 
         if part_group(obj.name) != "arms":
             continue
         T = gdata.oMg[i]
-        points.append(_shape_points(obj.geometry) @ T.rotation.T + T.translation)
+        points.append(shape_points(obj.geometry) @ T.rotation.T + T.translation)
     P = np.vstack(points)
     c, s = math.cos(yaw), math.sin(yaw)
     dx, dy = P[:, 0] - x0, P[:, 1] - y0

@@ -27,7 +27,7 @@ import argparse
 import math
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import cv2
@@ -217,6 +217,17 @@ def check_models(
     return used, hits, false_hits
 
 
+def catalogued_floor_size(scene: str, name: str) -> tuple[float, float] | None:
+    """The sides of object ``name``'s floor rectangle [m] in the scene's description (the catalogue the
+    views were rendered from: the same for every seed, only poses are random); None for a ball."""
+    from sim.scene import load_scene
+
+    spec = next(o for o in load_scene(scene).objects if o.name == name)
+    if spec.kind not in ("box", "table", "chair"):
+        return None
+    return float(spec.size_m[0]), float(spec.size_m[1])
+
+
 def learn_sim(
     config: LearnSimConfig | None = None, models_dir: str | Path = DEFAULT_MODELS_DIR
 ) -> LearnSimResult:
@@ -230,6 +241,9 @@ def learn_sim(
         f"azimuths {list(config.azimuths_rad)} rad, segmentation masks"
     )
     models = learn_from_views(views, kinds, config, source)
+    models = {
+        name: replace(m, floor_size_m=catalogued_floor_size(config.scene, name)) for name, m in models.items()
+    }
     paths = {name: save_model(model, models_dir) for name, model in models.items()}
     used, hits, false_hits = check_models(models, views, config.min_view_pixels)
     return LearnSimResult(models, paths, used, hits, false_hits)

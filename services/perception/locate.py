@@ -15,6 +15,7 @@ import numpy as np
 from services.errors import InvalidRequestError
 from services.model import RobotModel
 from services.model.specs import StereoPair
+from services.perception.own_body import OwnBody
 from vision.camera import CameraIntrinsics, StereoRig
 from vision.histogram import ObjectModel, select_models
 from vision.localize import LocalizeConfig, ObjectLocation, locate
@@ -98,8 +99,12 @@ def locate_object(
     left_bgr: np.ndarray,
     right_bgr: np.ndarray,
     config: LocalizeConfig | None = None,
+    own_body: OwnBody | None = None,
+    q: np.ndarray | None = None,
 ) -> ObjectLocation:
-    """Localize object ``name`` in a head stereo pair (BGR uint8 images).
+    """Localize object ``name`` in a head stereo pair (BGR uint8 images) taken at configuration ``q``;
+    ``own_body``: the robot's links, whose pixels (drawn at ``q``) hide what is behind them
+    (services/perception/own_body.py; None, or ``q`` None: not drawn).
 
     InvalidRequestError for an unknown name (listing the known ones) or images not matching the rig;
     NotFoundError with ``details["reason"]`` (not_in_view, ambiguous, not_in_right_view, no_disparity,
@@ -107,8 +112,18 @@ def locate_object(
     """
     model = object_model(models, name)
     others = [m for other, m in models.items() if other != name]  # what may hide parts of it
+    masks = None
+    if own_body is not None and q is not None:
+        masks = own_body.stereo_masks(q, head.rig.intrinsics, head.T_world_left_camera, head.rig.baseline_m)
     return locate(
-        model, left_bgr, right_bgr, head.rig, head.T_world_left_camera, config or LocalizeConfig(), others
+        model,
+        left_bgr,
+        right_bgr,
+        head.rig,
+        head.T_world_left_camera,
+        config or LocalizeConfig(),
+        others,
+        own_body=masks,
     )
 
 

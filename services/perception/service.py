@@ -45,6 +45,7 @@ from services.perception.locate import (
     stereo_pair,
 )
 from services.perception.look_around import head_joints, scan_angles, turn_offsets
+from services.perception.own_body import OwnBody
 from vision.footprint import Footprint
 from vision.histogram import DEFAULT_MODELS_DIR, load_models
 from vision.localize import LocalizeConfig, ObjectLocation
@@ -92,7 +93,12 @@ def to_reply(loc: ObjectLocation, head: HeadStereo, rendered: bool, sim_time_s: 
 
 def _footprint(fp: Footprint) -> msg.FootprintMsg:
     return msg.FootprintMsg(
-        center=list(fp.center_m), size=list(fp.size_m), yaw=fp.yaw_rad, top_z=fp.top_z_m, n_points=fp.n_points
+        center=list(fp.center_m),
+        size=list(fp.size_m),
+        yaw=fp.yaw_rad,
+        top_z=fp.top_z_m,
+        n_points=fp.n_points,
+        n_hidden=fp.n_hidden,
     )
 
 
@@ -123,6 +129,7 @@ class PerceptionService(Service):
         self.models_dir = Path(cfg.models_dir) if cfg.models_dir else DEFAULT_MODELS_DIR
         self.models = load_models(self.models_dir)
         self.localize_config = default_localize_config(cfg.stereo_method, cfg.max_depth_m)
+        self._own_bodies: dict[str, OwnBody] = {}  # robot model name -> its visual shapes
         if self.models:
             self.log.info("models from %s: %s", self.models_dir, ", ".join(sorted(self.models)))
         else:
@@ -210,7 +217,9 @@ class PerceptionService(Service):
             rendered, sim_time_s = True, render.sim_time_s
         budget.check("the stereo localization", {"rendered": rendered})
         try:
-            loc = locate_object(self.models, request.object, head, left, right, config)
+            loc = locate_object(
+                self.models, request.object, head, left, right, config, self._own_body(robot), q
+            )
         except NotFoundError as e:
             details = {**e.details, "object": request.object, "camera": request.camera}
             raise NotFoundError(
@@ -219,6 +228,13 @@ class PerceptionService(Service):
         return to_reply(loc, head, rendered, sim_time_s)
 
     # ------------------------------------------------------------------------------ helpers
+    def _own_body(self, robot: RobotModel) -> OwnBody:
+        """The robot's visual shapes (built once per robot model): its own pixels in the images."""
+        own = self._own_bodies.get(robot.name)
+        if own is None:
+            own = self._own_bodies[robot.name] = OwnBody(robot)
+        return own
+
     def _robot_and_q(self, request: msg.LocateRequest) -> tuple[RobotModel, np.ndarray]:
         """The robot model and configuration of the request; q = the sim's current state when omitted."""
         if request.q is not None:

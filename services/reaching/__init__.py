@@ -24,6 +24,7 @@ _EXPORTS = {
     "ReachPlanner": "services.reaching.planner",
     "plan_reach": "services.reaching.planner",
     "ReachRequest": "services.reaching.request",
+    "ReachTiming": "services.reaching.request",
     "Attempt": "services.reaching.result",
     "ReachResult": "services.reaching.result",
     "StepPlan": "services.reaching.support_polygon",

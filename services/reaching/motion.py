@@ -26,6 +26,9 @@ class MotionSpec:
         gaze_ref_m: (n, 3) point to look at [m], or None (no gaze task).
         reach_end_s: time [s] at which the hand reference reaches the target.
         pattern: the walking pattern when the motion steps, else None.
+        posture_ref: (n, nq) whole-body posture reference (joint coordinates used), or None: from the
+            starting configuration to a requested final posture along the hand's profile (a rest-level
+            task below the four of the paper: it only uses the redundancy they leave).
     """
 
     times_s: np.ndarray
@@ -41,6 +44,7 @@ class MotionSpec:
     gaze_ref_m: np.ndarray | None
     reach_end_s: float
     pattern: WalkPattern | None = None
+    posture_ref: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:

@@ -113,6 +113,9 @@ class ReachingOptions:
             of the two): without it a wrist turning by 90 deg or more over a short travel lagged
             behind its reference (fingers down between two balls, fetch seed 37).
         final_hold_s: standing still at the end of a reach without step [s].
+        timed_velocity_ratio: a request with its own timing (``ReachRequest.timing``) is planned again
+            slower when a joint of its motion moves faster than this fraction of its velocity limit
+            (``ReachPlanner.plan``).
 
     Stepping (pattern generator):
         single_support_s, double_support_s: step timing [s]; ``None``: from the robot's parameters,
@@ -156,6 +159,7 @@ class ReachingOptions:
     min_reach_s: float = 1.4
     max_reach_s: float = 5.0
     final_hold_s: float = 0.3
+    timed_velocity_ratio: float = 0.8
     single_support_s: float | None = None
     double_support_s: float | None = None
     step_slowdown: float = 1.3
@@ -188,6 +192,7 @@ class ReachingOptions:
             "hand_turn_rad_s": self.hand_turn_rad_s,
             "min_reach_s": self.min_reach_s,
             "max_reach_s": self.max_reach_s,
+            "timed_velocity_ratio": self.timed_velocity_ratio,
             "step_bound_ratio": self.step_bound_ratio,
             "comfort_reach_ratio": self.comfort_reach_ratio,
         }

@@ -31,6 +31,7 @@ import pinocchio as pin
 
 from services import budget
 from services.bus.schemas.reaching import (
+    CRITERION_EE_ERROR,
     CRITERION_MANIPULABILITY,
     CRITERION_MULTIBODY_ZMP,
     REASON_FAILED_AFTER_RESHAPING,
@@ -44,8 +45,9 @@ from services.reaching.envelope import ReachEnvelope, measure_envelope
 from services.reaching.monitors import MonitorSeries, Violation
 from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
 from services.reaching.options import CRITERIA, ReachingOptions
+from services.reaching.posture import blended_postures, posture_references
 from services.reaching.references import body_frame_path, body_frame_rotations, minimum_jerk
-from services.reaching.request import ReachRequest
+from services.reaching.request import ReachRequest, ReachTiming
 from services.reaching.result import Attempt, ReachResult
 from services.reaching.support_polygon import StepPlan, SupportPolygonPlanner, mid_pose
 from services.reaching.tracker import DT_S, ReachTracker, TrackResult
@@ -71,6 +73,10 @@ LOW_TARGET_REACH_RATIO = 0.8
 # disallowed they do not veto a motion that meets every other criterion (``ReachPlanner._without_trigger``).
 TRIGGER_ONLY = (CRITERION_MANIPULABILITY,)
 NOT_TRIGGER_ONLY = tuple(c for c in CRITERIA if c not in TRIGGER_ONLY)
+# A request with its own timing is planned again at most TIMED_TRIES times, slower each time (by
+# TIMED_SLOWDOWN when the hand lagged), before the defaults' timing (``ReachPlanner.plan``).
+TIMED_TRIES = 3
+TIMED_SLOWDOWN = 1.5
 # Fade-in of the second preview stage's ZMP error at the start of a motion without a standing lead-in [s].
 CORRECTION_FADE_IN_S = 0.4
 
@@ -109,20 +115,74 @@ class ReachPlanner:
             dt_s=DT_S,
         )
         self.pattern_options = PatternOptions(step_height_m=float(params.step_height_m))
+        # The joints whose speed times a request with its own timing: all but the grippers.
+        grippers = {robot.gripper_joint(side) for side in ("left", "right")}
+        timed = [robot.joint_index(n) for n in robot.joint_names if n not in grippers]
+        self._timed_q_idx = np.array([j.idx_q for j in timed], dtype=int)
+        self._timed_v_max = np.asarray(robot.v_max, dtype=float)[[j.idx_v for j in timed]]
         self._envelopes: dict[str, ReachEnvelope] = {}
 
     # ---------------------------------------------------------------------------------------- plan
     def plan(self, request: ReachRequest) -> ReachResult:
         """The whole-body reaching motion of ``request`` (validated here).
 
+        A request with its own timing (``request.timing``: e.g. a faster hand than the defaults'
+        0.2 m/s and 1.4 s) is timed by the robot's joint-speed limits too, and never steps: its
+        motion is planned on the current support polygon; when a joint of it (the grippers' aside)
+        moves faster than ``timed_velocity_ratio`` of its velocity limit, it is planned again that
+        much slower; when the hand falls behind its reference (``ee_error``: the IK bounds each joint's
+        speed, ``velocity_ratio``), ``TIMED_SLOWDOWN`` slower; at most ``TIMED_TRIES`` times, and
+        then (or once that is no faster than the defaults, or on any other refusal) the request is
+        planned at the defaults' timing, stepping if it allows it, as without a timing of its own.
+        The defaults' timing is the paper's experiment's slow reach and is not rescaled.
+
         Raises:
             InvalidRequestError: malformed request (names the field).
             InfeasibleError: the target cannot be reached; the message and ``details`` name the
                 criterion that failed (``criterion``, ``time_s``, ``value``, ``threshold``).
         """
+        req = request.validated(self.robot)
+        if req.timing is None:
+            return self._plan(req)
+        timed = dataclasses.replace(req, allow_stepping=False)
+        for _ in range(TIMED_TRIES):
+            try:
+                result = self._plan(timed)
+            except InfeasibleError as exc:
+                if exc.details.get("criterion") != CRITERION_EE_ERROR:
+                    break
+                excess = TIMED_SLOWDOWN  # the hand lagged: the joints could not follow it
+            else:
+                excess = self._joint_speed_ratio(result.q) / self.options.timed_velocity_ratio
+                if excess <= 1.0:
+                    return result
+            timed = self._slower(timed, max(excess, 1.05))
+            if timed is None:
+                break
+        return self._plan(dataclasses.replace(req, timing=None))
+
+    def _slower(self, req: ReachRequest, factor: float) -> ReachRequest | None:
+        """``req`` with its timing ``factor`` slower (hand speed divided, shortest motion multiplied),
+        or None once that is no faster than the defaults' timing."""
+        opt, timing = self.options, req.timing
+        assert timing is not None
+        speed = (timing.hand_speed_m_s or opt.hand_speed_m_s) / factor
+        shortest = min(opt.max_reach_s, (timing.min_duration_s or opt.min_reach_s) * factor)
+        if speed <= opt.hand_speed_m_s and shortest >= opt.min_reach_s:
+            return None
+        slower = ReachTiming(speed, shortest, timing.final_hold_s)
+        return dataclasses.replace(req, timing=slower)
+
+    def _joint_speed_ratio(self, q: np.ndarray) -> float:
+        """The fastest joint of the trajectory ``q`` (5 ms samples) over its velocity limit (the
+        grippers and the free-flyer aside)."""
+        speed = np.abs(np.diff(q[:, self._timed_q_idx], axis=0)) / DT_S
+        return float((speed / self._timed_v_max).max()) if speed.size else 0.0
+
+    def _plan(self, req: ReachRequest) -> ReachResult:
+        """:meth:`plan` of a validated request at its timing."""
         t0 = time.perf_counter()
         robot, opt = self.robot, self.options
-        req = request.validated(robot)
         q0 = req.q_start
         data = robot.new_data()
         left, right = (sole_pose_at(robot, q0, side, data) for side in ("left", "right"))
@@ -329,12 +389,28 @@ class ReachPlanner:
         return best
 
     # ------------------------------------------------------------------------------------ references
-    def _reach_duration(self, distance_m: float, angle_rad: float = 0.0) -> float:
+    def _reach_duration(
+        self,
+        distance_m: float,
+        angle_rad: float = 0.0,
+        timing: ReachTiming | None = None,
+    ) -> float:
         """The hand's motion time [s]: its travel ``distance_m`` at ``hand_speed_m_s`` or its turn
-        ``angle_rad`` at ``hand_turn_rad_s``, the longer, within [min_reach_s, max_reach_s]."""
+        ``angle_rad`` at ``hand_turn_rad_s``, the longer, within [min_reach_s, max_reach_s]; a
+        request's ``timing`` replaces the hand speed and the shortest motion."""
         opt = self.options
-        seconds = max(distance_m / opt.hand_speed_m_s, angle_rad / opt.hand_turn_rad_s)
-        return float(np.clip(seconds, opt.min_reach_s, opt.max_reach_s))
+        speed, shortest = opt.hand_speed_m_s, opt.min_reach_s
+        if timing is not None:
+            speed = opt.hand_speed_m_s if timing.hand_speed_m_s is None else timing.hand_speed_m_s
+            shortest = opt.min_reach_s if timing.min_duration_s is None else timing.min_duration_s
+        seconds = max(distance_m / speed, angle_rad / opt.hand_turn_rad_s)
+        return float(np.clip(seconds, min(shortest, opt.max_reach_s), opt.max_reach_s))
+
+    def _final_hold_s(self, req: ReachRequest) -> float:
+        """Standing still at the end of a reach without step [s]: the request's, else the options'."""
+        if req.timing is not None and req.timing.final_hold_s is not None:
+            return req.timing.final_hold_s
+        return self.options.final_hold_s
 
     def _references(
         self, req: ReachRequest, frame: dict[str, np.ndarray], s: np.ndarray, yaw: np.ndarray
@@ -364,8 +440,11 @@ class ReachPlanner:
         turn = 0.0
         if req.R_world_hand is not None:
             turn = float(np.linalg.norm(pin.log3(T_hand0.rotation.T @ req.R_world_hand)))
-        duration = self._reach_duration(float(np.linalg.norm(req.target_world_m - hand0)), turn)
-        n = round((duration + self.options.final_hold_s) / DT_S) + 1
+        duration = self._reach_duration(float(np.linalg.norm(req.target_world_m - hand0)), turn, req.timing)
+        if req.q_posture is not None:  # the joints' travel to the posture, at the hand's turning speed
+            travel = float(np.abs(req.q_posture[7:] - req.q_start[7:]).max())
+            duration = max(duration, self._reach_duration(0.0, travel, req.timing))
+        n = round((duration + self._final_hold_s(req)) / DT_S) + 1
         frame = standing_frame(
             n,
             DT_S,
@@ -376,7 +455,28 @@ class ReachPlanner:
         )
         s = minimum_jerk(frame["times_s"], 0.0, duration)
         hand, rot, gaze = self._references(req, frame, s, frame["body_yaw_rad"])
-        return MotionSpec(hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=duration, **frame)
+        posture = None
+        if req.q_posture is not None:
+            # The requested final posture reached with the hand: its joints (the hand's references along
+            # the same blend: :mod:`services.reaching.posture`) and its CoM, which the footstep plan
+            # kept inside this support polygon (paper 000 eq. 11), reached slowly (ZMP reference on
+            # the CoM, corrected by the second preview stage).
+            posture = blended_postures(req.q_start, req.q_posture, s)
+            hand, rot, com_xy = posture_references(
+                robot, req.hand, posture, s, req.q_start, req.target_world_m, req.R_world_hand
+            )
+            # The footstep plan's posture has its own gaze task on the object (paper 000 §4): the blend
+            # carries the head there; a second gaze task above the posture drove the arm off it.
+            gaze = None
+            frame = {**frame, "com_xy_m": com_xy, "zmp_planned_m": com_xy, "zmp_reference_m": com_xy}
+        return MotionSpec(
+            hand_ref_m=hand,
+            hand_rot=rot,
+            gaze_ref_m=gaze,
+            reach_end_s=duration,
+            posture_ref=posture,
+            **frame,
+        )
 
     def _stepping_spec(self, req: ReachRequest, pattern: WalkPattern) -> MotionSpec:
         frame = pattern_frame(pattern)
@@ -387,7 +487,7 @@ class ReachPlanner:
         # Duration from the hand's motion relative to the body (the steps carry it the rest of the way).
         r0 = _in_body(hand0, frame["com_xy_m"][0], frame["body_yaw_rad"][0])
         r1 = _in_body(req.target_world_m, frame["com_xy_m"][-1], frame["body_yaw_rad"][-1])
-        duration = self._reach_duration(float(np.linalg.norm(r1 - r0)))
+        duration = self._reach_duration(float(np.linalg.norm(r1 - r0)), 0.0, req.timing)
         # The hand arrives with the last weight transfer, or after it when it needs longer than the
         # steps (then the pattern's final hold must leave it the time: see ``plan``).
         t_end = min(max(t_arrive, duration), float(frame["times_s"][-1]))
@@ -411,7 +511,8 @@ class ReachPlanner:
         hand0 = self.robot.frame_pose(req.q_start, self.robot.frames.grasp(req.hand)).translation
         r0 = _in_body(hand0, frame["com_xy_m"][0], frame["body_yaw_rad"][0])
         r1 = _in_body(req.target_world_m, frame["com_xy_m"][-1], frame["body_yaw_rad"][-1])
-        return max(0.0, self._reach_duration(float(np.linalg.norm(r1 - r0))) - t_arrive)
+        duration = self._reach_duration(float(np.linalg.norm(r1 - r0)), 0.0, req.timing)
+        return max(0.0, duration - t_arrive)
 
     # ------------------------------------------------------------------------------------ finishing
     def _finish(
@@ -456,7 +557,7 @@ class ReachPlanner:
             gains,
             retrack,
             window=_correction_window(spec),
-            settle_samples=round(self.options.final_hold_s / DT_S),
+            settle_samples=round(self._final_hold_s(req) / DT_S),
             margin_m=opt.zmp_margin_m,
             max_corrections=opt.max_corrections,
         )

@@ -9,11 +9,47 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from services.bus.schemas.reaching import MAX_FINAL_HOLD_S, MAX_HAND_SPEED_M_S, MIN_DURATION_RANGE_S
 from services.errors import InvalidRequestError
 from services.model.specs import check_side
 
 MAX_SOLE_HEIGHT_M = 0.005  # a starting sole farther than this from the ground is not standing
 MAX_SOLE_TILT_RAD = 0.02  # nor a sole tilted by more than this
+
+
+@dataclass(frozen=True)
+class ReachTiming:
+    """A reach's own timing, in place of the planner's defaults (``ReachingOptions.hand_speed_m_s``,
+    ``min_reach_s``, ``final_hold_s``): the hand's mean speed ``hand_speed_m_s`` [m/s] over its travel
+    (a minimum-jerk profile: 1.875 times that at its peak), ``min_duration_s`` the shortest motion [s],
+    ``final_hold_s`` standing still at the end [s]. With a timing of its own a motion is also slowed
+    down where its joints would move faster than the planner's ``timed_velocity_ratio`` of their
+    velocity limits (``ReachPlanner.plan``): a request asks for *at most* this speed, the joints decide
+    the rest. ``None`` fields: the planner's defaults."""
+
+    hand_speed_m_s: float | None = None
+    min_duration_s: float | None = None
+    final_hold_s: float | None = None
+
+    def validated(self) -> ReachTiming:
+        """Itself; InvalidRequestError naming the field and its range otherwise."""
+        checks = (
+            ("hand_speed_m_s", self.hand_speed_m_s, 0.0, MAX_HAND_SPEED_M_S, "m/s", False),
+            ("min_duration_s", self.min_duration_s, *MIN_DURATION_RANGE_S, "s", True),
+            ("final_hold_s", self.final_hold_s, 0.0, MAX_FINAL_HOLD_S, "s", True),
+        )
+        for name, value, low, high, unit, low_ok in checks:
+            if value is None:
+                continue
+            ok = isinstance(value, int | float) and math.isfinite(value)
+            ok = ok and (low <= value if low_ok else low < value) and value <= high
+            if not ok:
+                bracket = "[" if low_ok else "("
+                raise InvalidRequestError(
+                    f"timing {name} must be in {bracket}{low}, {high}] {unit}, got {value!r}",
+                    {"field": name},
+                )
+        return self
 
 
 @dataclass(frozen=True)
@@ -28,6 +64,12 @@ class ReachRequest:
             only (the paper's experiment).
         gaze: keep the gaze on the target (task iv).
         allow_stepping: the support polygon may be reshaped by stepping.
+        q_posture: optional (nq,) final whole-body posture to go to on the way (a footstep plan's final
+            posture for this stance, paper 000 §7), its joints within their limits: the hand's, CoM's
+            and joints' references follow the joints' interpolation to it
+            (:mod:`services.reaching.posture`; its own gaze replaces the gaze task), in the motion on
+            the current support polygon only (a reshaping step changes the stance it was planned for).
+        timing: the motion's own timing (None: the planner's defaults); see :class:`ReachTiming`.
     """
 
     hand: str
@@ -36,6 +78,8 @@ class ReachRequest:
     R_world_hand: np.ndarray | None = None
     gaze: bool = True
     allow_stepping: bool = True
+    q_posture: np.ndarray | None = field(default=None, repr=False)
+    timing: ReachTiming | None = None
 
     def validated(self, robot: Any) -> ReachRequest:
         """A copy with arrays checked and converted; InvalidRequestError naming the field otherwise."""
@@ -53,6 +97,23 @@ class ReachRequest:
                 raise InvalidRequestError("orientation must be a 3x3 rotation matrix")
             if np.abs(rotation @ rotation.T - np.eye(3)).max() > 1e-6 or np.linalg.det(rotation) < 0:
                 raise InvalidRequestError("orientation is not a rotation matrix (R R^T != I or det < 0)")
+        posture = None
+        if self.q_posture is not None:
+            posture = np.asarray(self.q_posture, dtype=float).reshape(-1)
+            if posture.shape != q.shape or not np.all(np.isfinite(posture)):
+                raise InvalidRequestError(
+                    f"posture must be {q.shape[0]} finite numbers (a configuration of {robot.name}), "
+                    f"got {posture.size}"
+                )
+            joints = slice(7, None)  # the free flyer's 7 coordinates first
+            lower, upper = np.asarray(robot.q_lower)[joints], np.asarray(robot.q_upper)[joints]
+            outside = np.flatnonzero((posture[joints] < lower - 1e-6) | (posture[joints] > upper + 1e-6))
+            if outside.size:
+                name = robot.joint_names[int(outside[0])]
+                raise InvalidRequestError(
+                    f"posture: joint {name} at {posture[7 + outside[0]]:.3f} rad is outside its limits "
+                    f"[{lower[outside[0]]:.3f}, {upper[outside[0]]:.3f}] rad"
+                )
         data = robot.new_data()
         for side in ("left", "right"):
             T = robot.sole_pose(q, side, data)
@@ -64,7 +125,17 @@ class ReachRequest:
                     f"and {MAX_SOLE_TILT_RAD} rad); "
                     "plan from the robot's measured standing configuration"
                 )
-        return ReachRequest(self.hand, target, q.copy(), rotation, bool(self.gaze), bool(self.allow_stepping))
+        timing = None if self.timing is None else self.timing.validated()
+        return ReachRequest(
+            self.hand,
+            target,
+            q.copy(),
+            rotation,
+            bool(self.gaze),
+            bool(self.allow_stepping),
+            q_posture=posture,
+            timing=timing,
+        )
 
 
 def quaternion_to_matrix(quaternion_xyzw: Any) -> np.ndarray:

@@ -33,7 +33,7 @@ from services.model.options import add_model_argument, with_model
 from services.reaching.monitors import MonitorSeries
 from services.reaching.options import ReachingOptions
 from services.reaching.planner import ReachPlanner
-from services.reaching.request import ReachRequest, quaternion_to_matrix
+from services.reaching.request import ReachRequest, ReachTiming, quaternion_to_matrix
 from services.reaching.result import ReachResult
 
 
@@ -116,9 +116,17 @@ class ReachingService(Service):
                     R_world_hand=rotation,
                     gaze=request.gaze,
                     allow_stepping=request.allow_stepping,
+                    q_posture=None if request.posture is None else np.asarray(request.posture, dtype=float),
+                    timing=_timing(request),
                 )
             )
         return to_reply(result, list(self.robot.joint_names))
+
+
+def _timing(request: msg.ReachRequest) -> ReachTiming | None:
+    """The request's own timing, or None when it gives none (the service's defaults)."""
+    values = (request.hand_speed_m_s, request.min_duration_s, request.final_hold_s)
+    return None if all(v is None for v in values) else ReachTiming(*values)
 
 
 def _monitors(series: MonitorSeries) -> msg.Monitors:

@@ -58,6 +58,9 @@ GAZE_AXIS = (1.0, 0.0, 0.0)  # the robot's ``gaze`` frame looks along its x axis
 # Damping of the hand level (damped least squares, in the level's metric): near the arm's singularity
 # the step stays bounded instead of flipping the arm; away from it the knot iterations remove the bias.
 HAND_DAMPING = 1e-3
+# Gain of the requested-posture level (``MotionSpec.posture_ref``) per Gauss-Newton step: it follows a
+# moving reference, in the null space of the tasks above it.
+POSTURE_GAIN = 0.5
 MODEL_CACHE_SIZE = 8  # IK models kept per tracker (one per hand and locked-arm configuration)
 
 
@@ -208,6 +211,12 @@ class ReachTracker:
             )
             levels.append(Level((gaze,), name="gaze", weights=W, lock_near_limits_rad=S_l))
             tasks["gaze"] = gaze
+        if spec.posture_ref is not None:
+            # The requested final posture (a footstep plan's, paper 000 §7) in the redundancy the four
+            # tasks leave, its own level above the rest: the motion goes where that plan checked it.
+            posture = PostureTask(m, ik.reduce_q(spec.posture_ref[0]), gain=POSTURE_GAIN, name="posture")
+            levels.append(Level((posture,), name="posture", weights=W, lock_near_limits_rad=S_l))
+            tasks["posture"] = posture
         rest: tuple[Any, ...] = (waist,)
         if opt.com_height_rest and not opt.com_height:
             # The CoM height back to its initial value with the waist, in the redundancy left: the
@@ -286,6 +295,8 @@ class ReachTracker:
                 hand_task.set_target(pin.SE3(spec.hand_rot[k], spec.hand_ref_m[k]))
             if gaze is not None:
                 gaze.set_target(spec.gaze_ref_m[k])
+            if "posture" in tasks:
+                tasks["posture"].set_rest(ik.reduce_q(spec.posture_ref[k]))
             if i == 1 or spec.body_yaw_rad[k] != spec.body_yaw_rad[knots[i - 1]]:
                 waist.set_target(rot_z(float(spec.body_yaw_rad[k]) - yaw0) @ R_waist0)
             # Gauss-Newton steps from the previous knot (no velocity extrapolation: it would carry a

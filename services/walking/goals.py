@@ -87,9 +87,7 @@ def square_up(soles: dict[str, SolePose], limits: FootstepBounds) -> Footstep | 
 
     After a reaching step one foot is up to 0.22 m ahead, while ``turn_in_place`` makes its steps for
     a square stance, turning about its mid-feet point."""
-    yaw = mid_feet(soles["left"], soles["right"]).yaw_rad
-    c, s = math.cos(yaw), math.sin(yaw)
-    ahead = {side: c * p.x_m + s * p.y_m for side, p in soles.items()}
+    ahead = _ahead(soles)
     dyaw = abs(math.remainder(soles["left"].yaw_rad - soles["right"].yaw_rad, 2 * math.pi))
     if abs(ahead["left"] - ahead["right"]) <= SQUARE_DX_M and dyaw <= SQUARE_DYAW_RAD:
         return None
@@ -105,16 +103,48 @@ def square_up(soles: dict[str, SolePose], limits: FootstepBounds) -> Footstep | 
     return Footstep(side=rear, pose=pose)  # type: ignore[arg-type]
 
 
+def _ahead(soles: dict[str, SolePose]) -> dict[str, float]:
+    """Each sole's position [m] along the mid-feet heading."""
+    yaw = mid_feet(soles["left"], soles["right"]).yaw_rad
+    c, s = math.cos(yaw), math.sin(yaw)
+    return {side: c * p.x_m + s * p.y_m for side, p in soles.items()}
+
+
+def front_foot(soles: dict[str, SolePose]) -> str | None:
+    """The foot more than ``SQUARE_DX_M`` ahead of the other along the mid-feet heading, None when the
+    stance is square in that direction."""
+    ahead = _ahead(soles)
+    if abs(ahead["left"] - ahead["right"]) <= SQUARE_DX_M:
+        return None
+    return max(ahead, key=lambda side: ahead[side])
+
+
 def walk_to_steps(
-    soles: dict[str, SolePose], dx_m: float, dy_m: float, dyaw_rad: float, limits: FootstepBounds
+    soles: dict[str, SolePose],
+    dx_m: float,
+    dy_m: float,
+    dyaw_rad: float,
+    limits: FootstepBounds,
+    lead: str | None = None,
 ) -> FootstepSequence:
     """Footsteps that bring the mid-feet frame to (dx, dy [m], dyaw [rad]) in the starting mid-feet frame,
-    the feet side by side at the end (a staggered start is evened out on the way).
+    the feet side by side at the end (a staggered start is evened out on the way). ``lead``: the foot
+    that steps first (None: toward the side or the turn; straight back from a staggered stance, the
+    front foot).
 
     Raises:
         InfeasibleError: no count of steps fits the bounds (:func:`fit_to_bounds`).
     """
     first = "left" if (dy_m if abs(dy_m) > 0.02 else dyaw_rad) > 0 else "right"  # lead on the way
+    front = front_foot(soles)
+    if dx_m < 0.0 and abs(dy_m) <= 0.02 and dyaw_rad == 0.0 and front is not None:
+        # Straight back from a staggered stance: the front foot leads, so that the first weight transfer
+        # goes onto the rear foot and the lifted front leg moves away from what is in front of it. With
+        # the rear foot leading, the weight goes forward onto the front foot and the rear knee comes
+        # forward as it lifts: fetch seed 37's right thigh (RLEG_LINK2), 3 cm from the box it had just
+        # reached into, touched it.
+        first = front
+    first = lead or first
 
     def fractions(n: int) -> list[float]:  # n steps, the last one bringing the feet side by side
         return [min(k, n - 1) / (n - 1) for k in range(1, n + 1)]
@@ -158,6 +188,33 @@ def turn_steps(soles: dict[str, SolePose], angle_rad: float, limits: FootstepBou
     )
     steps = (*([first] if first is not None else []), *turn.steps)
     return FootstepSequence(soles["left"], soles["right"], steps)
+
+
+def back_and_turn_steps(
+    soles: dict[str, SolePose],
+    back_m: float,
+    angle_rad: float,
+    limits: FootstepBounds,
+    lead: str | None = None,
+) -> tuple[FootstepSequence, FootstepSequence]:
+    """Straight back by ``back_m`` [m] (:func:`walk_to_steps` led by ``lead``, the feet side by side at
+    the end), then a
+    turn on the spot by ``angle_rad`` from there (:func:`turn_steps`): the two parts, to be checked
+    each as what it is (the turn's room at the stance it starts from) and walked as one walk (one
+    start, one stop: no stand-still between them).
+
+    Raises:
+        InfeasibleError: a part does not fit the bounds.
+    """
+    back = walk_to_steps(soles, -back_m, 0.0, 0.0, limits, lead)
+    left, right = back.final_stance()
+    turn = turn_steps({"left": left, "right": right}, angle_rad, limits)
+    return back, turn
+
+
+def joined(first: FootstepSequence, then: FootstepSequence) -> FootstepSequence:
+    """``first``'s steps followed by ``then``'s (which starts where ``first`` ends): one sequence."""
+    return FootstepSequence(first.left_start, first.right_start, first.steps + then.steps)
 
 
 def square_steps(soles: dict[str, SolePose], limits: FootstepBounds) -> FootstepSequence:

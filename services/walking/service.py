@@ -37,6 +37,7 @@ from services.bus.service import Service, handles, run_service
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.model.ground import mid_feet
+from services.navigation.service import obstacle_from_msg
 from services.walking.footsteps import (
     SIDES,
     Footstep,
@@ -47,13 +48,16 @@ from services.walking.footsteps import (
 )
 from services.walking.goals import (
     MapBox,
+    back_and_turn_steps,
     check_clear,
+    joined,
     soles_on,
     square_steps,
     turn_steps,
     walk_to_steps,
 )
 from services.walking.pattern import PatternOptions
+from services.walking.sweep import check_legs_clear
 from services.walking.timing import WalkTiming
 from services.walking.upper_body import GazeTarget, HandTarget
 from services.walking.wholebody import WholeBodyOptions, WholeBodyResult, plan_walk
@@ -204,8 +208,12 @@ def _floor_boxes(obstacles: list[Any]) -> list[MapBox]:
     return out
 
 
-def goal_steps(request: msg.GoalRequest, robot: Any) -> tuple[np.ndarray, FootstepSequence]:
-    """(q_start, the footsteps) of a ``walking/goal`` request, checked against its obstacles.
+def goal_steps(
+    request: msg.GoalRequest, robot: Any, lead: str | None = None
+) -> tuple[np.ndarray, FootstepSequence]:
+    """(q_start, the footsteps) of a ``walking/goal`` request, checked against its obstacles; ``lead``:
+    the foot that steps first in a walk to a pose or a step back (None: the planner's choice,
+    :func:`~services.walking.goals.walk_to_steps`).
 
     Raises:
         InvalidRequestError: unknown kind or frame, a pose not [x, y, yaw], negative distances, a
@@ -224,6 +232,7 @@ def goal_steps(request: msg.GoalRequest, robot: Any) -> tuple[np.ndarray, Footst
     limits = FootstepBounds.from_robot(robot)
     boxes = _floor_boxes(request.obstacles)
     turn_room = None
+    back = None  # kind "turn" with back_m: the step back, checked as a walk of its own
     try:
         if request.kind == "pose":
             if request.frame not in ("robot", "world"):
@@ -235,11 +244,14 @@ def goal_steps(request: msg.GoalRequest, robot: Any) -> tuple[np.ndarray, Footst
                 dyaw = math.remainder(goal.yaw_rad - mid.yaw_rad, 2.0 * math.pi)
             else:
                 dx, dy, dyaw = goal.x_m, goal.y_m, math.remainder(goal.yaw_rad, 2.0 * math.pi)
-            sequence = walk_to_steps(soles, dx, dy, dyaw, limits)
+            sequence = walk_to_steps(soles, dx, dy, dyaw, limits, lead)
         elif request.kind == "turn":
             if not math.isfinite(request.angle_rad):
                 raise InvalidRequestError(f"angle_rad must be finite, got {request.angle_rad}")
-            sequence = turn_steps(soles, request.angle_rad, limits)
+            if request.back_m > 0.0:
+                back, sequence = back_and_turn_steps(soles, request.back_m, request.angle_rad, limits, lead)
+            else:
+                sequence = turn_steps(soles, request.angle_rad, limits)
             turn_room = request.turn_room_m
         else:
             sequence = square_steps(soles, limits)
@@ -249,22 +261,60 @@ def goal_steps(request: msg.GoalRequest, robot: Any) -> tuple[np.ndarray, Footst
         if "reason" in exc.details:
             raise
         raise InfeasibleError(exc.message, {**exc.details, "reason": msg.REASON_OUT_OF_BOUNDS}) from exc
+    sole_size = (limits.sole_length_m, limits.sole_width_m)
+    if back is not None:
+        check_clear(
+            back,
+            boxes,
+            clearance_m=request.clearance_m,
+            sole_margin_m=request.sole_margin_m,
+            sole_size_m=sole_size,
+        )
     check_clear(
         sequence,
         boxes,
         clearance_m=request.clearance_m,
         sole_margin_m=request.sole_margin_m,
-        sole_size_m=(limits.sole_length_m, limits.sole_width_m),
+        sole_size_m=sole_size,
         turn_room_m=turn_room,
     )
-    return q, sequence
+    return q, sequence if back is None else joined(back, sequence)
 
 
 def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) -> msg.PlanReply:
     """The whole ``walking/goal`` endpoint without the bus: the footsteps of the goal
-    (:func:`goal_steps`), then :func:`plan_reply` of them with the request's timing."""
+    (:func:`goal_steps`), then :func:`plan_reply` of them with the request's timing, its legs checked
+    against the boxes in 3D (:func:`~services.walking.sweep.check_legs_clear`). A walk to a pose (or a
+    step back) whose legs come too near a box is tried once more led by the other foot (which foot
+    takes the weight first decides where the hips sway and which knee comes forward)."""
     robot = load_robot(request.model)
+    if not (math.isfinite(request.leg_clearance_m) and request.leg_clearance_m >= 0.0):
+        raise InvalidRequestError(f"leg_clearance_m must be >= 0 m, got {request.leg_clearance_m}")
+    boxes = [obstacle_from_msg(o) for o in request.obstacles if o.kind == "box"]
     q, sequence = goal_steps(request, robot)
+    try:
+        return _goal_walk(request, robot, q, sequence, boxes, config)
+    except InfeasibleError as exc:
+        leads = request.kind == "pose" or (request.kind == "turn" and request.back_m > 0.0)
+        if "link" not in exc.details or not leads or not sequence.steps:
+            raise
+        other = other_side(sequence.steps[0].side)
+        try:
+            q, sequence = goal_steps(request, robot, other)
+            return _goal_walk(request, robot, q, sequence, boxes, config)
+        except InfeasibleError:
+            raise exc from None
+
+
+def _goal_walk(
+    request: msg.GoalRequest,
+    robot: Any,
+    q: np.ndarray,
+    sequence: FootstepSequence,
+    boxes: list[Any],
+    config: WalkingConfig | None,
+) -> msg.PlanReply:
+    """:func:`plan_reply` of a goal's footsteps with its timing; its legs checked against ``boxes``."""
     plan = msg.PlanRequest(
         steps=[msg.Step(pose=s.pose.as_array().tolist(), side=s.side) for s in sequence.steps],
         model=request.model,
@@ -274,7 +324,9 @@ def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) ->
         single_support_s=request.single_support_s,
         double_support_s=request.double_support_s,
     )
-    return plan_reply(plan, config)
+    reply = plan_reply(plan, config)
+    check_legs_clear(robot, np.asarray(reply.q), reply.dt_s, boxes, clearance_m=request.leg_clearance_m)
+    return reply
 
 
 def _check_result(result: WholeBodyResult, request: msg.PlanRequest) -> None:

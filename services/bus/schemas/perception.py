@@ -77,6 +77,8 @@ class FootprintMsg(msgspec.Struct, kw_only=True, frozen=True):
     yaw: float  # [rad], in (-pi/2, pi/2]
     top_z: float  # its top: the highest height many outline points share, world [m]
     n_points: int  # outline points it was fitted to
+    # outline edges left out next to an occluder (another object, the robot's own body): not seen
+    n_hidden: int = 0
 
     @property
     def rectangle(self) -> Rectangle:

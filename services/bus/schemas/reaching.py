@@ -9,6 +9,8 @@ bytes (binary frames of ``services.bus.codec``).
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import numpy as np
 
@@ -29,6 +31,17 @@ CRITERION_MULTIBODY_ZMP = "multibody_zmp"  # the multibody ZMP leaves the suppor
 REASON_STEPPING_NOT_ALLOWED = "stepping_not_allowed"  # a criterion failed and allow_stepping is false
 REASON_TOO_MANY_STEPS = "too_many_steps"  # reshaping the support polygon would need more than max_steps
 REASON_FAILED_AFTER_RESHAPING = "failed_after_reshaping"  # a criterion still fails after every reshaping
+
+
+#: Bounds of a request's own timing (``hand_speed_m_s``, ``min_duration_s``, ``final_hold_s``).
+MAX_HAND_SPEED_M_S = 0.6  # mean hand speed [m/s] (1.125 m/s at the peak of the minimum-jerk profile)
+MIN_DURATION_RANGE_S = (0.4, 5.0)  # the shortest motion [s]
+MAX_FINAL_HOLD_S = 2.0  # standing still at the end [s]
+HandSpeed = Annotated[float, msgspec.Meta(gt=0.0, le=MAX_HAND_SPEED_M_S, description="hand speed [m/s]")]
+ReachDuration = Annotated[
+    float, msgspec.Meta(ge=MIN_DURATION_RANGE_S[0], le=MIN_DURATION_RANGE_S[1], description="duration [s]")
+]
+HoldTime = Annotated[float, msgspec.Meta(ge=0.0, le=MAX_FINAL_HOLD_S, description="hold [s]")]
 
 
 class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
@@ -52,9 +65,20 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     # None: the robot's (the paper's 4e-5 m, a trigger for support polygon reshaping). A motion whose
     # stance a footstep plan chose (no stepping) may allow the hand a larger lag on its way.
     ee_error_threshold_m: Margin | None = None
+    # (nq,) float64 final whole-body posture to go to with the hand (a footstep plan's final posture
+    # for the stance the robot stands in, paper 000 §7), a task below the paper's four, in the motion
+    # without stepping; None: none (the robot's own IK decides). Joints within their limits.
+    posture: np.ndarray | None = None
     # wall-clock planning budget [s] (<= 60); None: the service's time_budget_s. Past it: ``timeout``
     # with the stage reached and the attempts made (``details.stage``, ``attempts``).
     time_budget_s: Budget | None = None
+    # The motion's own timing (None: the service's, the paper's slow reach: 0.2 m/s, at least 1.4 s,
+    # 0.3 s hold): the hand's mean speed at most [m/s], the shortest motion [s], the final hold [s].
+    # Slowed down where a joint would exceed its share of the velocity limit, never stepping; refused
+    # at that timing, the request is planned at the service's timing (stepping if allowed).
+    hand_speed_m_s: HandSpeed | None = None
+    min_duration_s: ReachDuration | None = None
+    final_hold_s: HoldTime | None = None
 
 
 class Monitors(msgspec.Struct, kw_only=True, frozen=True):

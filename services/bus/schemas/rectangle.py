@@ -75,6 +75,11 @@ class Rectangle:
         """Distance [m] from one point (2,) to the rectangle (0 inside)."""
         return max(0.0, float(self.signed_distance(point_xy_m)[0]))
 
+    def nearest_point(self, point_xy_m: Any) -> np.ndarray:
+        """The point (2,) [m] of the rectangle (boundary or inside) nearest to one point (2,) [m]."""
+        local = np.clip(self.to_local(point_xy_m)[0], -self.half_m, self.half_m)
+        return self.to_world(local)[0]
+
     def contains(self, point_xy_m: Any) -> bool:
         """Whether one point (2,) [m] lies in the rectangle (its boundary included)."""
         return bool(np.all(np.abs(self.to_local(point_xy_m)[0]) <= self.half_m))

@@ -91,10 +91,10 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     single_support_s: Phase = 0.7
     double_support_s: Phase = 0.3  # between two steps (0.1 is fragile in the sim: see the README)
     initial_double_support_s: Phase = 0.8  # first weight transfer onto the first stance foot
-    final_double_support_s: Phase = 0.7  # last weight transfer back between the feet
+    final_double_support_s: Phase = 0.5  # last weight transfer back between the feet
     initial_hold_s: Phase = 0.6  # standing still before the first transfer (preview lead-in)
     stop_at_end: bool = True  # stand still final_hold_s at the end (else end with the last transfer)
-    final_hold_s: Phase = 0.4
+    final_hold_s: Phase = 0.2  # (the pattern comes to rest over the last transfer and this hold)
     # pattern options
     # swing apex [m]; None: the robot's parameter
     step_height_m: Annotated[float, Meta(gt=0.0, le=0.5)] | None = None
@@ -193,13 +193,17 @@ class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
       forward, sideways and turning together (or there first, then turning on the spot), the feet side
       by side at the end. ``[-0.3, 0, 0]`` steps back 0.3 m; ``[0, 0, 0]`` squares a staggered stance.
     * ``"turn"``: turn on the spot by ``angle_rad`` (> 0: left), a staggered stance squared up first;
-      needs no box nearer than ``turn_room_m`` to the mid-feet point.
+      needs no box nearer than ``turn_room_m`` to the mid-feet point. With ``back_m`` > 0: first
+      straight back by ``back_m`` [m] (as ``"pose"`` [-back_m, 0, 0]), then the turn from there, one
+      walk (no stand-still between them); the turn's room is checked where it starts.
     * ``"square"``: the one step that brings the rear foot beside the front one (``invalid_request``
       if the stance is already square).
 
     Obstacle test (``obstacles``: the map's boxes, ``kind`` "box"): the mid-feet path keeps
     ``clearance_m`` from every box (or as far as its start or its end is, if nearer), every landing sole
-    ``sole_margin_m``. Failures: ``infeasible`` with ``details.reason`` one of ``REASON_*``.
+    ``sole_margin_m``; in 3D, the legs of the walk planned (their swept volume: a lifted foot brings
+    its knee forward) keep ``leg_clearance_m`` from every box (or, from a box a leg starts nearer to,
+    as far as it starts). Failures: ``infeasible`` with ``details.reason`` one of ``REASON_*``.
     """
 
     q_start: np.ndarray  # (nq,) the robot's configuration now, standing on both soles
@@ -207,11 +211,13 @@ class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     pose: Annotated[list[Coord], Meta(max_length=3)] = []  # kind "pose": [x, y, yaw] of the mid-feet frame
     frame: Name = "robot"  # kind "pose": "robot" or "world"
     angle_rad: Angle = 0.0  # kind "turn"
+    back_m: Size = 0.0  # kind "turn": straight back by this much first [m], one walk with the turn
     model: Name = "hrp2_like"
     obstacles: Annotated[list[ObstacleMsg], Meta(max_length=MAX_OBSTACLES)] = []
     clearance_m: Size = 0.35
     sole_margin_m: Size = 0.03
     turn_room_m: Size = 0.3
+    leg_clearance_m: Size = 0.02  # the legs' swept volume from the boxes (3D) [m]
     single_support_s: Phase = 0.7
     double_support_s: Phase = 0.3  # 0.1 tipped the simulated robot over in about half of the 60-90 deg turns
     time_budget_s: Budget | None = None  # as PlanRequest.time_budget_s [s]

@@ -54,11 +54,13 @@ def segment_box_distances(
     long = dd > 1e-12
     inv = np.where(long, 1.0 / np.where(long, dd, 1.0), 0.0)
     s = np.full(a.shape[0], 0.5)
+    neg = -half
+    # np.minimum(np.maximum(...)) is np.clip's arithmetic without its per-call overhead (hot loop)
     for _ in range(iterations):
-        closest = np.clip(a + s[:, None] * d, -half, half)
-        s = np.clip(np.einsum("ki,ki->k", closest - a, d) * inv, 0.0, 1.0)
+        closest = np.minimum(np.maximum(a + s[:, None] * d, neg), half)
+        s = np.minimum(np.maximum(np.einsum("ki,ki->k", closest - a, d) * inv, 0.0), 1.0)
     point = a + s[:, None] * d
-    diff = point - np.clip(point, -half, half)
+    diff = point - np.minimum(np.maximum(point, neg), half)
     dist = np.sqrt(np.einsum("ki,ki->k", diff, diff))
     outside = dist > 1e-9
     n_local = np.where(outside[:, None], diff / np.where(outside, dist, 1.0)[:, None], 0.0)
@@ -105,14 +107,40 @@ class CapsuleBoxTask(Task):
         self._half = np.array([b.half_extents_m for b in self.boxes], dtype=float).reshape(-1, 3)
         self._pair_capsule = np.array([i for i, _ in self.pairs], dtype=int)
         self._pair_box = np.array([j for _, j in self.pairs], dtype=int)
+        # broad phase: each pair's capsule radius plus its box's circumradius (the box within that
+        # distance of its centre)
+        circumradius = np.linalg.norm(self._half, axis=1)
+        self._pair_reach = self._radii[self._pair_capsule] + circumradius[self._pair_box]
+
+    def _ends(self, data: pin.Data) -> np.ndarray:
+        """The capsules' segment ends in the world (capsules x 2 x 3) [m]."""
+        H = np.array([data.oMf[f].homogeneous for f in self._fids])
+        return np.einsum("kij,kcj->kci", H[:, :3, :3], self._ends_local) + H[:, None, :3, 3]
+
+    def _pairs_at(
+        self, ends: np.ndarray, rows: np.ndarray | slice
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(surface distances [m], closest capsule points A, normals n) of the pairs ``rows``."""
+        c, b = self._pair_capsule[rows], self._pair_box[rows]
+        dist, A, n = segment_box_distances(ends[c, 0], ends[c, 1], self._R[b], self._t[b], self._half[b])
+        return dist - self._radii[c], A, n
 
     def _all_pairs(self, data: pin.Data) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(surface distances [m], closest capsule points A, normals n) of every pair."""
-        H = np.array([data.oMf[f].homogeneous for f in self._fids])
-        ends = np.einsum("kij,kcj->kci", H[:, :3, :3], self._ends_local) + H[:, None, :3, 3]
+        return self._pairs_at(self._ends(data), slice(None))
+
+    def _near_pairs(self, ends: np.ndarray, within_m: float) -> np.ndarray:
+        """Indices of the pairs that may be closer than ``within_m`` (surface to surface): the distance
+        from the box's centre to the capsule's segment, less the capsule's radius and the box's
+        circumradius, is a lower bound of the pair's distance, so every pair left out is farther."""
         c, b = self._pair_capsule, self._pair_box
-        dist, A, n = segment_box_distances(ends[c, 0], ends[c, 1], self._R[b], self._t[b], self._half[b])
-        return dist - self._radii[c], A, n
+        p0, d = ends[c, 0], ends[c, 1] - ends[c, 0]
+        w = self._t[b] - p0
+        dd = np.einsum("ki,ki->k", d, d)
+        s = np.clip(np.einsum("ki,ki->k", w, d) / np.maximum(dd, 1e-12), 0.0, 1.0)
+        gap = w - s[:, None] * d
+        lower = np.sqrt(np.einsum("ki,ki->k", gap, gap)) - self._pair_reach
+        return np.flatnonzero(lower <= within_m)
 
     def distances(self, data: pin.Data) -> np.ndarray:
         """Signed surface distance [m] of every pair (negative: penetration)."""
@@ -129,13 +157,17 @@ class CapsuleBoxTask(Task):
     def compute(self, q: np.ndarray, data: pin.Data) -> tuple[np.ndarray, np.ndarray]:
         if not self.pairs:
             return np.zeros(0), np.zeros((0, self.model.nv))
-        dist, A, n = self._all_pairs(data)
-        active = np.flatnonzero(dist <= self.margin_m + self.activation_m)
+        # only the pairs the broad phase cannot rule out (the same rows as computing every pair)
+        within = self.margin_m + self.activation_m
+        ends = self._ends(data)
+        near = self._near_pairs(ends, within)
+        dist, A, n = self._pairs_at(ends, near)
+        active = np.flatnonzero(dist <= within)
         if not active.shape[0]:
             return np.zeros(0), np.zeros((0, self.model.nv))
         rows = []
         for r in active.tolist():
-            fid = self._fids[self._pair_capsule[r]]
+            fid = self._fids[self._pair_capsule[near[r]]]
             local = data.oMf[fid].actInv(A[r])
             _, J_A = point_jacobian(self.model, data, fid, local)
             rows.append(-n[r].dot(J_A))

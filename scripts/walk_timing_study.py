@@ -1,0 +1,212 @@
+"""Fall study of the walking step timing on walks like the fetch's, in the sim (pybullet DIRECT, no bus).
+
+For each walk (seeded) and each timing setting (single support, double support) [s]: the robot stands in
+an empty world, empty-handed or (every other walk) with the right hand at the supervisor's carry point
+(reached first with ``services.reaching``, executed in the sim, as after a grasp: the 0.1 kg ball left
+out), then plans from the state the sim reports, as the supervisor does:
+
+- ``goto``: navigation's two stages (``services.navigation.goto.plan_goto``, car-like path, footsteps,
+  whole-body stage 2 with its per-step slowdown when a joint is too fast) to a pose 1-3 m away in any
+  direction, any final heading (turning steps, curves);
+- ``turn``: a turn on the spot of 60-180 deg (``turn_in_place``), as the fetch's turn after a grasp;
+- ``back``: 0.3-0.45 m straight back (the step back before that turn).
+
+and executes it (``World.execute``). Per setting: walks planned, refused by the planner, fallen,
+completed; the smallest planned multibody ZMP margin; the fastest knee (LEG_JOINT3) of the executed
+plan over its 4.0 rad/s limit; the walk's duration. JSON lines to ``--out`` as it goes (resumable
+reading), a table at the end.
+
+Usage: .venv/bin/python scripts/walk_timing_study.py [--n 12] [--start I] [--settings 0.7/0.2,0.7/0.1,...]
+[--out F] [--summarize]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from services.errors import HumanoidError  # noqa: E402
+from services.model.ground import sole_pose_at  # noqa: E402
+from services.navigation.geometry import Pose2D, Scene  # noqa: E402
+from services.navigation.goto import GotoOptions, plan_goto, start_pose  # noqa: E402
+from services.navigation.stage2 import Stage2Options  # noqa: E402
+from services.reaching import ReachRequest, plan_reach  # noqa: E402
+from services.walking.footsteps import FootstepBounds, straight_walk, turn_in_place  # noqa: E402
+from services.walking.timing import WalkTiming  # noqa: E402
+from services.walking.wholebody import plan_walk  # noqa: E402
+from sim.world import World  # noqa: E402
+
+CARRY_M = (0.25, -0.22, 0.85)  # supervisor.config carry_m for the right hand (forward, lateral, height)
+KNEES = ("LLEG_JOINT3", "RLEG_JOINT3")
+
+
+def _carry(world: World) -> None:
+    """The right hand to the carry point in front of the chest (a reach executed in the sim)."""
+    robot = world.robot
+    q = world.state().q
+    pose = start_pose(robot, q)
+    c, s = math.cos(pose.theta_rad), math.sin(pose.theta_rad)
+    fx, fy, z = CARRY_M
+    target = np.array([pose.x_m + c * fx - s * fy, pose.y_m + s * fx + c * fy, z])
+    result = plan_reach(robot, ReachRequest("right", target, q, allow_stepping=False))
+    out = world.execute(result.q, hold_s=0.3)
+    if out.outcome != "completed":
+        raise RuntimeError(f"the carry reach did not complete: {out.message}")
+
+
+def _plan(
+    world: World, kind: str, rng_values: dict[str, float], timing: WalkTiming
+) -> tuple[np.ndarray, float]:
+    """(q trajectory, smallest planned multibody ZMP margin [m]) of the walk ``kind`` from the sim's state."""
+    robot = world.robot
+    q = world.state().q
+    if kind == "goto":
+        start = start_pose(robot, q)
+        d, bearing, heading = rng_values["d"], rng_values["bearing"], rng_values["heading"]
+        goal = Pose2D(
+            start.x_m + d * math.cos(start.theta_rad + bearing),
+            start.y_m + d * math.sin(start.theta_rad + bearing),
+            math.remainder(start.theta_rad + heading, 2 * math.pi),
+        )
+        m = 2.0
+        bounds = (
+            min(start.x_m, goal.x_m) - m,
+            max(start.x_m, goal.x_m) + m,
+            min(start.y_m, goal.y_m) - m,
+            max(start.y_m, goal.y_m) + m,
+        )
+        options = GotoOptions(stage2=Stage2Options(timing=timing))
+        result = plan_goto(robot, Scene((), bounds), q, goal, options=options)
+        return result.motion.q, float(result.motion.zmp_margin_m)
+    data = robot.new_data()
+    left, right = (sole_pose_at(robot, q, side, data) for side in ("left", "right"))
+    limits = FootstepBounds.from_robot(robot)
+    if kind == "turn":
+        seq = turn_in_place(
+            rng_values["angle"],
+            2 * math.ceil(abs(rng_values["angle"]) / 0.7),
+            sole_size_m=robot.sole_size_m,
+            left_start=left,
+            right_start=right,
+            limits=limits,
+        )
+    else:
+        n = max(2, round(rng_values["back"] / 0.1))
+        seq = straight_walk(n, -rng_values["back"] / n, left_start=left, right_start=right, limits=limits)
+    plan = plan_walk(robot, seq, q, timing=timing)
+    return plan.q, float(plan.min_zmp_margin_m)
+
+
+def _knee_ratio(robot, q: np.ndarray, dt_s: float = 0.005) -> float:
+    """Fastest knee over its velocity limit along the planned ``q`` (finite differences)."""
+    worst = 0.0
+    for name in KNEES:
+        j = robot.model.getJointId(name)
+        iq, iv = robot.model.joints[j].idx_q, robot.model.joints[j].idx_v
+        speed = np.abs(np.diff(q[:, iq])) / dt_s
+        worst = max(worst, float(speed.max()) / float(robot.model.velocityLimit[iv]))
+    return worst
+
+
+def run_one(
+    index: int, kind: str, carrying: bool, values: dict[str, float], setting: tuple[float, float]
+) -> dict:
+    ss, ds = setting
+    timing = WalkTiming(single_support_s=ss, double_support_s=ds)
+    row: dict = {"index": index, "kind": kind, "carrying": carrying, "ss": ss, "ds": ds, **values}
+    t0 = time.perf_counter()
+    with World("hrp2_like", "empty") as world:
+        if carrying:
+            _carry(world)
+        try:
+            q, margin = _plan(world, kind, values, timing)
+        except HumanoidError as exc:
+            row.update(outcome="refused", message=str(exc)[:200])
+            return row
+        row["zmp_margin_mm"] = 1e3 * margin
+        row["knee_ratio"] = _knee_ratio(world.robot, q)
+        row["duration_s"] = (q.shape[0] - 1) * 0.005
+        out = world.execute(q, hold_s=0.5)
+        row.update(outcome=out.outcome, message=out.message[:200], slip_mm=1e3 * out.foot_slip_m)
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+def walks(n: int, seed: int) -> list[tuple[int, str, bool, dict[str, float]]]:
+    """The seeded walk set: goto, turn, back in turn, carrying on every other one of each kind."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        kind = ("goto", "turn", "back")[i % 3]
+        carrying = (i // 3) % 2 == 0
+        values = {
+            "d": float(rng.uniform(1.0, 3.0)),
+            "bearing": float(rng.uniform(-math.pi, math.pi)),
+            "heading": float(rng.uniform(-math.pi, math.pi)),
+            "angle": float(rng.choice([-1, 1]) * rng.uniform(math.radians(60), math.pi)),
+            "back": float(rng.uniform(0.3, 0.45)),
+        }
+        keep = {"goto": ("d", "bearing", "heading"), "turn": ("angle",), "back": ("back",)}[kind]
+        out.append((i, kind, carrying, {k: values[k] for k in keep}))
+    return out
+
+
+def table(rows: list[dict]) -> str:
+    lines = [
+        "| single / double support [s] | walks | refused | fell | completed | min ZMP margin [mm] "
+        "| knee > limit (walks) | max knee / limit | median duration [s] |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    settings = sorted({(r["ss"], r["ds"]) for r in rows}, reverse=True)
+    for ss, ds in settings:
+        rs = [r for r in rows if (r["ss"], r["ds"]) == (ss, ds)]
+        planned = [r for r in rs if r["outcome"] != "refused"]
+        margins = [r["zmp_margin_mm"] for r in planned]
+        knees = [r["knee_ratio"] for r in planned]
+        lines.append(
+            f"| {ss} / {ds} | {len(rs)} | {len(rs) - len(planned)} "
+            f"| {sum(r['outcome'] == 'fell' for r in rs)} | {sum(r['outcome'] == 'completed' for r in rs)} "
+            f"| {min(margins):.1f} | {sum(k > 1.0 for k in knees)} | {max(knees):.2f} "
+            f"| {float(np.median([r['duration_s'] for r in planned])):.1f} |"
+            if planned
+            else f"| {ss} / {ds} | {len(rs)} | {len(rs)} | - | - | - | - | - | - |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--n", type=int, default=12, help="walks (goto, turn, back in turn)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--start", type=int, default=0, help="first walk index (resume a run)")
+    parser.add_argument("--settings", default="0.7/0.2,0.7/0.1,0.6/0.2,0.6/0.1", help="ss/ds pairs [s]")
+    parser.add_argument("--out", default="/tmp/walk_timing_study.jsonl")
+    parser.add_argument("--summarize", action="store_true", help="only print the table of --out")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    if not args.summarize:
+        settings = [tuple(float(v) for v in s.split("/")) for s in args.settings.split(",")]
+        with out.open("a") as f:
+            for index, kind, carrying, values in walks(args.n, args.seed)[args.start :]:
+                for setting in settings:
+                    row = run_one(index, kind, carrying, values, setting)  # type: ignore[arg-type]
+                    f.write(json.dumps(row) + "\n")
+                    f.flush()
+                    print(json.dumps(row), flush=True)
+    rows = [json.loads(line) for line in out.read_text().splitlines() if line.strip()]
+    print(table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
