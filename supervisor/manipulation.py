@@ -424,7 +424,8 @@ class ManipulationActions:
         c, s = math.cos(fyaw), math.sin(fyaw)
         there = np.array([fx + c * ahead - s * left, fy + s * ahead + c * left, carry[2]])
         try:
-            self.planners.reach(hand, there, allow_stepping=False, q_start=q_final)
+            timing = self.config.arm_timing("carry")  # as the carry will be asked for
+            self.planners.reach(hand, there, allow_stepping=False, q_start=q_final, timing=timing)
         except InfeasibleError as exc:
             return f"no carry from there ({exc.message})"
         robot = self.body.robot

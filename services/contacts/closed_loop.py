@@ -96,6 +96,9 @@ REREAD_M = 0.01  # a held contact is re-read where its spot is when it slid more
 # iterations (it starts from a measured posture a few cm off)
 REGENERATE_TOL_M = 5e-3
 REGENERATE_ITERS = 150
+# one contact holding the robot (a sole): the CoM this far inside its region [m] in an execution's
+# postures (the search's 4 cm: a swing in single support drifted the CoM 5-8 cm outboard)
+SINGLE_SUPPORT_MARGIN_M = 0.055
 # the effort of an arm in contact (hand or forearm) during a transition, as a fraction of its limits
 SUPPORT_EFFORT_SCALE = 0.6
 # a regenerated witness is first sought statically stable on the contacts other than the arms' (the
@@ -160,7 +163,12 @@ def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) ->
 def _relaxed(gen: PostureGenerator) -> PostureConfig:
     """The generator's settings with contacts matched within ``REGENERATE_TOL_M`` in at most
     ``REGENERATE_ITERS`` iterations (postures generated from a measured state)."""
-    return replace(gen.config, tol=REGENERATE_TOL_M, max_iters=REGENERATE_ITERS)
+    return replace(
+        gen.config,
+        tol=REGENERATE_TOL_M,
+        max_iters=REGENERATE_ITERS,
+        single_contact_margin_m=max(gen.config.single_contact_margin_m, SINGLE_SUPPORT_MARGIN_M),
+    )
 
 
 def regenerate_witness(
@@ -195,6 +203,12 @@ def regenerate_witness(
         result = gen.generate(geometric, unassisted, q_measured, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
+        if added:  # the new contact placed by the posture generator near its planned place (§2.6)
+            new = added[0]
+            floating = Floating(new.spot, new.surface, around((new.x, new.y, new.theta), FLOAT_HALF))
+            result = gen.generate(s1, unassisted, q_measured, reference, floating, config=relaxed)
+            if result.ok and result.contact is not None:
+                return s1, tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""
     for k, start in enumerate((q_measured, q2_planned)):
         budget.check(f"the witness's regeneration, try {k + 1}")
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
