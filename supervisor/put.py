@@ -78,7 +78,7 @@ class PutActions:
     _as_planned: Callable[..., int | None]
     _hand_at: Callable[..., bool]
     _carry_point: Callable[[str], np.ndarray]
-    _lift_and_carry: Callable[[str, list[str], str], None]
+    _lift_and_carry: Callable[..., None]
 
     def do_put(self, step: Step) -> ActionReport:
         """Put the held object on a place: look at the place, step up to it (footsteps/plan), bring the
