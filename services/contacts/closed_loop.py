@@ -171,7 +171,8 @@ def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) ->
 
 def _relaxed(gen: PostureGenerator) -> PostureConfig:
     """The generator's settings with contacts matched within ``REGENERATE_TOL_M`` in at most
-    ``REGENERATE_ITERS`` iterations (postures generated from a measured state)."""
+    ``REGENERATE_ITERS`` iterations (postures generated from a measured state), the CoM
+    ``EXECUTION_COM_MARGIN_M`` inside the support region (``SINGLE_SUPPORT_MARGIN_M`` on one contact)."""
     return replace(
         gen.config,
         tol=REGENERATE_TOL_M,
