@@ -4,6 +4,8 @@ projection) and a plan saved to disk and read back."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -194,3 +196,34 @@ def test_a_hand_goes_up_and_forward_over_a_tables_edge():
     assert 0.05 < across[first_above // 2] < RISE_FORWARD  # forward while rising, not straight up
     assert np.all(across[:first_above] <= RISE_FORWARD + 1e-9)  # above the level before the halfway point
     assert np.allclose(points[-1], T2.translation)
+
+
+def test_a_transition_counts_the_arms_as_supports_only_when_its_ends_need_them():
+    # interpolate.stability_contacts: both ends stand on the soles and thighs (seated, a hand on the
+    # table): the postures are first sought stable without the hand; on the left sole alone the seated
+    # robot does not stand, so the hand stays a support; and without the option, always the paper's set
+    from services.contacts import chair_egress
+    from services.contacts.interpolate import stability_contacts, stands_on
+    from services.contacts.posture import Floating
+    from services.contacts.volumes import SearchVolume
+    from sim.world import start_configuration
+
+    robot = load_robot("hrp2_like")
+    lay = layout(load_scene("chair_egress"))
+    g = PostureGenerator(robot, environment_of(lay), robot_spots(robot))
+    q0 = start_configuration(robot, lay)
+    start = tuple(contact_at(g.spots[s], e, g.env, g.spot_pose(q0, s)) for s, e in chair_egress.START_PAIRS)
+    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
+    leaning = g.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
+    assert leaning.ok, leaning.reason
+    s1 = (*start, leaning.contact)
+    helpers = InterpolationConfig(arms_as_helpers=True)
+    assert stands_on(g, start, leaning.q, helpers.helpers_end_margin_m)
+    assert stability_contacts(g, s1, q0, leaning.q, helpers) == [start, s1]
+    assert stability_contacts(g, s1, q0, leaning.q, InterpolationConfig()) == [s1]
+    left = next(c for c in start if c.spot == "left_sole")
+    assert not stands_on(g, (left,), leaning.q, 0.0)
+    assert stability_contacts(g, (left, leaning.contact), q0, leaning.q, helpers) == [(left, leaning.contact)]
+    far = replace(helpers, helpers_end_margin_m=1.0)  # no CoM is a metre inside a chair's and feet's region
+    assert not stands_on(g, start, leaning.q, far.helpers_end_margin_m)
+    assert stability_contacts(g, s1, q0, leaning.q, far) == [s1]

@@ -16,6 +16,7 @@ EXAMPLES = """examples:
   humanoid scenario chair-egress --budget 600 --no-best-first   # all sons generated (no §2.8)
   humanoid scenario chair-egress --save-plan out/chair_plan.npz   # then, without searching again:
   humanoid scenario chair-egress --plan out/chair_plan.npz        # execute the saved plan set by set
+  humanoid scenario chair-egress --limb-load --slope-k 15         # the setting that ends standing (session 9)
 """
 
 
@@ -43,6 +44,12 @@ def add_cli(subparsers: Any) -> None:
         "--limb-load",
         action="store_true",
         help="bound the arms' contact forces by their joints' torques (limb_load.py; paper: friction only)",
+    )
+    p.add_argument(
+        "--slope-k",
+        type=float,
+        default=None,
+        help="f_T's slope k (eq. 1; default PlanProblem's 30); 15 with --limb-load ends standing (README)",
     )
     p.add_argument(
         "--open-loop",
@@ -125,6 +132,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
         if (args.open_loop or args.no_execute) and not args.plan
         else None,
         limb_load=args.limb_load,
+        **({} if args.slope_k is None else {"slope_k": args.slope_k}),
     )
     motion = None
     if args.plan:

@@ -99,12 +99,21 @@ REGENERATE_ITERS = 150
 # one contact holding the robot (a sole): the CoM this far inside its region [m] in an execution's
 # postures (the search's 4 cm: a swing in single support drifted the CoM 5-8 cm outboard)
 SINGLE_SUPPORT_MARGIN_M = 0.055
+# any contacts holding the robot: the CoM this far inside their region [m] in an execution's postures
+# (the search's 2 cm: rising from the chair on the soles alone, the sim leaned 5 deg more than the
+# witness, 3.2 cm from the toes' edge, the CoM ran 2.8 cm further forward and the robot tipped onto its
+# toes as it left the seat)
+EXECUTION_COM_MARGIN_M = 0.055
 # the effort of an arm in contact (hand or forearm) during a transition, as a fraction of its limits
 SUPPORT_EFFORT_SCALE = 0.6
 # a regenerated witness is first sought statically stable on the contacts other than the arms' (the
 # hands and forearms in contact kept as geometry, helpers): on the chair egress the sim's hand carried
 # 30-50 N where the plan needed 173 N, and the robot, its CoM past its stance sole's edge, tipped over
 PREFER_UNASSISTED = True
+# likewise the postures of a transition: statically stable without the arms in contact when both of
+# its ends are (interpolate.stability_contacts): during a swing on one sole, postures stable with the
+# hand drifted the CoM 6-9 cm outboard while the sim's hand carried 0-131 N, and the robot tipped over
+ARMS_AS_HELPERS = True
 # the limbs in contact follow their planned contact forces (sim.compliance's damping control,
 # contact_forces.py): off, every variant tried on the chair egress fell earlier than without it
 # (services/contacts/README.md, session 9)
@@ -162,11 +171,13 @@ def _support_error(gen: PostureGenerator, planned: ContactSet, q: np.ndarray) ->
 
 def _relaxed(gen: PostureGenerator) -> PostureConfig:
     """The generator's settings with contacts matched within ``REGENERATE_TOL_M`` in at most
-    ``REGENERATE_ITERS`` iterations (postures generated from a measured state)."""
+    ``REGENERATE_ITERS`` iterations (postures generated from a measured state), the CoM
+    ``EXECUTION_COM_MARGIN_M`` inside the support region (``SINGLE_SUPPORT_MARGIN_M`` on one contact)."""
     return replace(
         gen.config,
         tol=REGENERATE_TOL_M,
         max_iters=REGENERATE_ITERS,
+        com_margin_m=max(gen.config.com_margin_m, EXECUTION_COM_MARGIN_M),
         single_contact_margin_m=max(gen.config.single_contact_margin_m, SINGLE_SUPPORT_MARGIN_M),
     )
 
@@ -263,7 +274,11 @@ def replan_transition(
     when the measured supports admit no witness of the next set, or an interpolation step fails."""
     config = config or InterpolationConfig()
     # from a measured posture the held contacts are matched within the sim's compliance, as the witness
-    config = replace(config, posture=config.posture or _relaxed(gen))
+    config = replace(
+        config,
+        posture=config.posture or _relaxed(gen),
+        arms_as_helpers=config.arms_as_helpers or ARMS_AS_HELPERS,
+    )
     q1 = np.asarray(q_measured, float)
     s1, s2, q2, reason = regenerate_witness(gen, s1_planned, s2_planned, np.asarray(q2_planned, float), q1)
     error = _support_error(gen, s1_planned, q1)

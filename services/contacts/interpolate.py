@@ -45,6 +45,7 @@ from services.contacts.timing import ZMP_SLOWDOWNS, interval_times, knots, time_
 from services.errors import InfeasibleError, RequestTimeoutError
 from services.ik import FramePoseTask, PostureTask
 from services.ik.tasks.capsule_box import CapsuleBoxTask
+from services.model.ground import signed_distance
 
 #: The collision check of a timed segment looks at the request's time budget every this many samples.
 BUDGET_CHECK_SAMPLES = 50
@@ -83,6 +84,11 @@ class InterpolationConfig:
     clearance_m: float = 0.01
     # held contacts kept in place at every sample, not only at the n postures (hold.py)
     hold_contacts: bool = True
+    # the n postures statically stable without the arms in contact (hands and forearms kept as geometry,
+    # helpers) when both ends are, by ``helpers_end_margin_m`` [m] inside the region of the other
+    # contacts; the transition with the arms counted if that fails (:func:`stability_contacts`)
+    arms_as_helpers: bool = False
+    helpers_end_margin_m: float = 0.02
 
 
 @dataclass(frozen=True)
@@ -264,6 +270,38 @@ def path_mask(spot: str) -> tuple[bool, ...]:
     return (True, True, True, False, False, False) if spot.endswith("_hand") else (True,) * 6
 
 
+def stands_on(gen: PostureGenerator, contacts: ContactSet, q: np.ndarray, margin_m: float) -> bool:
+    """Whether the CoM at ``q`` is at least ``margin_m`` [m] inside the static-equilibrium region of
+    ``contacts`` (§2.2, :meth:`PostureGenerator.region`; a region of fewer than 3 vertices: False)."""
+    region = gen.region(contacts)
+    if region.shape[0] < 3:
+        return False
+    com = pin.centerOfMass(gen.model, gen.data, np.asarray(q, float))
+    return bool(signed_distance(com[:2], region)[0] <= -margin_m)
+
+
+def stability_contacts(
+    gen: PostureGenerator,
+    stable: ContactSet,
+    q1: np.ndarray,
+    q2: np.ndarray,
+    config: InterpolationConfig,
+) -> list[ContactSet]:
+    """The stability sets to try for the n postures of a transition, in order: ``stable`` (§3.3: the
+    contacts held during the motion), preceded, when ``config.arms_as_helpers`` and both witnesses q1,
+    q2 stand on the contacts other than the arms' (``config.helpers_end_margin_m`` inside their
+    region), by those. During a swing on one sole with a hand on the table, postures stable with the
+    hand drifted the CoM 6-9 cm toward the stance sole's outer edge while the sim's hand carried
+    0-131 N, and the robot tipped over that edge (services/contacts/README.md, session 9)."""
+    unassisted = tuple(c for c in stable if c.spot not in ARM_SPOTS)
+    if not (config.arms_as_helpers and unassisted and len(unassisted) < len(stable)):
+        return [stable]
+    margin = config.helpers_end_margin_m
+    if stands_on(gen, unassisted, q1, margin) and stands_on(gen, unassisted, q2, margin):
+        return [unassisted, stable]
+    return [stable]
+
+
 def transition(
     gen: PostureGenerator,
     s1: ContactSet,
@@ -288,7 +326,7 @@ def transition(
         if c.spot != moving
         and np.linalg.norm(gen.spot_pose(q2, c.spot).translation - gen.contact_pose(c).translation) < 5e-3
     )
-    stable = tuple(c for c in s1 if c in held) or held
+    stable_sets = stability_contacts(gen, tuple(c for c in s1 if c in held) or held, q1, q2, config)
     # the body moving most gets its path (bent by a detour if asked), and so does an arm's spot moving
     # besides it: a hand released at the previous transition leaves the table while the other comes
     # onto it, and unguided it went 2 cm into the table's underside. (A released thigh rises with the
@@ -307,40 +345,47 @@ def transition(
     # a contact released now that is not the moving body's: its body leaves the surface with the
     # interpolated posture (it touches it at q1: a collision margin there would fight the held contacts)
     released = [c.pair for c in geometric_extra if c not in held and c.spot != moving]
-    out: list[np.ndarray] = []
-    q = q1.copy()
-    for i in range(1, config.n + 1):
-        budget.check(f"the interpolation's posture {i} of {config.n}")
-        q_ref = pin.interpolate(gen.model, q1, q2, min(1.0, lead * i / config.n))
-        extra = [
-            FramePoseTask(
-                gen.model,
-                gen.spots[spot].frame_name,
-                frames[i - 1],
-                max_step=0.1,
-                name=f"C_{i}:{spot}",
-                mask=path_mask(spot),
+    failure: InfeasibleError | None = None
+    for stable in stable_sets:
+        out: list[np.ndarray] = []
+        q = q1.copy()
+        for i in range(1, config.n + 1):
+            budget.check(f"the interpolation's posture {i} of {config.n}")
+            q_ref = pin.interpolate(gen.model, q1, q2, min(1.0, lead * i / config.n))
+            extra = [
+                FramePoseTask(
+                    gen.model,
+                    gen.spots[spot].frame_name,
+                    frames[i - 1],
+                    max_step=0.1,
+                    name=f"C_{i}:{spot}",
+                    mask=path_mask(spot),
+                )
+                for spot, frames in paths.items()
+            ]
+            touching = (leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []) + released
+            result = gen.generate(
+                held,
+                stable,
+                q,
+                PostureTask(gen.model, q_ref),
+                guide=extra,
+                extra_touching=touching,
+                config=config.posture,
             )
-            for spot, frames in paths.items()
-        ]
-        result = gen.generate(
-            held,
-            stable,
-            q,
-            PostureTask(gen.model, q_ref),
-            guide=extra,
-            extra_touching=(leaving if i <= 1 else []) + (entering if i >= config.n - 1 else []) + released,
-            config=config.posture,
-        )
-        if not result.ok:
-            raise InfeasibleError(
-                f"interpolation step {i}/{config.n} from {[c.describe() for c in s1]} to "
-                f"{[c.describe() for c in s2]} failed: {result.reason}",
-                {"step": i, "moving_spot": moving or ""},
-            )
-        q = result.q
-        out.append(q)
-    return out
+            if not result.ok:
+                failure = InfeasibleError(
+                    f"interpolation step {i}/{config.n} from {[c.describe() for c in s1]} to "
+                    f"{[c.describe() for c in s2]} failed: {result.reason}",
+                    {"step": i, "moving_spot": moving or ""},
+                )
+                break
+            q = result.q
+            out.append(q)
+        else:
+            return out
+    assert failure is not None
+    raise failure
 
 
 def timed_segment(
