@@ -211,7 +211,7 @@ class SupervisorConfig:
             (
                 "fast_arm_hold_s",
                 self.fast_arm_hold_s,
-                self.fast_arm_hold_s <= reach_msg.MAX_FINAL_HOLD_S,
+                0.0 <= self.fast_arm_hold_s <= reach_msg.MAX_FINAL_HOLD_S,
                 f"[0, {reach_msg.MAX_FINAL_HOLD_S}]",
             ),
         ):
