@@ -116,6 +116,9 @@ class LocomotionActions:
         try:
             plan = self.planners.walk(back * forward, back * left, 0.0)
         except InfeasibleError as exc:
+            if forward < -_STRAIGHT_BACK:  # that was the step straight back already
+                self.progress(f"{what}: no step back from {name}: {exc.message}")
+                return
             self.progress(f"{what}: no step away from {name}: {exc.message}; straight back")
             try:
                 plan = self.planners.step_back(back)
@@ -129,9 +132,9 @@ class LocomotionActions:
 
     def _room_needed(self) -> tuple[float, str, float, float] | None:
         """How far [m] to step, from which object, and in which unit direction (forward, left) of the
-        robot's frame (:func:`away_from` its map box), for the objects seen to be at least
-        ``clearance_m`` from the robot's mid-feet point (at most ``max_step_back_m``); None when they
-        are."""
+        robot's frame (:func:`away_from` its map box), when an object seen is nearer than
+        ``clearance_m`` to the robot's mid-feet point (enough to reach ``clearance_m`` + 5 cm, at most
+        ``max_step_back_m``); None when none is."""
         x, y, yaw = self.body.base_xy_yaw()
         near = [(distance_to_box(box, x, y), box.name, box) for box in boxes(self.memory)]
         if not near:

@@ -426,7 +426,7 @@ class ManipulationActions:
         try:
             timing = self.config.arm_timing("carry")  # as the carry will be asked for
             self.planners.reach(hand, there, allow_stepping=False, q_start=q_final, timing=timing)
-        except InfeasibleError as exc:
+        except (InfeasibleError, RequestTimeoutError) as exc:  # a dry run: refused, not failed
             return f"no carry from there ({exc.message})"
         robot = self.body.robot
         straight = np.array(q_final, dtype=float)
@@ -436,7 +436,7 @@ class ManipulationActions:
         try:
             step_back = walk_msg.GoalRequest(q_start=straight, kind="pose", pose=[-back, 0.0, 0.0])
             self.planners.walk_goal(step_back)
-        except InfeasibleError as exc:
+        except (InfeasibleError, RequestTimeoutError) as exc:
             return f"no step back from there ({exc.message})"
         return None
 

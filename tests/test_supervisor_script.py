@@ -172,3 +172,5 @@ def test_supervisor_config_arm_timing_per_motion_and_its_bounds():
         SupervisorConfig(fast_arm_speed_m_s=1.0)
     with pytest.raises(InvalidRequestError, match="fast_arm_min_s"):
         SupervisorConfig(fast_arm_min_s=0.1)
+    with pytest.raises(InvalidRequestError, match="fast_arm_hold_s"):
+        SupervisorConfig(fast_arm_hold_s=-0.1)

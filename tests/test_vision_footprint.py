@@ -343,3 +343,31 @@ def test_a_chairs_top_is_its_back_seen_from_its_side(models):
     assert fp is not None
     assert np.linalg.norm(np.subtract(fp.center_m, chair.position[:2])) < 0.05
     assert abs(fp.top_z_m - (chair.top_z_m + chair.spec.back_height_m)) < 0.05
+
+
+def test_a_footprint_shorter_than_its_known_width_grows_along_the_hidden_length():
+    """The same table with all but 0.45 m of its length hidden: it fits as 0.45 x 0.6 m, its fitted
+    longer side the table's width. The width matches the known short side, so the hidden length grows
+    to 1.0 m (not the width, which would turn the table by 90 degrees)."""
+    rng = np.random.default_rng(6)
+    centre, length, width = np.array([2.0, -1.0]), 1.0, 0.6
+    t = rng.uniform(0.05, 0.5, (2, 80))
+    u = rng.uniform(-0.5, 0.5, 60)
+    xy = (
+        np.vstack(
+            [
+                np.column_stack([t[0] * length, np.full(80, width / 2)]),
+                np.column_stack([t[1] * length, np.full(80, -width / 2)]),
+                np.column_stack([np.full(60, length / 2), u * width]),
+            ]
+        )
+        + centre
+    )
+    points = np.column_stack([xy, np.full(len(xy), 0.72)])
+    grown = footprint(points, np.array([*centre, 0.4]), known_size_m=(0.6, 1.0))
+    assert grown is not None
+    c, s = abs(math.cos(grown.yaw_rad)), abs(math.sin(grown.yaw_rad))
+    along_x = grown.size_m[0] * c + grown.size_m[1] * s
+    along_y = grown.size_m[0] * s + grown.size_m[1] * c
+    assert along_x == pytest.approx(1.0, abs=0.03) and along_y == pytest.approx(0.6, abs=0.03)
+    assert np.linalg.norm(np.subtract(grown.center_m, centre)) < 0.03

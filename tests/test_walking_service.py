@@ -305,6 +305,7 @@ def test_stepping_back_from_beside_a_box_keeps_the_legs_out_of_it():
         ({"pose": [1.0, 0.0]}, r"pose must be \[x, y, yaw\]"),
         ({"pose": [1.0, 0.0, 0.0], "frame": "moon"}, "frame must be 'robot' or 'world'"),
         ({"kind": "square"}, "already square"),
+        ({"pose": [0.1, 0.0, 0.0], "back_m": 0.2}, "back_m is for kind 'turn'"),
         ({"pose": [0.1, 0.0, 0.0], "clearance_m": -1.0}, r">= 0\.0 - at `\$\.clearance_m`"),
         (
             {"pose": [0.1, 0.0, 0.0], "obstacles": [{"name": "b", "center": [1.0, 0.0, 0.0], "size": [1.0]}]},

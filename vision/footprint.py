@@ -267,15 +267,25 @@ def _to_known_size(
 ) -> tuple[tuple[float, float], tuple[float, float]]:
     """The rectangle grown to the object's ``known`` floor size [m] where it came out shorter by more
     than :data:`KNOWN_SIZE_TOLERANCE_M` (part of its outline hidden: by another object in front of
-    one end, by itself behind what is seen): the better-seen side of that axis stays (the one with
+    one end, by itself behind what is seen; which fitted side is the known long one: below): the
+    better-seen side of that axis stays (the one with
     :data:`ANCHOR_RATIO` times the points of the other, else the one nearer ``camera_xy``, else both
     move apart evenly) and the other moves out. A side longer than known is left as fitted (the
     extra points may be the object's as well as another's: nothing says which side to cut)."""
     c, s = math.cos(yaw), math.sin(yaw)
     R = np.array([[c, -s], [s, c]])
-    along_longer = size[0] >= size[1]
     big, small = max(known), min(known)
-    target = (big, small) if along_longer else (small, big)
+    target = (big, small) if size[0] >= size[1] else (small, big)
+    # Which fitted side is which known one: the longer to the longer, unless the other way round more
+    # sides already match (within the tolerance). A 1.0 x 0.6 m table with all but 0.45 m of its length
+    # hidden fits as 0.45 x 0.6: its 0.6 m side is the known short one, not the long.
+    swapped = (target[1], target[0])
+
+    def matching(t: tuple[float, float]) -> int:
+        return sum(abs(t[i] - size[i]) <= KNOWN_SIZE_TOLERANCE_M for i in (0, 1))
+
+    if matching(swapped) > matching(target):
+        target = swapped
     lo, hi = -0.5 * np.asarray(size, dtype=float), 0.5 * np.asarray(size, dtype=float)
     camera = None if camera_xy is None else (np.asarray(camera_xy, dtype=float) - np.asarray(centre)) @ R
     for axis in (0, 1):

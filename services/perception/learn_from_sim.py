@@ -219,10 +219,17 @@ def check_models(
 
 def catalogued_floor_size(scene: str, name: str) -> tuple[float, float] | None:
     """The sides of object ``name``'s floor rectangle [m] in the scene's description (the catalogue the
-    views were rendered from: the same for every seed, only poses are random); None for a ball."""
+    views were rendered from: the same for every seed, only poses are random); None for a ball.
+    A catalogue assumption: the models carry the true sizes of the scene's objects, as a robot told
+    the furniture's dimensions would (services/perception/README.md)."""
     from sim.scene import load_scene
 
-    spec = next(o for o in load_scene(scene).objects if o.name == name)
+    objects = load_scene(scene).objects
+    spec = next((o for o in objects if o.name == name), None)
+    if spec is None:
+        raise InvalidRequestError(
+            f"no object {name!r} in scene {scene!r}: its objects are {[o.name for o in objects]}"
+        )
     if spec.kind not in ("box", "table", "chair"):
         return None
     return float(spec.size_m[0]), float(spec.size_m[1])

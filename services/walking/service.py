@@ -223,6 +223,11 @@ def goal_steps(
     """
     if request.kind not in msg.GOAL_KINDS:
         raise InvalidRequestError(f"kind must be one of {list(msg.GOAL_KINDS)}, got {request.kind!r}")
+    if request.back_m != 0.0 and request.kind != "turn":
+        raise InvalidRequestError(
+            f"back_m is for kind 'turn' (a step back, then the turn, one walk), got back_m="
+            f"{request.back_m} with kind {request.kind!r}"
+        )
     for name in ("clearance_m", "sole_margin_m", "turn_room_m"):
         value = getattr(request, name)
         if not (math.isfinite(value) and value >= 0.0):
