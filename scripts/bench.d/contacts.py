@@ -25,6 +25,8 @@ import os
 import time
 from pathlib import Path
 
+from services.contacts.defaults import LIMB_LOAD
+
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
@@ -189,14 +191,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skip-off", action="store_true", help="do not run the search without §2.8")
     parser.add_argument(
         "--limb-load",
-        action="store_true",
-        help="bound the arms' contact forces (limb_load.py; off: the paper's)",
+        action=argparse.BooleanOptionalAction,
+        default=LIMB_LOAD,
+        help="bound the arms' contact forces (limb_load.py; default on; --no-limb-load: the paper's)",
     )
     parser.add_argument(
         "--slope-k",
         type=float,
         default=None,
-        help="f_T's slope k (eq. 1; default the planner's 30); 15 with --limb-load ends standing",
+        help="f_T's slope k (eq. 1; default the planner's 15, with the limb-load bound)",
     )
     args = parser.parse_args(argv)
     load = Path("/proc/loadavg").read_text().split()[:3]
