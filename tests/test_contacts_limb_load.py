@@ -4,8 +4,10 @@ and a bounded patch shrinks the static-equilibrium region, with the force QP agr
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
+import msgspec
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -126,3 +128,17 @@ def test_the_posture_generator_bounds_the_arms_when_asked():
     assert set(gen.max_load) == set(ARM_SPOTS)
     assert all(0.0 < v < 0.5 for v in gen.max_load.values())
     assert PostureGenerator(robot, env, robot_spots(robot), posture_config(limb_load=False)).max_load == {}
+
+
+def test_the_service_schema_defaults_are_the_planners():
+    """contacts/plan and contacts/transition default to the planner's own settings (defaults.py): the
+    limb-load bound and f_T's slope a request does not name are those the chair egress stands up with."""
+    from services.bus.schemas import contacts as msg
+    from services.contacts import defaults
+    from services.contacts.planner import PlanProblem
+
+    fields = {f.name: f.default for f in msgspec.structs.fields(msg.PlanRequest)}
+    assert fields["limb_load"] is defaults.LIMB_LOAD and fields["slope_k"] == defaults.SLOPE_K
+    transition = {f.name: f.default for f in msgspec.structs.fields(msg.TransitionRequest)}
+    assert transition["limb_load"] is defaults.LIMB_LOAD
+    assert {f.name: f.default for f in dataclasses.fields(PlanProblem)}["slope_k"] == defaults.SLOPE_K

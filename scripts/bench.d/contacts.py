@@ -25,6 +25,8 @@ import os
 import time
 from pathlib import Path
 
+from services.contacts.defaults import LIMB_LOAD
+
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
@@ -42,7 +44,15 @@ PAPER = {
 }
 
 
-def run(best_first: bool, budget_s: float, n: int, execute: bool, limb_load: bool, cpu: bool = False) -> dict:
+def run(
+    best_first: bool,
+    budget_s: float,
+    n: int,
+    execute: bool,
+    limb_load: bool,
+    cpu: bool = False,
+    slope_k: float | None = None,
+) -> dict:
     from services.contacts.closed_loop import execute_set_by_set
     from services.contacts.interpolate import InterpolationConfig, interpolate_plan
     from services.contacts.planner import build, default_problem
@@ -63,6 +73,7 @@ def run(best_first: bool, budget_s: float, n: int, execute: bool, limb_load: boo
             cpu_budget_s=budget_s if cpu else None,
         ),
         limb_load=limb_load,
+        **({} if slope_k is None else {"slope_k": slope_k}),
     )
     gen, trajectory, start, pairs = build(robot, problem)
     weight_n = robot.total_mass_kg * 9.81
@@ -78,6 +89,8 @@ def run(best_first: bool, budget_s: float, n: int, execute: bool, limb_load: boo
         "plan_s": round(result.plan_s, 1),
         "plan_cpu_s": round(result.plan_cpu_s, 1),
         "budget_kind": "cpu" if cpu else "wall",
+        "slope_k": problem.slope_k,
+        "limb_load": limb_load,
         "best_waist_y_m": round(float(result.best.q[1]), 3),
         # |force| each bounded spot may carry (limb_load.py; {} when the bound is off)
         "limb_load_n": {spot: round(v * weight_n, 1) for spot, v in gen.max_load.items()},
@@ -178,15 +191,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skip-off", action="store_true", help="do not run the search without §2.8")
     parser.add_argument(
         "--limb-load",
-        action="store_true",
-        help="bound the arms' contact forces (limb_load.py; off: the paper's)",
+        action=argparse.BooleanOptionalAction,
+        default=LIMB_LOAD,
+        help="bound the arms' contact forces (limb_load.py; default on; --no-limb-load: the paper's)",
+    )
+    parser.add_argument(
+        "--slope-k",
+        type=float,
+        default=None,
+        help="f_T's slope k (eq. 1; default the planner's 15, with the limb-load bound)",
     )
     args = parser.parse_args(argv)
     load = Path("/proc/loadavg").read_text().split()[:3]
     limb_load = args.limb_load
-    rows = [run(True, args.budget, args.n, execute=True, limb_load=limb_load, cpu=args.cpu)]
+    setting = {"limb_load": limb_load, "cpu": args.cpu, "slope_k": args.slope_k}
+    rows = [run(True, args.budget, args.n, execute=True, **setting)]
     if not args.skip_off:
-        rows.append(run(False, args.budget, args.n, execute=False, limb_load=limb_load, cpu=args.cpu))
+        rows.append(run(False, args.budget, args.n, execute=False, **setting))
     report = {
         "runs": rows,
         "paper": PAPER,

@@ -11,6 +11,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from services.contacts.defaults import LIMB_LOAD
+
 EXAMPLES = """examples:
   humanoid scenario chair-egress                     # plan (<= 300 s), interpolate, execute, report
   humanoid scenario chair-egress --budget 600 --no-best-first   # all sons generated (no §2.8)
@@ -42,14 +44,17 @@ def add_cli(subparsers: Any) -> None:
     )
     p.add_argument(
         "--limb-load",
-        action="store_true",
-        help="bound the arms' contact forces by their joints' torques (limb_load.py; paper: friction only)",
+        action=argparse.BooleanOptionalAction,
+        default=LIMB_LOAD,
+        help="bound the arms' contact forces by their joints' torques (limb_load.py; default on; "
+        "--no-limb-load: friction only, the paper's)",
     )
     p.add_argument(
         "--slope-k",
         type=float,
         default=None,
-        help="f_T's slope k (eq. 1; default PlanProblem's 30); 15 with --limb-load ends standing (README)",
+        help="f_T's slope k (eq. 1; default PlanProblem's 15, with the limb-load bound: ends standing; the "
+        "paper-like setting of sessions 7-8: --no-limb-load --slope-k 30)",
     )
     p.add_argument(
         "--open-loop",

@@ -35,6 +35,7 @@ import numpy as np
 
 from services import budget
 from services.contacts.contact_forces import force_targets
+from services.contacts.defaults import LIMB_LOAD
 from services.contacts.environment import Environment
 from services.contacts.interpolate import InterpolationConfig, interpolate_transition
 from services.contacts.limb_load import limb_joints
@@ -123,7 +124,7 @@ FORCE_CONTROL = False
 FLOAT_HALF = (0.05, 0.05, 0.25)
 
 
-def execution_generator(robot: RobotModel, env: Environment, limb_load: bool = False) -> PostureGenerator:
+def execution_generator(robot: RobotModel, env: Environment, limb_load: bool = LIMB_LOAD) -> PostureGenerator:
     """The posture generator of an execution (every contact spot of ``robot`` in ``env``, the arms'
     limb-load bound on or off). Its QPs are the dual active-set method's, reset at every generation
     (:class:`PostureGenerator`): the same plan played from the same state re-plans every transition

@@ -12,9 +12,10 @@ import numpy as np
 
 from services import budget
 from services.contacts import chair_egress
+from services.contacts.defaults import LIMB_LOAD, SLOPE_K
 from services.contacts.environment import Environment, environment_of
 from services.contacts.interpolate import InterpolationConfig, Motion, interpolate_plan
-from services.contacts.posture import LIMB_LOAD, PostureGenerator, posture_config
+from services.contacts.posture import PostureGenerator, posture_config
 from services.contacts.potential import RoughTrajectory
 from services.contacts.search import ContactPlanner, Goal, ProgressHook, SearchConfig, SearchResult
 from services.contacts.sets import ContactSet, contact_at, spot_surface_gap
@@ -39,7 +40,7 @@ class PlanProblem:
     spots: tuple[str, ...] | None = None
     surfaces: tuple[str, ...] | None = None
     pairs: tuple[tuple[str, str], ...] | None = None
-    slope_k: float = 30.0
+    slope_k: float = SLOPE_K  # f_T's k (eq. 1; defaults.py)
     search: SearchConfig = field(default_factory=SearchConfig)
     interpolation: InterpolationConfig | None = field(default_factory=InterpolationConfig)
     # the arms' contact forces bounded by their joints' torques (limb_load.py; an extension of §2.2)

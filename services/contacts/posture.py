@@ -35,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from services.contacts.contact_tasks import InVolumeTask, OnPlaneTask
+from services.contacts.defaults import LIMB_LOAD
 from services.contacts.environment import Environment
 from services.contacts.limb_load import GRAVITY_M_S2, force_cap_n
 from services.contacts.robot_geometry import belongs_to, planner_capsules
@@ -56,7 +57,6 @@ from services.ik.tasks.capsule_box import CapsuleBoxTask, ObstacleBox
 from services.model import RobotModel
 
 ARM_SPOTS = ("left_hand", "right_hand", "left_forearm", "right_forearm")
-LIMB_LOAD = False  # the limb-load bound off by default (services/contacts/README.md: why)
 GUIDE_WEIGHT = 100.0  # the guide level's task value against the criterion's in the best iterate's choice
 
 

@@ -51,10 +51,11 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     surfaces: Names | None = None  # allowed surfaces (None: all of the scene's)
     pairs: NameLists | None = None  # allowed [spot, surface] pairs (overrides spots x surfaces)
     best_first_sons: bool = True  # §2.8: one leaf per (spot, surface) pair, sons in f_T order
-    slope_k: Gain = 30.0  # k of f_T (eq. 1)
+    slope_k: Gain = 15.0  # k of f_T (eq. 1); 15 with the limb-load bound ends standing (README)
     interpolate: bool = True  # compute the 5 ms motion (§3.3)
-    # the arms' contact forces bounded by what their joints hold (an extension of §2.2; false: friction only)
-    limb_load: bool = False
+    # the arms' contact forces bounded by what their joints hold (an extension of §2.2; false: friction
+    # only, the paper's): on by default, the plans the sim's arms can hold (services/contacts/README.md)
+    limb_load: bool = True
     n_interpolation: Annotated[int, Meta(ge=1, le=1000)] = 20  # posture generations per transition (§3.3's n)
 
 
@@ -100,7 +101,7 @@ class TransitionRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknow
     n_interpolation: Annotated[int, Meta(ge=2, le=100)] = 10  # bounded work: <= 7 tries of 2n postures
     # the whole request (witness regeneration, interpolation, its re-planning and collision checks) [s]
     time_budget_s: Annotated[float, Meta(gt=0.0, le=600.0)] = 60.0
-    limb_load: bool = False  # as in PlanRequest: the arms' contact forces bounded by their joints
+    limb_load: bool = True  # as in PlanRequest: the arms' contact forces bounded by their joints
 
 
 class TransitionReply(msgspec.Struct, kw_only=True, frozen=True):
