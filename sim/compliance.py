@@ -21,7 +21,6 @@ and the scene object; ``f_planned`` comes with the trajectory (one value per sam
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -29,27 +28,13 @@ import pybullet as p
 
 from services.errors import InvalidRequestError
 from services.model import RobotModel
+from sim.force_target import ForceTarget
 
 DAMPING_N_S_M = 4000.0  # D [N s/m]: a force error of 100 N moves the contact 2.5 cm/s
 RECOVERY_S = 2.0  # T [s]: with no force error the offset decays to the plan with this time constant
 MAX_OFFSET_M = 0.03  # |d| at most this [m]
 JACOBIAN_DAMPING = 1e-4  # [m^2]: the damped least-squares inverse of the tip's translation Jacobian
 _BODY_B, _LINK_A, _NORMAL_FORCE = 2, 3, 9  # indices in pybullet.getContactPoints tuples
-
-
-@dataclass(frozen=True)
-class ForceTarget:
-    """A limb whose contact force follows a plan: its ``joints`` (names, the tip first: the joint whose
-    link and the links under it touch), the scene object it touches (``other``), the surface's unit
-    ``normal`` (world, out of the object) and the planned normal force ``force_n`` [N] at every
-    trajectory sample (N values); ``point_m``: where the limb touches, in its tip joint's frame [m]
-    (the offset moves that point along the normal)."""
-
-    joints: tuple[str, ...]
-    other: str
-    normal: tuple[float, float, float]
-    force_n: np.ndarray
-    point_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the contact point in the tip joint's frame
 
 
 class Admittance:

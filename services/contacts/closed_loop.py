@@ -52,7 +52,7 @@ from services.contacts.volumes import around
 from services.errors import InfeasibleError
 from services.ik import PostureTask
 from services.model import RobotModel
-from sim.compliance import ForceTarget
+from sim.force_target import ForceTarget
 
 # plays (N, nq) samples every dt [s] with the joints' effort scales (name -> fraction of the limit) and
 # the arms' force targets (sim.compliance); returns (outcome, message): outcome "completed" goes on

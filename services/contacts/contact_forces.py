@@ -21,7 +21,7 @@ from services.contacts.posture import ARM_SPOTS, PostureGenerator
 from services.contacts.sets import Contact, ContactSet
 from services.contacts.stability import N_GENERATORS, cone_generators, equilibrium_forces
 from services.errors import InfeasibleError
-from sim.compliance import ForceTarget
+from sim.force_target import ForceTarget
 
 SOLE_SPOTS = ("left_sole", "right_sole")
 # which contacts held get a force target: "arms" (hands and forearms), "all" (arms and soles), or
