@@ -149,11 +149,10 @@ def test_an_execution_regenerates_a_witness_bitwise_the_same_whatever_came_befor
     assert first is not None and np.array_equal(first, again)
 
 
-def test_a_released_hand_unloads_along_its_force_profile():
-    # contact_forces.py: the hand held from S1 gets the force QP's normal force at the start; removed
-    # at q2 (a removal), its planned force goes down to zero at the transition's end
+def _seated_with_a_hand_on_the_table():
+    """The chair egress's seated start and a witness with the right hand added on the table's top: the
+    posture generator, q0, the start contacts and the leaning posture generation's result."""
     from services.contacts import chair_egress
-    from services.contacts.contact_forces import force_targets, normal_forces
     from services.contacts.posture import Floating
     from services.contacts.volumes import SearchVolume
     from sim.world import start_configuration
@@ -166,6 +165,15 @@ def test_a_released_hand_unloads_along_its_force_profile():
     volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
     leaning = g.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
     assert leaning.ok, leaning.reason
+    return g, q0, start, leaning
+
+
+def test_a_released_hand_unloads_along_its_force_profile():
+    # contact_forces.py: the hand held from S1 gets the force QP's normal force at the start; removed
+    # at q2 (a removal), its planned force goes down to zero at the transition's end
+    from services.contacts.contact_forces import force_targets, normal_forces
+
+    g, _q0, start, leaning = _seated_with_a_hand_on_the_table()
     s1 = (*start, leaning.contact)
     q = np.array([leaning.q] * 30)
     (target,) = force_targets(g, s1, start, q, 0.005)
@@ -202,20 +210,9 @@ def test_a_transition_counts_the_arms_as_supports_only_when_its_ends_need_them()
     # interpolate.stability_contacts: both ends stand on the soles and thighs (seated, a hand on the
     # table): the postures are first sought stable without the hand; on the left sole alone the seated
     # robot does not stand, so the hand stays a support; and without the option, always the paper's set
-    from services.contacts import chair_egress
     from services.contacts.interpolate import stability_contacts, stands_on
-    from services.contacts.posture import Floating
-    from services.contacts.volumes import SearchVolume
-    from sim.world import start_configuration
 
-    robot = load_robot("hrp2_like")
-    lay = layout(load_scene("chair_egress"))
-    g = PostureGenerator(robot, environment_of(lay), robot_spots(robot))
-    q0 = start_configuration(robot, lay)
-    start = tuple(contact_at(g.spots[s], e, g.env, g.spot_pose(q0, s)) for s, e in chair_egress.START_PAIRS)
-    volume = SearchVolume((-0.28, -0.3, -0.5), (-0.1, -0.1, 0.5))
-    leaning = g.generate(start, start, q0, None, Floating("right_hand", "table.top", volume))
-    assert leaning.ok, leaning.reason
+    g, q0, start, leaning = _seated_with_a_hand_on_the_table()
     s1 = (*start, leaning.contact)
     helpers = InterpolationConfig(arms_as_helpers=True)
     assert stands_on(g, start, leaning.q, helpers.helpers_end_margin_m)
