@@ -40,22 +40,21 @@ from services.bus.schemas.navigation import (
     REASON_NO_COLLISION_FREE_RESHAPING,
     REASON_ZMP_OUTSIDE_SUPPORT,
 )
+from services.collision.carried import BarGrip, CarriedBar
+from services.collision.motion import RESHAPABLE_GROUPS, CollisionEvent, MotionCheck, MotionChecker
+from services.collision.obstacles import Scene
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import Level
 from services.navigation.bar_sampling import ArmReach, BarPoseSampler, SampleStats
 from services.navigation.carry import (
-    BarGrip,
     BarTrajectory,
     HandOnBarTask,
     bar_poses,
     grip_from_configuration,
     nominal_bar_trajectory,
 )
-from services.navigation.collision3d import RESHAPABLE_GROUPS, CollisionEvent, MotionCheck, MotionChecker
-from services.navigation.geometry import Scene
 from services.navigation.keyframes import next_windows
 from services.navigation.reshaping import ReshapeOptions, ReshapeWindow, reshaped_trajectory
-from services.navigation.upper_body import CarriedBar
 from services.walking.footsteps import FootstepSequence
 from services.walking.pattern import WalkPattern
 from services.walking.timing import WalkTiming

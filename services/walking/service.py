@@ -34,10 +34,10 @@ from services import budget
 from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
+from services.collision.obstacles import obstacle_from_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.model.ground import mid_feet
-from services.navigation.service import obstacle_from_msg
 from services.walking.footsteps import (
     SIDES,
     Footstep,
