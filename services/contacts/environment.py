@@ -17,6 +17,7 @@ import pinocchio as pin
 import pybullet as p
 
 from services.errors import InvalidRequestError
+from services.model.ground import yaw_of
 from sim.objects import parts_of
 from sim.scene import Layout
 
@@ -50,7 +51,7 @@ class Surface:
         return (
             float(local.translation[0]),
             float(local.translation[1]),
-            math.atan2(float(local.rotation[1, 0]), float(local.rotation[0, 0])),
+            yaw_of(local.rotation),
         )
 
 
