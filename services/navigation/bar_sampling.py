@@ -28,7 +28,7 @@ from services.collision.obstacles import Scene, obstacle_geometry
 from services.ik import Level
 from services.ik.dofs import dof_mask
 from services.ik.solver import HierarchicalSolver
-from services.navigation.carry import BarTrajectory, HandOnBarTask, bar_rotation
+from services.navigation.carry import BarTrajectory, bar_rotation, hands_on_bar
 from services.navigation.reshaping import (
     BarOffset,
     ReshapeOptions,
@@ -76,17 +76,7 @@ class ArmReach:
         self.grip = grip
         self.iterations = iterations
         self.solver = HierarchicalSolver(model)
-        self.tasks = {
-            side: HandOnBarTask(
-                model,
-                grip.grasp_frames[side],
-                grip.held_point_in_grasp_m[side],
-                grip.centre_world_m + grip.along_m[side] * grip.axis_world,
-                grip.axis_world,
-                name=f"{side}_hand_on_bar",
-            )
-            for side in ("left", "right")
-        }
+        self.tasks = hands_on_bar(model, grip)
         arms = robot.arm_joints("left") + robot.arm_joints("right")  # type: ignore[attr-defined]
         self.level = Level(tuple(self.tasks.values()), name="hands_on_bar", selection=dof_mask(model, arms))
         joints = [model.joints[model.getJointId(name)] for name in arms]

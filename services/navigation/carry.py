@@ -168,6 +168,22 @@ class HandOnBarTask(Task):
         return self.compute(q, data)[1]
 
 
+def hands_on_bar(model: pin.Model, grip: BarGrip) -> dict[str, HandOnBarTask]:
+    """Both hands' :class:`HandOnBarTask` (``left``, ``right``), each held point on its place on the bar
+    as ``grip`` holds it (the targets move with the bar: ``set_target``)."""
+    return {
+        side: HandOnBarTask(
+            model,
+            grip.grasp_frames[side],
+            grip.held_point_in_grasp_m[side],
+            grip.centre_world_m + grip.along_m[side] * grip.axis_world,
+            grip.axis_world,
+            name=f"{side}_hand_on_bar",
+        )
+        for side in ("left", "right")
+    }
+
+
 @dataclass(frozen=True, eq=False)
 class BarTrajectory:
     """The bar's task-space motion on a time grid: ``times_s`` (n,) [s], ``centre_m`` (n, 3) [m] and unit
@@ -241,5 +257,6 @@ __all__ = [
     "bar_poses",
     "bar_rotation",
     "grip_from_configuration",
+    "hands_on_bar",
     "nominal_bar_trajectory",
 ]

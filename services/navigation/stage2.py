@@ -51,6 +51,7 @@ from services.navigation.carry import (
     HandOnBarTask,
     bar_poses,
     grip_from_configuration,
+    hands_on_bar,
     nominal_bar_trajectory,
 )
 from services.navigation.keyframes import next_windows
@@ -312,17 +313,7 @@ def plan_motion(
     tasks: dict[str, HandOnBarTask] = {}
     if grip is not None:
         nominal = _nominal_heights(pattern, float(grip.centre_world_m[2]), options.carry_height_m)
-        tasks = {
-            side: HandOnBarTask(
-                planner.model,
-                grip.grasp_frames[side],
-                grip.held_point_in_grasp_m[side],
-                grip.centre_world_m + grip.along_m[side] * grip.axis_world,
-                grip.axis_world,
-                name=f"{side}_hand_on_bar",
-            )
-            for side in ("left", "right")
-        }
+        tasks = hands_on_bar(planner.model, grip)
         extra = [Level((tasks["left"], tasks["right"]), name="hands_on_bar")]
         nominal_bar = nominal_bar_trajectory(pattern, grip, nominal)
         if rs.mode == "sample":
