@@ -85,6 +85,13 @@ class CylinderObstacle:
         """Radius [m] of the floor projection."""
         return self.radius_m
 
+    @property
+    def footprint(self) -> Rectangle:
+        """The floor projection's bounding square (side 2 ``radius_m``, yaw 0), as ``ObstacleMsg.footprint``
+        gives it: the map's boxes are rectangles."""
+        d = 2.0 * self.radius_m
+        return Rectangle((self.center_xyz_m[0], self.center_xyz_m[1]), (d, d), 0.0)
+
 
 Obstacle = BoxObstacle | CylinderObstacle
 
