@@ -23,7 +23,7 @@ def test_an_obstacle_keeps_its_messages_floor_rectangle(message):
     assert isinstance(obstacle, BoxObstacle if message.kind == "box" else CylinderObstacle)
     ours, theirs = obstacle.footprint, message.footprint
     assert np.allclose(ours.corners(), theirs.corners(), atol=1e-12)
-    shape, placement, radius = obstacle_geometry(obstacle)
+    _shape, placement, radius = obstacle_geometry(obstacle)
     assert np.allclose(placement.getTranslation(), message.center)
     assert radius == pytest.approx(obstacle.bounding_radius_xy_m)
 
