@@ -3,9 +3,11 @@
 CONVENTIONS §1-2 and issue #15: the supervisor imports only the bus, its schemas, ``services.errors``
 and its own modules (it calls the planners over the bus); the pure algorithm packages never import
 zenoh, not even through another module (only each service's ``service.py`` adapter does, through
-``services.bus.service``); the service packages stand in a declared order, the robot model at the
-bottom, and no package imports one above it or beside it. Every import counts, at module level or
-inside a function.
+``services.bus.service``); no planner loads pybullet when imported (only the sim executes; a planner
+that drives the sim for a command or a study imports it inside that function); the service packages
+stand in a declared order, the robot model at the bottom, and no package imports one above it or
+beside it. Every import counts, at module level or inside a function, except for the pybullet rule
+(module level only).
 """
 
 from __future__ import annotations
@@ -61,6 +63,10 @@ ALGORITHM_PACKAGES = (
 )
 """Packages whose modules, except the ``service.py`` adapter, never reach zenoh."""
 
+PYBULLET_ADAPTERS = ("services.model.pybullet_robot",)
+"""The model's URDF loaded in pybullet, for the sim: the one algorithm-package module that imports it
+(nothing else imports it at module level: the rule follows the chains through it)."""
+
 SUPERVISOR_MAY_IMPORT = ("supervisor", "services", "services.bus", "services.errors")
 """The root package runs on the way to the bus; ``services.budget`` and the rest are not here."""
 
@@ -90,10 +96,15 @@ def package_of(module: str) -> str:
     return ".".join(parts[:2]) if parts[0] == "services" and len(parts) > 1 else parts[0]
 
 
+EXTERNAL = ("zenoh", "pybullet")
+"""Outside packages whose imports are followed."""
+
+
 def _resolve(name: str, modules: set[str]) -> str | None:
-    """The longest prefix of the dotted ``name`` that is a scanned module (or ``zenoh``)."""
-    if name == "zenoh" or name.startswith("zenoh."):
-        return "zenoh"
+    """The longest prefix of the dotted ``name`` that is a scanned module (or one of :data:`EXTERNAL`)."""
+    top = name.split(".")[0]
+    if top in EXTERNAL:
+        return top
     parts = name.split(".")
     for k in range(len(parts), 0, -1):
         candidate = ".".join(parts[:k])
@@ -103,7 +114,7 @@ def _resolve(name: str, modules: set[str]) -> str | None:
 
 
 def read_imports(root: Path = ROOT) -> dict[str, list[Import]]:
-    """Every module of :data:`SCANNED` -> its imports of scanned modules and of zenoh.
+    """Every module of :data:`SCANNED` -> its imports of scanned modules and of :data:`EXTERNAL`.
 
     ``from a.b import c`` imports ``a.b.c`` when that is a module, else ``a.b``; importing ``a.b.c``
     also runs the packages ``a`` and ``a.b`` (their ``__init__``)."""
@@ -162,14 +173,18 @@ def order_violations(
     return out
 
 
-def reaches_zenoh(graph: dict[str, list[Import]]) -> dict[str, list[str]]:
-    """Every module that imports zenoh, directly or through other modules -> one such chain."""
+def reaching(
+    graph: dict[str, list[Import]], external: str, module_level: bool = False
+) -> dict[str, list[str]]:
+    """Every module that imports ``external``, directly or through other modules (``module_level``: by
+    imports at module level only, what importing the module loads) -> one such chain."""
     chains: dict[str, list[str]] = {}
-    frontier = [m for m, imports in graph.items() if any(i.target == "zenoh" for i in imports)]
+    counted = {m: [i for i in imports if not (module_level and i.lazy)] for m, imports in graph.items()}
+    frontier = [m for m, imports in counted.items() if any(i.target == external for i in imports)]
     for m in frontier:
-        chains[m] = [m, "zenoh"]
+        chains[m] = [m, external]
     importers: dict[str, set[str]] = {}
-    for m, imports in graph.items():
+    for m, imports in counted.items():
         for i in imports:
             importers.setdefault(i.target, set()).add(m)
     while frontier:
@@ -254,7 +269,7 @@ def test_the_supervisor_imports_no_algorithm_package(graph):
 
 def test_algorithm_modules_never_reach_zenoh(graph):
     """Only the ``service.py`` adapters reach zenoh (through ``services.bus.service``)."""
-    chains = reaches_zenoh(graph)
+    chains = reaching(graph, "zenoh")
     bad = [
         " -> ".join(chains[m])
         for m in sorted(chains)
@@ -262,3 +277,16 @@ def test_algorithm_modules_never_reach_zenoh(graph):
     ]
     assert bad == []
     assert "services.walking.service" in chains  # the adapters do: the rule sees the path
+
+
+def test_no_planner_loads_pybullet_when_imported(graph):
+    """Only the sim executes: importing a planner, its service or vision loads no pybullet (the contact
+    planner reads the scene's primitives from ``sim.parts``, not from ``sim.objects``)."""
+    chains = reaching(graph, "pybullet", module_level=True)
+    bad = [
+        " -> ".join(chains[m])
+        for m in sorted(chains)
+        if package_of(m) in ALGORITHM_PACKAGES and m not in PYBULLET_ADAPTERS
+    ]
+    assert bad == []
+    assert "sim.world" in chains  # the sim does: the rule sees the path
