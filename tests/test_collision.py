@@ -39,3 +39,11 @@ def test_a_bad_obstacle_message_names_its_field(fields, field):
     with pytest.raises(InvalidRequestError, match=field) as info:
         obstacle_from_msg(ObstacleMsg(name="x", **fields))
     assert info.value.details["field"] == field
+
+
+def test_a_bad_obstacle_in_a_request_is_named_by_its_place():
+    """walking/goal and navigation/goto pass each message's index: the error points into the request."""
+    bad = ObstacleMsg(name="crate", center=[1.0, 0.0, 0.3], size=[0.4])
+    with pytest.raises(InvalidRequestError, match=r"obstacles\[3\]\.size \('crate'\)") as info:
+        obstacle_from_msg(bad, 3)
+    assert info.value.details == {"field": "size", "index": 3}

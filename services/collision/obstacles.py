@@ -126,27 +126,30 @@ class Scene:
         )
 
 
-def obstacle_from_msg(o: ObstacleMsg) -> Obstacle:
+def obstacle_from_msg(o: ObstacleMsg, index: int | None = None) -> Obstacle:
     """An obstacle from its message (``ObstacleMsg``, the map's objects in navigation's and walking's
-    requests); InvalidRequestError names the bad field."""
+    requests); InvalidRequestError names the bad field (``obstacles[index].size`` when the message's
+    place in the request's ``obstacles`` is given; ``details``: ``field``, ``index``)."""
+
+    def bad(field: str, problem: str) -> InvalidRequestError:
+        if index is None:
+            where = f"obstacle {o.name!r}: {field}"
+        else:
+            where = f"obstacles[{index}].{field} ({o.name!r})"
+        return InvalidRequestError(f"{where} {problem}", {"field": field, "index": index})
+
     if len(o.center) != 3:
-        raise InvalidRequestError(
-            f"obstacle {o.name!r}: center must be [x, y, z], got {o.center}", {"field": "center"}
-        )
+        raise bad("center", f"must be [x, y, z] [m], got {o.center}")
     center = (float(o.center[0]), float(o.center[1]), float(o.center[2]))
     if o.kind == "box":
         if len(o.size) != 3:
-            raise InvalidRequestError(
-                f"obstacle {o.name!r}: a box needs size [sx, sy, sz], got {o.size}", {"field": "size"}
-            )
+            raise bad("size", f"must be [sx, sy, sz] [m] for a box, got {o.size}")
         return BoxObstacle(
             o.name, center, (float(o.size[0]), float(o.size[1]), float(o.size[2])), float(o.yaw)
         )
     if o.kind == "cylinder":
         return CylinderObstacle(o.name, center, float(o.radius), float(o.height))
-    raise InvalidRequestError(
-        f"obstacle {o.name!r}: kind must be 'box' or 'cylinder', got {o.kind!r}", {"field": "kind"}
-    )
+    raise bad("kind", f"must be 'box' or 'cylinder', got {o.kind!r}")
 
 
 def obstacle_geometry(o: Obstacle) -> tuple[coal.CollisionGeometry, coal.Transform3s, float]:
