@@ -76,7 +76,7 @@ class NavigationConfig:
 def scene_from_request(request: msg.GotoRequest, start: Pose2D) -> Scene:
     """The planner's scene: the obstacles and the floor bounds (given, or around start, goal and
     obstacles with a 1.5 m margin)."""
-    obstacles = tuple(obstacle_from_msg(o) for o in request.obstacles)
+    obstacles = tuple(obstacle_from_msg(o, i) for i, o in enumerate(request.obstacles))
     if request.bounds:
         if len(request.bounds) != 4:
             raise InvalidRequestError(
