@@ -24,6 +24,7 @@ import numpy as np
 from services import budget
 from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
+from services.model.ground import FootstepBounds, sole_pose_of
 from services.navigation.body_extents import with_arms_of
 from services.navigation.carry import grip_from_configuration
 from services.navigation.footsteps_along_path import FootstepOptions, PathFootsteps, footsteps_along_path
@@ -33,7 +34,7 @@ from services.navigation.path import PlannerConfig, SampledPath, escape_pose, pl
 from services.navigation.stage2 import Stage2Options, WholeBodyMotion, plan_motion
 from services.navigation.straight import StraightWalkOptions, straight_walk
 from services.navigation.upper_body import CarriedBar, SweepResult, sweep_carried_object
-from services.walking.footsteps import FootstepLimits, FootstepSequence, SolePose
+from services.walking.footsteps import FootstepSequence, SolePose
 from services.walking.timing import WalkTiming, build_schedule
 from services.walking.two_stage import COM_LOWERINGS_M
 
@@ -101,10 +102,6 @@ def _steps_too_fast(
     return tuple(sorted(out))
 
 
-def _yaw(R: np.ndarray) -> float:
-    return math.atan2(float(R[1, 0]), float(R[0, 0]))
-
-
 def start_soles(robot: Any, q: np.ndarray) -> tuple[SolePose, SolePose]:
     """The (left, right) sole poses of configuration ``q``; InvalidRequestError unless both soles are flat
     on the floor."""
@@ -120,7 +117,7 @@ def start_soles(robot: Any, q: np.ndarray) -> tuple[SolePose, SolePose]:
                 f"{1e3 * MAX_START_SOLE_HEIGHT_M:.0f} mm of z = 0); send the robot's current configuration",
                 {"field": "q_start", "side": side},
             )
-        soles.append(SolePose(float(T.translation[0]), float(T.translation[1]), _yaw(T.rotation)))
+        soles.append(sole_pose_of(T))
     return soles[0], soles[1]
 
 
@@ -270,7 +267,7 @@ def plan_goto(
         if steps is None:
             footstep_options = options.footsteps or FootstepOptions.for_body(body)
             steps = footsteps_along_path(
-                path, FootstepLimits.from_robot(robot), footstep_options, start_soles=soles
+                path, FootstepBounds.from_robot(robot), footstep_options, start_soles=soles
             )
         if escape is not None:
             path, steps = _joined(escape, path, steps)

@@ -35,10 +35,10 @@ from services import budget
 from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
+from services.collision.obstacles import obstacle_from_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.model.ground import mid_feet
-from services.navigation.service import obstacle_from_msg
 from services.walking.footsteps import (
     SIDES,
     Footstep,
@@ -240,18 +240,9 @@ def _walk_within_joint_speeds(
 
 
 def _floor_boxes(obstacles: list[Any]) -> list[MapBox]:
-    """The map's boxes of a request as floor rectangles (cylinders as their bounding squares)."""
-    out = []
-    for i, o in enumerate(obstacles):
-        if len(o.center) != 3:
-            raise InvalidRequestError(f"obstacles[{i}].center must be [x, y, z] [m], got {o.center!r}")
-        if o.kind == "box":
-            if len(o.size) != 3:
-                raise InvalidRequestError(f"obstacles[{i}].size must be [sx, sy, sz] [m], got {o.size!r}")
-        elif o.kind != "cylinder":
-            raise InvalidRequestError(f"obstacles[{i}].kind must be 'box' or 'cylinder', got {o.kind!r}")
-        out.append(MapBox(o.name, o.footprint))
-    return out
+    """The map's boxes of a request as floor rectangles (cylinders as their bounding squares), each
+    message read and checked by :func:`~services.collision.obstacle_from_msg`."""
+    return [MapBox(o.name, obstacle_from_msg(o, i).footprint) for i, o in enumerate(obstacles)]
 
 
 def goal_steps(
@@ -341,7 +332,7 @@ def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) ->
     robot = load_robot(request.model)
     if not (math.isfinite(request.leg_clearance_m) and request.leg_clearance_m >= 0.0):
         raise InvalidRequestError(f"leg_clearance_m must be >= 0 m, got {request.leg_clearance_m}")
-    boxes = [obstacle_from_msg(o) for o in request.obstacles if o.kind == "box"]
+    boxes = [obstacle_from_msg(o, i) for i, o in enumerate(request.obstacles) if o.kind == "box"]
     q, sequence = goal_steps(request, robot)
     try:
         return _goal_walk(request, robot, q, sequence, boxes, config)
