@@ -72,6 +72,9 @@ class Task(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True
     q_rest: np.ndarray | None = None  # posture: (nq,) float64 rest configuration; None: half-sitting
     # orient: the hand's grasp frame at this world orientation [qx, qy, qz, qw] (log3 error [rad])
     orientation: Annotated[list[Coord], Meta(min_length=4, max_length=4)] | None = None
+    # orient: hold only the tilt of ``orientation`` (e.g. fingers down); the yaw about the vertical is the
+    # IK's (the gripper's rows against hand_obstacles turn the jaws clear of a neighbour: q_final's yaw)
+    free_yaw: bool = False
 
 
 class Disk(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
