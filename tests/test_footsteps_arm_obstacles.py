@@ -15,7 +15,7 @@ from services.bus.schemas import common
 from services.bus.schemas import footsteps as msg
 from services.errors import InvalidRequestError
 from services.footsteps.arm_obstacles import arm_obstacle_distances
-from services.footsteps.planner import plan_footsteps
+from services.footsteps.planner import plan_footsteps, plan_footsteps_best
 from services.footsteps.request import FootstepPlanRequest, FootstepTask, SphereObstacle
 from services.footsteps.service import to_planner_request
 from services.ik.hand_obstacles import gripper_capsules, hand_capsules
@@ -157,3 +157,38 @@ def test_a_sphere_far_from_the_arm_changes_nothing(robot):
     with_far = plan_footsteps(_request((far,)), robot)
     assert np.array_equal(np.asarray(without.q_final), np.asarray(with_far.q_final))
     assert without.footsteps == with_far.footsteps
+
+
+def test_with_a_free_yaw_the_planner_turns_the_jaws_clear_of_a_neighbour(robot):
+    # fingers down with the jaws' line (the hand's y axis) at -0.6 rad; a neighbour on that line
+    yaw = -0.6
+    quat = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+    jaws_line = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    ball = SphereObstacle(*TARGET, 0.05)
+    neighbour = SphereObstacle(*map(float, np.array(TARGET) + 0.115 * jaws_line), 0.05)
+
+    def request(free_yaw: bool) -> FootstepPlanRequest:
+        return FootstepPlanRequest(
+            tasks=(
+                FootstepTask("reach", TARGET),
+                FootstepTask("orient", orientation=quat, free_yaw=free_yaw),
+                FootstepTask("gaze", TARGET),
+                FootstepTask("posture"),
+            ),
+            hand_obstacles=(ball, neighbour),
+        )
+
+    held, error = plan_footsteps_best(request(False), robot)
+    assert error is not None and not held.residual("orient:right").solved  # the jaws there: in the neighbour
+
+    free = plan_footsteps(request(True), robot)
+    q = np.asarray(free.q_final)
+    assert free.residual("reach:right").solved and free.residual("orient:right").solved
+    R = robot.frame_pose(q, robot.frames.grasp("right")).rotation
+    assert R[2, 2] > math.cos(request(True).tasks[1].tol())  # fingers down ...
+    chosen = math.atan2(R[1, 0], R[0, 0])
+    assert abs(math.remainder(chosen - yaw, math.pi)) > 0.3  # ... the jaws turned off that line
+    distances = arm_obstacle_distances(robot, q, "right", (ball, neighbour), np.array(TARGET))
+    assert distances[:, 1].min() >= request(True).options.arm_obstacle_margin_m - 5e-3
+    with pytest.raises(InvalidRequestError, match="free_yaw"):
+        plan_footsteps(FootstepPlanRequest(tasks=(FootstepTask("reach", TARGET, free_yaw=True),)), robot)
