@@ -167,12 +167,15 @@ class Planners:
         hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
         orientation: list[float] | None = None,
         step_region_scale: float | None = None,
+        free_yaw: bool = False,
     ) -> LastSteps:
         """``footsteps/plan`` for the last steps before the ``hand`` reaches ``target_m`` [m] (tasks, by
         priority: the hand at the target, the gaze on ``gaze_m``, the rest posture; the map's boxes, which
         no footprint may enter; ``hand_obstacles``, (centre [m] world, radius [m]) spheres the arm keeps
         out of; ``orientation``, the hand's world orientation [qx, qy, qz, qw] as a task below the
-        reach; ``step_region_scale``, footsteps/plan's option (None: its default); paper 000 §7), then
+        reach (with ``free_yaw`` only its tilt, e.g. fingers down: the planner turns the jaws clear of
+        ``hand_obstacles``, and ``LastSteps.hand_quat`` has the yaw it chose);
+        ``step_region_scale``, footsteps/plan's option (None: its default); paper 000 §7), then
         ``walking/plan`` of its footsteps. Returns the
         walk (None when no step is needed), what the planner found and its final posture with the
         hand's orientation in it (:class:`LastSteps`). Raises the planners' typed errors
@@ -180,7 +183,9 @@ class Planners:
         q = self.body.plan_q()
         c = self.config
         orient = (
-            [] if orientation is None else [fs_msg.Task(kind="orient", orientation=orientation, hand=hand)]
+            []
+            if orientation is None
+            else [fs_msg.Task(kind="orient", orientation=orientation, hand=hand, free_yaw=free_yaw)]
         )
         options = None if step_region_scale is None else fs_msg.Options(step_region_scale=step_region_scale)
         request = fs_msg.PlanRequest(
