@@ -142,7 +142,9 @@ class ReachPlanner:
         Raises:
             InvalidRequestError: malformed request (names the field).
             InfeasibleError: the target cannot be reached; the message and ``details`` name the
-                criterion that failed (``criterion``, ``time_s``, ``value``, ``threshold``).
+                criterion that failed (``criterion``, ``time_s``, ``value``, ``threshold``); with
+                ``hand_obstacles``, ``reason`` ``hand_obstacle`` when no motion keeps the arm clear of
+                them (``sphere``, ``link``: :meth:`_clear_of_spheres`).
         """
         req = request.validated(self.robot)
         if req.hand_obstacles:
