@@ -175,7 +175,7 @@ class ReachPlanner:
             except InfeasibleError as exc:
                 first = first or exc
                 if exc.details.get("criterion") != CRITERION_HAND_OBSTACLE:
-                    tried.append(f"{how}: {exc.message}")
+                    tried.append(f"{how}: {exc.message.split(' m: ', 1)[-1]}")  # without "cannot reach"
                     continue
                 d = exc.details
                 last = Violation(
