@@ -31,7 +31,7 @@ from vision.camera import StereoRig
 from vision.camshift import Detection, DetectionConfig, RotatedBox, Window, check_unambiguous, detect_all
 from vision.footprint import Footprint, footprint, outline_points
 from vision.hidden_ball import Circle, free_circle, touches
-from vision.histogram import ObjectModel, to_hsv
+from vision.histogram import ObjectModel, colour_mask, to_hsv
 from vision.stereo import (
     StereoConfig,
     dense_disparity_median,
@@ -122,6 +122,10 @@ class StereoFrame:
     hsv_left: np.ndarray = field(init=False)
     hsv_right: np.ndarray = field(init=False)
     _gray: tuple[np.ndarray, np.ndarray] | None = field(init=False, default=None)
+    #: back projections by (model name, "left"/"right"): a look that reports every object seen uses
+    #: each model's up to three times (detection, another object's outline, one object per region)
+    _back_projections: dict[tuple[str, str], np.ndarray] = field(init=False, default_factory=dict)
+    _colour_masks: dict[tuple[str, str], np.ndarray] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         k = self.rig.intrinsics
@@ -145,6 +149,19 @@ class StereoFrame:
                 f"own_body masks must be two {shape[1]}x{shape[0]} masks like the images, got "
                 f"{[np.shape(m) for m in masks]}"
             )
+
+    def back_projection(self, model: ObjectModel, side: str) -> np.ndarray:
+        """``model``'s back projection onto the ``side`` ("left" or "right") image (computed once)."""
+        key = (model.name, side)
+        bp = self._back_projections.get(key)
+        if bp is None:
+            hsv = self.hsv_left if side == "left" else self.hsv_right
+            mask_key = (repr(model.config), side)  # the pixels coloured enough, shared by the models
+            coloured = self._colour_masks.get(mask_key)
+            if coloured is None:
+                coloured = self._colour_masks[mask_key] = colour_mask(hsv, model.config)
+            bp = self._back_projections[key] = back_project(hsv, model, coloured)
+        return bp
 
     @property
     def own_masks(self) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
@@ -362,13 +379,17 @@ def _edges_point(
 
 
 def _occluder_mask(
-    hsv: np.ndarray, occluders: Sequence[ObjectModel], config: DetectionConfig, own: np.ndarray | None
+    frame: StereoFrame,
+    side: str,
+    occluders: Sequence[ObjectModel],
+    config: DetectionConfig,
+    own: np.ndarray | None,
 ) -> np.ndarray | None:
-    """Boolean (H, W) mask of the pixels of the ``occluders``' colours (back projection >= threshold)
-    and of the robot's ``own`` body (its mask, or None), None without either."""
+    """Boolean (H, W) mask of the ``side`` image's pixels of the ``occluders``' colours (back projection
+    >= threshold) and of the robot's ``own`` body (its mask, or None), None without either."""
     mask = None if own is None else np.asarray(own, dtype=bool)
     for other in occluders:
-        seen = back_project(hsv, other) >= config.threshold
+        seen = frame.back_projection(other, side) >= config.threshold
         mask = seen if mask is None else mask | seen
     return mask
 
@@ -386,13 +407,13 @@ def locate_in_frame(
     ``with_footprint`` False: no footprint (an object seen in passing: :func:`others_in_frame`)."""
     config = config or LocalizeConfig()
     det_cfg = config.detection
-    bp_left = back_project(frame.hsv_left, model)
+    bp_left = frame.back_projection(model, "left")
     try:
         left = check_unambiguous(detect_all(bp_left, model.name, det_cfg), det_cfg, f"'{model.name}'")
     except NotFoundError as e:
         e.details.setdefault("object", model.name)
         raise
-    bp_right = back_project(frame.hsv_right, model)
+    bp_right = frame.back_projection(model, "right")
     candidates = detect_all(bp_right, model.name, det_cfg)
     circles = None  # a ball's circles fitted off the robot's own pixels (vision.hidden_ball)
     try:
@@ -464,8 +485,8 @@ def locate_in_frame(
             right.window,
             rig,
             frame.T_world_left_camera,
-            _occluder_mask(frame.hsv_left, others, det_cfg, own_left),
-            _occluder_mask(frame.hsv_right, others, det_cfg, own_right),
+            _occluder_mask(frame, "left", others, det_cfg, own_left),
+            _occluder_mask(frame, "right", others, det_cfg, own_right),
         )
         floor_rectangle = footprint(
             outline.points,
@@ -500,7 +521,7 @@ def _left_silhouette(
     """Boolean (H, W) mask of ``loc``'s silhouette in the left image (its window only)."""
     mask = np.zeros(frame.hsv_left.shape[:2], dtype=bool)
     x, y, w, h = loc.left.window
-    mask[y : y + h, x : x + w] = _silhouette(back_project(frame.hsv_left, model), loc.left.window, config)
+    mask[y : y + h, x : x + w] = _silhouette(frame.back_projection(model, "left"), loc.left.window, config)
     return mask
 
 
