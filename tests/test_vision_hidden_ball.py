@@ -25,10 +25,17 @@ DARK: syn.BGR = (50.0, 52.0, 55.0)  # the gripper's dark grey: no hue, no colour
 CAMERA = look_at([0.0, 0.0, 1.35], list(BALL))
 
 
-def scene(hand: bool) -> syn.Scene:
-    """The orange ball on a grey stand, a blue ball beside it; with ``hand``, a dark box (the gripper
-    backed off above the ball) between the cameras and the ball, hiding its upper right part."""
-    hand_box = (syn.Box("hand", (0.55, -0.036, 0.983), (0.03, 0.012, 0.05), DARK),) if hand else ()
+#: A gripper-like bar between the cameras and the ball: it hides the ball's right rim in the left image
+#: and its left part in the right one (the hand backed off above the ball after a failed grasp).
+BAR = syn.Box("hand", (0.55, -0.036, 0.983), (0.03, 0.012, 0.05), DARK)
+#: A hand resting on the ball (closed on nothing beside it): the whole ball hidden in the right image.
+ON_IT = syn.Box("hand", (0.55, -0.045, 0.995), (0.04, 0.04, 0.04), DARK)
+
+
+def scene(hand: bool, box: syn.Box = BAR) -> syn.Scene:
+    """The orange ball on a grey stand, a blue ball beside it; with ``hand``, a dark box (the gripper)
+    between the cameras and the ball."""
+    hand_box = (box,) if hand else ()
     return syn.Scene(
         (
             *syn.room(),
@@ -128,3 +135,16 @@ def test_a_look_reports_the_other_objects_seen_and_one_object_per_region(models)
     )
     others = others_in_frame(found, [*models.values(), twin], frame)
     assert [o.name for o in others] == ["blue_ball"]
+
+
+def test_a_ball_the_hand_hides_in_one_image_is_reported_hidden_by_the_robots_own_body(models):
+    s = scene(hand=True, box=ON_IT)
+    left, right = syn.render_stereo(s, RIG, CAMERA, 2, 2.0, np.random.default_rng(5))
+    own = tuple(s.mask_of(r.labels, "hand") for r in (left, right))
+    ball = models["orange_ball"]
+    with pytest.raises(NotFoundError) as plain:
+        locate(ball, left.image_bgr, right.image_bgr, RIG, CAMERA)
+    assert plain.value.details["reason"] == "not_in_right_view"
+    with pytest.raises(NotFoundError, match="the arm hides it") as hidden:
+        locate(ball, left.image_bgr, right.image_bgr, RIG, CAMERA, own_body=own)
+    assert hidden.value.details["reason"] == "hidden_by_own_body"

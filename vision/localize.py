@@ -21,6 +21,7 @@ import numpy as np
 
 from services import budget
 from services.bus.schemas.perception import (
+    REASON_HIDDEN_BY_OWN_BODY,
     REASON_NO_DISPARITY,
     REASON_NOT_IN_RIGHT_VIEW,
     REASON_STEREO_MISMATCH,
@@ -292,6 +293,28 @@ def _free_circles(
     return circle_left, circle_right
 
 
+def _raise_if_own_body_hides(
+    left: Detection,
+    frame: StereoFrame,
+    bp_left: np.ndarray,
+    config: DetectionConfig,
+    unmatched: NotFoundError,
+) -> None:
+    """NotFoundError ``hidden_by_own_body`` when the left silhouette ``left``, not matched in the right
+    image (``unmatched``), runs along the robot's own pixels: its arm hides it there (after a failed
+    grasp the hand rests on the ball, in front of it in one image, 7 px of it left in the other:
+    fetch seed 77). Nothing when the frame has no own-body masks or the silhouette does not touch them."""
+    own_left, _ = frame.own_masks
+    if own_left is None or not touches(_silhouette(bp_left, left.window, config), left.window, own_left):
+        return
+    raise NotFoundError(
+        f"'{left.name}' is seen in the left image at pixel ({left.centre_px[0]:.0f}, "
+        f"{left.centre_px[1]:.0f}) next to the robot's own arm and not in the right image: the arm hides "
+        "it; move the arm out of the view and look again",
+        {"reason": REASON_HIDDEN_BY_OWN_BODY},
+    ) from unmatched
+
+
 def _match_hidden_ball(
     left: Detection,
     candidates: list[Detection],
@@ -418,13 +441,14 @@ def locate_in_frame(
     circles = None  # a ball's circles fitted off the robot's own pixels (vision.hidden_ball)
     try:
         right = _match_right(left, candidates, frame, config, bp_left, bp_right)
-    except NotFoundError:
+    except NotFoundError as unmatched:
         hidden = (
             None
             if model.shape != "sphere"
             else _match_hidden_ball(left, candidates, frame, config, bp_left, bp_right)
         )
         if hidden is None:
+            _raise_if_own_body_hides(left, frame, bp_left, det_cfg, unmatched)
             raise
         right, circles = hidden
 

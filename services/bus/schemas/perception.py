@@ -61,6 +61,9 @@ REASON_NOT_IN_RIGHT_VIEW = "not_in_right_view"
 REASON_NO_DISPARITY = "no_disparity"
 REASON_STEREO_MISMATCH = "stereo_mismatch"
 REASON_AMBIGUOUS = "ambiguous"
+#: seen in the left image next to the robot's own arm and not matched in the right one: the arm hides it
+#: (move the arm out of the view and look again)
+REASON_HIDDEN_BY_OWN_BODY = "hidden_by_own_body"
 #: The reasons another viewpoint may fix (the supervisor then looks around).
 VIEWPOINT_REASONS = (
     REASON_NOT_IN_VIEW,
@@ -68,6 +71,7 @@ VIEWPOINT_REASONS = (
     REASON_NO_DISPARITY,
     REASON_STEREO_MISMATCH,
     REASON_AMBIGUOUS,
+    REASON_HIDDEN_BY_OWN_BODY,
 )
 
 
