@@ -150,23 +150,33 @@ class Eyes:
         turn: Callable[[float, str], None],
         progress: Progress,
         look_around: bool = True,
+        clear_view: Callable[[], None] | None = None,
     ) -> tuple[Sighting, int]:
         """Find ``name``: (sighting, views taken). Looks where it was last seen first, then scans with
-        the head and turns the body (``turn(angle_rad, why)``) between scans.
+        the head and turns the body (``turn(angle_rad, why)``) between scans. When perception says the
+        robot's own arm hides it (``hidden_by_own_body``: the hand left on or in front of it after a
+        failed grasp), ``clear_view()`` moves the arm away once (None: not done) and it is looked at
+        again from there.
 
         NotFoundError (reason ``not_found_around``) listing what was tried if it is nowhere.
         """
         views = 0
         reasons: list[str] = []
+        cleared = clear_view is None
 
         def attempt() -> Sighting | None:
-            nonlocal views
+            nonlocal views, cleared
             views += 1
             try:
                 return self.locate(name)
             except NotFoundError as exc:
                 reason = str(exc.details.get("reason", ""))
                 reasons.append(reason or "not_found")
+                if reason == perception_msg.REASON_HIDDEN_BY_OWN_BODY and not cleared and clear_view:
+                    cleared = True
+                    progress(f"{name} hidden by the robot's own arm: moving the arm out of the view")
+                    clear_view()
+                    return attempt()
                 if reason not in LOOK_AROUND_REASONS or not look_around:
                     raise
                 return None
