@@ -47,6 +47,7 @@ class Remedies:
     _turn_rad: Callable[[float, str], int]
     _survey: Callable[[set[str]], None]
     _move_hand: Callable[..., int]
+    _support: Callable[[str], list[str]]
 
     def relocalize(self, step: Step, report: ActionReport) -> None:
         """Localize the step's object again (for a missed grasp: the reached object, then reach again)."""
@@ -55,7 +56,13 @@ class Remedies:
                 return
             hand, target = self.last_reach
             if parse_point(target, 3, "target") is None:
-                self.eyes.localize(target, turn=self._turn_rad, progress=self.progress)
+                self.eyes.localize(
+                    target,
+                    turn=self._turn_rad,
+                    progress=self.progress,
+                    # the hand closed on nothing there, on the object's support: lift it off both
+                    clear_view=lambda: self._back_off(hand, [target, *self._support(target)]),
+                )
             self.progress(f"reaching {target} again")
             self.do_reach(Step(step.line, "reach", (hand, target)))
             return
