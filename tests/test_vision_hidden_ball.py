@@ -119,7 +119,7 @@ def test_own_body_masks_are_drawn_only_when_a_ball_is_near_or_a_footprint_needs_
 
 def test_a_look_reports_the_other_objects_seen_and_one_object_per_region(models):
     s = scene(hand=False)
-    left, right = syn.render_stereo(s, RIG, CAMERA, 2, 2.0, np.random.default_rng(4))
+    left, right = syn.render_stereo(s, RIG, CAMERA, 1, 2.0, np.random.default_rng(4))
     frame = StereoFrame(left.image_bgr, right.image_bgr, RIG, CAMERA)
     found = locate_in_frame(models["orange_ball"], frame)
     others = others_in_frame(found, list(models.values()), frame)
@@ -139,7 +139,7 @@ def test_a_look_reports_the_other_objects_seen_and_one_object_per_region(models)
 
 def test_a_ball_the_hand_hides_in_one_image_is_reported_hidden_by_the_robots_own_body(models):
     s = scene(hand=True, box=ON_IT)
-    left, right = syn.render_stereo(s, RIG, CAMERA, 2, 2.0, np.random.default_rng(5))
+    left, right = syn.render_stereo(s, RIG, CAMERA, 1, 2.0, np.random.default_rng(5))
     own = tuple(s.mask_of(r.labels, "hand") for r in (left, right))
     ball = models["orange_ball"]
     with pytest.raises(NotFoundError) as plain:
