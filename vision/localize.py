@@ -265,6 +265,11 @@ def _sphere_point(
     return p_camera, float(uv_left[0] - uv_right[0])
 
 
+#: A ball's silhouette whose outline runs along the robot's own pixels is taken as hidden when it covers
+#: less than this fraction of its fitted circle in one image (:func:`_free_circles`).
+HIDDEN_AREA_FRACTION = 0.9
+
+
 def _free_circles(
     left: Detection,
     right: Detection,
@@ -276,7 +281,9 @@ def _free_circles(
 ) -> tuple[Circle, Circle] | None:
     """The circles of a ball's two silhouettes fitted to their outlines off the robot's own pixels
     (vision.hidden_ball), or None when the robot hides neither silhouette (``whether_hidden``: checked
-    first) or either fit fails (too little of the outline free)."""
+    first; an outline along the robot's pixels with each silhouette covering more than
+    ``HIDDEN_AREA_FRACTION`` of its circle is not hidden) or either fit fails (too little of the
+    outline free)."""
     own_left, own_right = frame.own_masks
     if own_left is None or own_right is None:
         return None
@@ -290,6 +297,13 @@ def _free_circles(
     circle_right = free_circle(sil_right, right.window, own_right)
     if circle_left is None or circle_right is None:
         return None
+    if whether_hidden:  # touching is not hiding: a whole silhouette's centroid is the better estimate
+        seen = min(
+            np.count_nonzero(sil) / (np.pi * circle.radius_px**2)
+            for sil, circle in ((sil_left, circle_left), (sil_right, circle_right))
+        )
+        if seen > HIDDEN_AREA_FRACTION:
+            return None
     return circle_left, circle_right
 
 
