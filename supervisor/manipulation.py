@@ -31,7 +31,7 @@ from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import LastSteps, Plan, Planners
 from supervisor.report import ActionReport
-from supervisor.scene_map import box_estimate, is_obstacle
+from supervisor.scene_map import box_estimate, is_obstacle, neighbours, sphere_radius
 from supervisor.script import Step, parse_point
 
 
@@ -469,7 +469,8 @@ class ManipulationActions:
 
     def _grasp_obstacles(self, target: str) -> list[tuple[np.ndarray, float]]:
         """What the reaching arm (forearm, upper arm) keeps out of in footsteps/plan's final posture for a
-        grasp of ``target``: the object itself (its sighting: centre, half its largest seen size) and
+        grasp of ``target``: the object itself (its sighting: centre, half its largest seen size), the
+        balls seen within ``felt_radius_m`` of it (``scene_map.neighbours``) and
         what the hand felt near it (memory's felt points within ``felt_radius_m``, spheres of
         ``felt_obstacle_radius_m``: a ball beside it that perception has no model of), as (centre [m]
         world, radius [m]). The footstep IK then chooses the stance and the arm's posture clear of them
@@ -477,8 +478,9 @@ class ManipulationActions:
         if parse_point(target, 3, "reach target") is not None:
             return []
         sighting = self.memory.get(target)
-        radius = float(np.clip(max(sighting.size_m) / 2.0, 0.01, 0.06))
-        spheres = [(np.asarray(sighting.position_m, dtype=float), radius)]
+        spheres = [(np.asarray(sighting.position_m, dtype=float), sphere_radius(sighting))]
+        # the balls seen beside it (perception reports every object a look sees): known before a touch
+        spheres += neighbours(self.memory, sighting.position_m, self.config.felt_radius_m, {target})
         r_felt = self.config.felt_obstacle_radius_m
         return spheres + [(f, r_felt) for f in self._felt_near(sighting.position_m)]
 

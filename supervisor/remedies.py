@@ -20,7 +20,7 @@ from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import Planners
 from supervisor.report import ActionReport
-from supervisor.scene_map import boxes, distance_to_box
+from supervisor.scene_map import boxes, distance_to_box, is_obstacle
 from supervisor.script import Step, parse_point
 
 
@@ -47,6 +47,7 @@ class Remedies:
     _turn_rad: Callable[[float, str], int]
     _survey: Callable[[set[str]], None]
     _move_hand: Callable[..., int]
+    _support: Callable[[str], list[str]]
 
     def relocalize(self, step: Step, report: ActionReport) -> None:
         """Localize the step's object again (for a missed grasp: the reached object, then reach again)."""
@@ -55,7 +56,13 @@ class Remedies:
                 return
             hand, target = self.last_reach
             if parse_point(target, 3, "target") is None:
-                self.eyes.localize(target, turn=self._turn_rad, progress=self.progress)
+                self.eyes.localize(
+                    target,
+                    turn=self._turn_rad,
+                    progress=self.progress,
+                    # the hand closed on nothing there, on the object's support: lift it off both
+                    clear_view=lambda: self._back_off(hand, [target, *self._support(target)]),
+                )
             self.progress(f"reaching {target} again")
             self.do_reach(Step(step.line, "reach", (hand, target)))
             return
@@ -89,11 +96,18 @@ class Remedies:
         self.relocalize(step, report)
 
     def _remember_felt(self, collisions: list[sim_msg.Contact]) -> None:
-        """Contacts of a hand with an object perception has not localized (it has no model of it: a
-        ball beside the target) go to the memory's felt points: the next reach approaches clear of
-        them (ManipulationActions._clear_of_felt)."""
+        """Contacts of a hand with a small object other than the one reached for (a ball beside the
+        target, seen in passing or not seen at all) go to the memory's felt points: the next reach
+        approaches clear of them (ManipulationActions._clear_of_felt). Objects on the map (boxes,
+        tables) are not felt points."""
+        reached = self.last_reach[1] if self.last_reach is not None else None
         for contact in collisions:
-            if _arm_link(contact.robot_link) and contact.other not in self.memory.sightings:
+            seen = self.memory.sightings.get(contact.other)
+            if (
+                _arm_link(contact.robot_link)
+                and contact.other != reached
+                and (seen is None or not is_obstacle(seen))
+            ):
                 self.memory.felt.append(np.asarray(contact.position, dtype=float))
 
     def _map_what_was_hit(self, contacts: list[list[float]]) -> None:
