@@ -81,6 +81,37 @@ def jaws_clear_of(
     return math.remainder(heading_rad + best, math.tau)
 
 
+AIM_KEEP = "kept where it was aimed"
+AIM_MOVE = "the hand moves above it"
+AIM_FAR = "too far off to be trusted: kept where it was aimed"
+AIM_HIDDEN = "seen less surely (the hand hides part of it): kept where it was aimed"
+#: A sighting with the hand above the object is trusted when its confidence is at most this much below
+#: the aimed one's. Fetch seed 46, the ball partly hidden by the hand above it: 2.4 cm off at 0.65 (the
+#: narrow pair; the wide one found no stereo match), 3.3 cm off at 0.82, where the views before the
+#: hand rose were 1-2 mm off at 0.97.
+AIM_CONFIDENCE_SLACK = 0.05
+
+
+def aim_again(
+    offset_m: np.ndarray, reaim_m: float, reaim_max_m: float, confidence: tuple[float, float] = (1.0, 1.0)
+) -> str:
+    """What a look at an object with the hand above it decides, from where it was seen again relative
+    to where the hand was aimed (``offset_m``, world [m]) and the two sightings' ``confidence`` (seen
+    now, aimed): ``AIM_HIDDEN`` when it was seen less surely (by more than ``AIM_CONFIDENCE_SLACK``:
+    the hand hides part of it and the centroid shifts); ``AIM_FAR`` when it lies ``reaim_max_m`` off
+    or more (another object, or a bad match); ``AIM_MOVE`` when it lies more than ``reaim_m`` aside
+    (horizontally: the jaws close sideways, the hand comes straight down); ``AIM_KEEP`` otherwise."""
+    seen, aimed = confidence
+    if seen < aimed - AIM_CONFIDENCE_SLACK:
+        return AIM_HIDDEN
+    offset = np.asarray(offset_m, dtype=float)
+    if float(np.linalg.norm(offset)) >= reaim_max_m:
+        return AIM_FAR
+    if float(np.linalg.norm(offset[:2])) > reaim_m:
+        return AIM_MOVE
+    return AIM_KEEP
+
+
 class ManipulationActions:
     """The manipulation actions (a part of :class:`supervisor.actions.Actions`)."""
 
@@ -108,11 +139,10 @@ class ManipulationActions:
         *,
         allowed: list[str],
         stepping: bool,
-        yaw_rad: float | None,
+        yaw_rad: float | None = None,
         upright: bool = False,
         orientation: list[float] | None = None,
         lag_m: float | None = None,
-        motion: str | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
@@ -120,12 +150,8 @@ class ManipulationActions:
         that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
         posture, or fingers down), position only when reaching refuses it; else position only.
         ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m].
-        ``motion``: an unguarded motion's kind (``config.arm_timing``: fast if configured so), position
-        only; None: reaching's default timing."""
-        if motion is not None:
-            timing = self.config.arm_timing(motion)
-            plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping, timing=timing)
-            return self._play(plan, what, allowed)
+        Reaching's default timing (the guarded motions near objects; :meth:`_arm_motion` for the
+        unguarded ones)."""
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
                 plan = self.planners.reach(
@@ -146,6 +172,16 @@ class ManipulationActions:
                 return self._play(plan, what, allowed)
         plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping)
         return self._play(plan, what, allowed)
+
+    def _arm_motion(
+        self, hand: str, point: np.ndarray, what: str, *, allowed: list[str], motion: str
+    ) -> None:
+        """An unguarded arm motion of the ``hand`` grasp frame to ``point`` [m] (world), position only,
+        without stepping, timed as the config's ``motion`` (``config.arm_timing``: fast if configured
+        so, else reaching's default)."""
+        timing = self.config.arm_timing(motion)
+        plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=False, timing=timing)
+        self._play(plan, what, allowed)
 
     def _play(self, plan: Plan, what: str, allowed: list[str]) -> int:
         self.progress(f"{what}: {plan.describe()}")
@@ -215,11 +251,12 @@ class ManipulationActions:
         ahead = float(np.dot(here[:2] - (x, y), forward[:2]))
         point = here + forward * max(0.0, self.config.raise_ahead_m - ahead)
         point[2] = height_m
-        self._move_hand(hand, point, what, allowed=allowed, stepping=False, yaw_rad=yaw, motion="raise")
+        self._arm_motion(hand, point, what, allowed=allowed, motion="raise")
 
     def _grasp_point(self, hand: str, target: str, yaw_rad: float) -> np.ndarray:
-        """Where the grasp frame goes for ``target``: its centre (perception), moved so that the object
-        ends against the fixed finger without being pushed (services.model held_object_offset)."""
+        """Where the grasp frame goes for ``target`` with the hand turned by ``yaw_rad`` [rad] (world):
+        its centre (perception), moved so that the object ends near the fixed finger
+        (``Robot.held_object_offset``), ``grasp_clearance_m`` off it."""
         point = parse_point(target, 3, "reach target")
         if point is not None:
             return np.asarray(point, dtype=float)
@@ -227,7 +264,12 @@ class ManipulationActions:
         radius = float(np.clip(max(sighting.size_m) / 2.0, 0.01, 0.06))
         c, s = math.cos(yaw_rad), math.sin(yaw_rad)
         R_world_hand = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return sighting.position_m - R_world_hand @ self.body.robot.held_object_offset(hand, radius)
+        offset = self.body.robot.held_object_offset(hand, radius)
+        # ... but lowered ``grasp_clearance_m`` off the fixed finger (toward the jaws' middle, never past
+        # it): lowered against it, the finger came down on the side of the ball (seen 1.5 mm smaller
+        # than it is) and rolled it 2.2 cm away, and the hand closed on nothing (fetch seed 46)
+        offset[1] = math.copysign(max(0.0, abs(offset[1]) - self.config.grasp_clearance_m), offset[1])
+        return sighting.position_m - R_world_hand @ offset
 
     def do_reach(self, step: Step) -> ActionReport:
         """Reach a hand to an object or 'x,y,z' from above (stepping when out of reach), gripper open.
@@ -332,16 +374,16 @@ class ManipulationActions:
         keep = next((quat for quat in (final, upright) if quat and self._hand_at(hand, quat)), None)
         jaws_kept = jaws is not None and keep is not None and (keep is upright or jaws_quat is not None)
         yaw = jaws if jaws_kept else self._heading()  # the steps may have turned it
-        point = self._grasp_point(hand, target, yaw)
         if parse_point(target, 3, "reach target") is None:
+            self._aim_again(hand, target, yaw, keep, lag)
             self.memory.aimed[target] = self.memory.get(target)
+        point = self._grasp_point(hand, target, yaw)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
             f"lower the {hand} hand onto {target}",
             allowed=allowed,
             stepping=False,
-            yaw_rad=yaw,
             orientation=keep,
             lag_m=lag,
         )
@@ -352,6 +394,51 @@ class ManipulationActions:
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
+
+    def _aim_again(
+        self, hand: str, target: str, yaw: float, keep: list[float] | None, lag: float | None
+    ) -> None:
+        """With the ``hand`` above ``target`` (the approach point), before it comes down: look at it and
+        localize it again (the wide pair), nearer than any view before when no last steps were walked
+        (after them it was seen again before the hand rose). Seen elsewhere (:func:`aim_again`: more
+        than ``reaim_m`` aside, less than ``reaim_max_m`` off, about as surely as the sighting aimed
+        at), the hand moves above where it is now (keeping the orientation ``keep``, world [qx, qy,
+        qz, qw], with the lag ``lag`` [m]; no stepping) and that sighting is the one lowered onto;
+        else the earlier one is kept. The hand above it hides part of it: on fetch seed 46 the wide
+        pair found no stereo match, the narrow one put it 2.4 cm off at confidence 0.65 (the view
+        before the hand rose: 2 mm off, 0.97)."""
+        aimed = self.memory.get(target)
+        self.eyes.look_at(aimed.position_m, f"look at {target}")
+        try:
+            seen = self.eyes.locate(target)
+        except NotFoundError as exc:
+            self.progress(f"{target} not seen again with the hand above it ({exc.message})")
+            return
+        c = self.config
+        offset = seen.position_m - aimed.position_m
+        verdict = aim_again(offset, c.reaim_m, c.reaim_max_m, (seen.confidence, aimed.confidence))
+        aside = float(np.linalg.norm(offset[:2]))
+        self.progress(
+            f"{target} seen again with the hand above it, {aside * 100:.1f} cm aside and "
+            f"{offset[2] * 100:+.1f} cm up from where the hand was aimed (confidence "
+            f"{seen.confidence:.2f} against {aimed.confidence:.2f}): {verdict}"
+        )
+        if verdict != AIM_MOVE:
+            self.memory.remember(aimed)
+            return
+        above = self._grasp_point(hand, target, yaw) + np.array([0.0, 0.0, c.approach_m])
+        try:
+            self._move_hand(
+                hand,
+                above,
+                f"the {hand} hand above {target} again",
+                allowed=[],
+                stepping=False,
+                orientation=keep,
+                lag_m=lag,
+            )
+        except InfeasibleError as exc:  # the lowering then goes there from where the hand is
+            self.progress(f"the {hand} hand above {target} again: refused ({exc.message})")
 
     def _jaws_stance(
         self,
@@ -376,36 +463,24 @@ class ManipulationActions:
         (manipulability 5.4e-5, then a wrist joint at its limit); the hand at 134 deg was carried,
         but from that posture (the waist rolled 22 deg) no walk could start (the step back before
         the turn: an arm joint at ~100 rad/s)."""
-        if not self.config.last_steps:
-            return None, jaws
         felt = ", ".join(f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near)
-        # Upright first: the walk is planned from the posture it starts in (as in ``_last_steps``).
-        self.body.straighten()
         for yaw in (jaws, math.remainder(jaws + math.pi, math.tau)):
             quat = Rotation.from_euler("z", yaw).as_quat().tolist()
             point = self._grasp_point(hand, target, yaw)
             # planned above it: the posture reaching goes to first; the lowering keeps its orientation
             over = point + np.array([0.0, 0.0, self.config.approach_m])
-            what = (
-                f"step up to {target}, the jaws at {math.degrees(yaw):.0f} deg (felt at {felt} deg from it)"
+            decided = self._last_steps(
+                hand,
+                over,
+                point,
+                f"step up to {target}, the jaws at {math.degrees(yaw):.0f} deg (felt at {felt} deg from it)",
+                hand_obstacles=keep_out,
+                orientation=quat,
+                step_region_scale=self.config.jaws_step_region_scale,
+                check=lambda planned: self._what_follows_refused(hand, planned.q_final),
             )
-            try:
-                decided = self.planners.last_steps(
-                    hand, over, point, keep_out, quat, self.config.jaws_step_region_scale
-                )
-            except (InfeasibleError, RequestTimeoutError) as exc:
-                self.progress(f"{what}: footsteps/plan found no steps ({exc.message})")
-                continue
-            refused = self._what_follows_refused(hand, decided.q_final)
-            if refused is not None:
-                self.progress(f"{what}: {decided.found}; not taken: {refused}")
-                continue
-            if decided.walk is None:
-                self.progress(f"{what}: {decided.found}: no step needed")
-            else:
-                self.progress(f"{what}: {decided.found}; {decided.walk.describe()}")
-                self.body.execute(decided.walk.q, what=what, progress=self.progress)
-            return decided, yaw
+            if decided is not None:
+                return decided, yaw
         return None, jaws
 
     def _what_follows_refused(self, hand: str, q_final: np.ndarray) -> str | None:
@@ -415,14 +490,7 @@ class ManipulationActions:
         ``_lift_and_carry``), and, from that posture with the chest straightened (as before every
         walk), ``walking/goal`` steps back ``jaws_step_back_m`` (the turn that follows steps back from
         the object's support first)."""
-        x, y, yaw = self.body.base_xy_yaw()
-        carry = self._carry_point(hand)  # in front of the chest at the stance now ...
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = carry[0] - x, carry[1] - y
-        ahead, left = c * dx + s * dy, -s * dx + c * dy
-        fx, fy, fyaw = self.body.robot.mid_feet_pose(q_final)  # ... moved to the planned stance
-        c, s = math.cos(fyaw), math.sin(fyaw)
-        there = np.array([fx + c * ahead - s * left, fy + s * ahead + c * left, carry[2]])
+        there = self._carry_point(hand, pose=self.body.robot.mid_feet_pose(q_final))  # at the planned stance
         try:
             timing = self.config.arm_timing("carry")  # as the carry will be asked for
             self.planners.reach(hand, there, allow_stepping=False, q_start=q_final, timing=timing)
@@ -618,13 +686,15 @@ class ManipulationActions:
         hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
         orientation: list[float] | None = None,
         step_region_scale: float | None = None,
+        check: Callable[[LastSteps], str | None] | None = None,
     ) -> LastSteps | None:
         """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` (turned
         to the world ``orientation`` [qx, qy, qz, qw] if given) and the gaze on ``gaze_m`` (paper 000
         §7: the fine-tuner of the end of the locomotion), the arm out of ``hand_obstacles`` ((centre,
         radius) spheres [m]), with footsteps/plan's step region scaled by ``step_region_scale`` (None:
-        its default), and walked; what it decided (its final posture included), None when it found no
-        steps (reaching steps then if it must)."""
+        its default), and walked unless ``check`` (given what was planned) says why not; what it
+        decided (its final posture included), None when it found no steps or ``check`` refused them
+        (reaching steps then if it must)."""
         if not self.config.last_steps:
             return None
         # Upright first: the walk is planned from the posture the robot will be in when it starts
@@ -637,6 +707,10 @@ class ManipulationActions:
             )
         except (InfeasibleError, RequestTimeoutError) as exc:  # none found, or none within its budget
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")
+            return None
+        refused = None if check is None else check(decided)
+        if refused is not None:
+            self.progress(f"{what}: {decided.found}; not taken: {refused}")
             return None
         if decided.walk is None:
             self.progress(f"{what}: {decided.found}: no step needed")
@@ -694,33 +768,34 @@ class ManipulationActions:
                 best, best_d = [other.name], d
         return best
 
-    def _carry_point(self, hand: str) -> np.ndarray:
-        """In front of the chest, on the hand's side, where a held object is carried [m] (world)."""
-        x, y, yaw = self.body.base_xy_yaw()
+    def _carry_point(self, hand: str, pose: tuple[float, float, float] | None = None) -> np.ndarray:
+        """In front of the chest, on the hand's side, where a held object is carried [m] (world), for the
+        mid-feet ``pose`` (x [m], y [m], yaw [rad]; None: the robot's now)."""
+        x, y, yaw = self.body.base_xy_yaw() if pose is None else pose
         forward, side, height = self.config.carry_m
         lateral = -side if hand == "right" else side
         c, s = math.cos(yaw), math.sin(yaw)
         return np.array([x + c * forward - s * lateral, y + s * forward + c * lateral, height])
 
-    def _lift_and_carry(self, hand: str, allowed: list[str], what: str, *, withdraw: bool = False) -> None:
-        """Raise the hand by ``lift_m``, then bring it to the carry point (no stepping); timed as the
-        config's "lift" and "carry" motions, or both as "withdraw" (the emptied hand after a put)."""
-        q = self.body.q()
-        robot = self.body.robot
-        here = robot.grasp_position(q, hand)
-        yaw = self._heading()
-        up = here + np.array([0.0, 0.0, self.config.lift_m])
-        lift, carry = ("withdraw", "withdraw") if withdraw else ("lift", "carry")
-        self._move_hand(hand, up, f"{what}: lift", allowed=allowed, stepping=False, yaw_rad=yaw, motion=lift)
-        self._move_hand(
-            hand,
-            self._carry_point(hand),
-            f"{what}: carry",
-            allowed=allowed,
-            stepping=False,
-            yaw_rad=yaw,
-            motion=carry,
-        )
+    def _lift_and_carry(
+        self,
+        hand: str,
+        allowed: list[str],
+        what: str,
+        *,
+        up: np.ndarray | None = None,
+        motions: tuple[str, str] = ("lift", "carry"),
+    ) -> None:
+        """Raise the hand to ``up`` [m] (world; None: ``lift_m`` straight above where it is), then bring
+        it to the carry point (no stepping), the two timed as the config's ``motions`` (the grasp's
+        "lift" and "carry"; the emptied hand after a put "withdraw" twice; a held object raised again
+        after a put that touched nothing "raise" and "carry")."""
+        if up is None:
+            here = self.body.robot.grasp_position(self.body.q(), hand)
+            up = here + np.array([0.0, 0.0, self.config.lift_m])
+        lift, carry = motions
+        self._arm_motion(hand, up, f"{what}: lift", allowed=allowed, motion=lift)
+        self._arm_motion(hand, self._carry_point(hand), f"{what}: carry", allowed=allowed, motion=carry)
 
     def do_grasp(self, step: Step) -> ActionReport:
         """Close the hand; ``not_grasped`` if nothing is held. Lifts what it holds and carries it."""
