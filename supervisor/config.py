@@ -123,11 +123,6 @@ class SupervisorConfig:
             (dry runs; none: as without it). felt_obstacle_radius_m: the felt
             points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
             that the arm (forearm, upper arm) keeps out of, with the object itself.
-        reaim_m, reaim_max_m: with the hand above an object to grasp (the approach point), the
-            robot looks at it and localizes it again (nearer than ever before); seen more than
-            reaim_m [m] aside from where the hand was aimed and less than reaim_max_m [m] off in all,
-            the hand moves above where it is now before coming down (fetch seed 46: the hand
-            closed on nothing beside the ball); farther off, the earlier sighting is kept.
         grasp_clearance_m: the hand comes down onto an object with its centre this far [m] from
             where it ends held (against the fixed finger), toward the jaws' middle (never past it):
             the closing finger pushes it the rest of the way (fetch seed 46: lowered against the fixed
@@ -186,9 +181,7 @@ class SupervisorConfig:
     jaws_lag_m: float = 0.001
     jaws_step_back_m: float = 0.15
     felt_obstacle_radius_m: float = 0.03
-    reaim_m: float = 0.015
     grasp_clearance_m: float = 0.01
-    reaim_max_m: float = 0.1
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0

@@ -81,37 +81,6 @@ def jaws_clear_of(
     return math.remainder(heading_rad + best, math.tau)
 
 
-AIM_KEEP = "kept where it was aimed"
-AIM_MOVE = "the hand moves above it"
-AIM_FAR = "too far off to be trusted: kept where it was aimed"
-AIM_HIDDEN = "seen less surely (the hand hides part of it): kept where it was aimed"
-#: A sighting with the hand above the object is trusted when its confidence is at most this much below
-#: the aimed one's. Fetch seed 46, the ball partly hidden by the hand above it: 2.4 cm off at 0.65 (the
-#: narrow pair; the wide one found no stereo match), 3.3 cm off at 0.82, where the views before the
-#: hand rose were 1-2 mm off at 0.97.
-AIM_CONFIDENCE_SLACK = 0.05
-
-
-def aim_again(
-    offset_m: np.ndarray, reaim_m: float, reaim_max_m: float, confidence: tuple[float, float] = (1.0, 1.0)
-) -> str:
-    """What a look at an object with the hand above it decides, from where it was seen again relative
-    to where the hand was aimed (``offset_m``, world [m]) and the two sightings' ``confidence`` (seen
-    now, aimed): ``AIM_HIDDEN`` when it was seen less surely (by more than ``AIM_CONFIDENCE_SLACK``:
-    the hand hides part of it and the centroid shifts); ``AIM_FAR`` when it lies ``reaim_max_m`` off
-    or more (another object, or a bad match); ``AIM_MOVE`` when it lies more than ``reaim_m`` aside
-    (horizontally: the jaws close sideways, the hand comes straight down); ``AIM_KEEP`` otherwise."""
-    seen, aimed = confidence
-    if seen < aimed - AIM_CONFIDENCE_SLACK:
-        return AIM_HIDDEN
-    offset = np.asarray(offset_m, dtype=float)
-    if float(np.linalg.norm(offset)) >= reaim_max_m:
-        return AIM_FAR
-    if float(np.linalg.norm(offset[:2])) > reaim_m:
-        return AIM_MOVE
-    return AIM_KEEP
-
-
 class ManipulationActions:
     """The manipulation actions (a part of :class:`supervisor.actions.Actions`)."""
 
@@ -375,7 +344,6 @@ class ManipulationActions:
         jaws_kept = jaws is not None and keep is not None and (keep is upright or jaws_quat is not None)
         yaw = jaws if jaws_kept else self._heading()  # the steps may have turned it
         if parse_point(target, 3, "reach target") is None:
-            self._aim_again(hand, target, yaw, keep, lag)
             self.memory.aimed[target] = self.memory.get(target)
         point = self._grasp_point(hand, target, yaw)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
@@ -394,51 +362,6 @@ class ManipulationActions:
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
         )
-
-    def _aim_again(
-        self, hand: str, target: str, yaw: float, keep: list[float] | None, lag: float | None
-    ) -> None:
-        """With the ``hand`` above ``target`` (the approach point), before it comes down: look at it and
-        localize it again (the wide pair), nearer than any view before when no last steps were walked
-        (after them it was seen again before the hand rose). Seen elsewhere (:func:`aim_again`: more
-        than ``reaim_m`` aside, less than ``reaim_max_m`` off, about as surely as the sighting aimed
-        at), the hand moves above where it is now (keeping the orientation ``keep``, world [qx, qy,
-        qz, qw], with the lag ``lag`` [m]; no stepping) and that sighting is the one lowered onto;
-        else the earlier one is kept. The hand above it hides part of it: on fetch seed 46 the wide
-        pair found no stereo match, the narrow one put it 2.4 cm off at confidence 0.65 (the view
-        before the hand rose: 2 mm off, 0.97)."""
-        aimed = self.memory.get(target)
-        self.eyes.look_at(aimed.position_m, f"look at {target}")
-        try:
-            seen = self.eyes.locate(target)
-        except NotFoundError as exc:
-            self.progress(f"{target} not seen again with the hand above it ({exc.message})")
-            return
-        c = self.config
-        offset = seen.position_m - aimed.position_m
-        verdict = aim_again(offset, c.reaim_m, c.reaim_max_m, (seen.confidence, aimed.confidence))
-        aside = float(np.linalg.norm(offset[:2]))
-        self.progress(
-            f"{target} seen again with the hand above it, {aside * 100:.1f} cm aside and "
-            f"{offset[2] * 100:+.1f} cm up from where the hand was aimed (confidence "
-            f"{seen.confidence:.2f} against {aimed.confidence:.2f}): {verdict}"
-        )
-        if verdict != AIM_MOVE:
-            self.memory.remember(aimed)
-            return
-        above = self._grasp_point(hand, target, yaw) + np.array([0.0, 0.0, c.approach_m])
-        try:
-            self._move_hand(
-                hand,
-                above,
-                f"the {hand} hand above {target} again",
-                allowed=[],
-                stepping=False,
-                orientation=keep,
-                lag_m=lag,
-            )
-        except InfeasibleError as exc:  # the lowering then goes there from where the hand is
-            self.progress(f"the {hand} hand above {target} again: refused ({exc.message})")
 
     def _jaws_stance(
         self,

@@ -2,16 +2,18 @@
 
 ``ManipulationActions._where_it_was_aimed`` (fetch seed 37: a relocalization from the backed-off hand
 put the ball 0.13 m off and 0.12 m low, less confidently, and the jaws were turned for the wrong
-neighbour) and :func:`~supervisor.manipulation.aim_again` (with the hand above the ball, seen again:
-the hand moves above where it is now, or not; fetch seed 46: the hand closed on nothing beside it)."""
+neighbour) and ``_grasp_point`` (fetch seed 46: aimed with the ball against the fixed finger, the hand
+came down on the ball's side, rolled it away and closed on nothing)."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
 
 from supervisor.config import SupervisorConfig
-from supervisor.manipulation import AIM_FAR, AIM_HIDDEN, AIM_KEEP, AIM_MOVE, ManipulationActions, aim_again
+from supervisor.manipulation import ManipulationActions
 from supervisor.memory import Memory, Sighting
 
 AIMED = np.array([3.33, 1.13, 0.75])  # where the last lowering aimed (seen from near) [m]
@@ -70,27 +72,30 @@ def test_without_an_earlier_lowering_the_sighting_is_kept(actions):
     assert np.allclose(actions.memory.get("orange_ball").position_m, latest)
 
 
-@pytest.mark.parametrize(
-    ("offset", "verdict"),
-    [
-        ((0.0, 0.0, 0.0), AIM_KEEP),
-        ((0.01, -0.008, 0.0), AIM_KEEP),  # 1.3 cm aside: within reaim_m
-        ((0.0, 0.0, -0.04), AIM_KEEP),  # only lower: the hand comes straight down anyway
-        ((0.025, 0.01, 0.0), AIM_MOVE),  # fetch seed 46's kind: a few centimetres aside
-        ((-0.06, 0.05, -0.02), AIM_MOVE),
-        ((0.09, 0.0, -0.05), AIM_FAR),  # 10.3 cm off in all: not trusted with the hand above it
-        ((0.2, 0.0, 0.0), AIM_FAR),
-    ],
-)
-def test_seen_again_with_the_hand_above_it(offset, verdict):
-    config = SupervisorConfig()
-    assert aim_again(np.array(offset), config.reaim_m, config.reaim_max_m) == verdict
 
+@pytest.mark.parametrize("yaw_deg", [-14.0, 0.0, 120.0])
+def test_the_ball_goes_down_between_the_jaws_clear_of_the_fixed_finger(yaw_deg):
+    """Fetch seed 46: the ball (radius 0.05 m) seen 0.097 m wide, aimed against the fixed finger, had
+    its side under that finger; now its surface is ``grasp_clearance_m`` less the 1.5 mm it was seen
+    too small off the fixed finger, and off the open moving finger too (the hand's own gap, 0.13 m)."""
+    from services.model.robot_model import load_robot
+    from sim.robot_info import robot_info_reply
+    from supervisor.body import Body
 
-def test_seen_less_surely_with_the_hand_above_it_keeps_the_aim():
-    """Fetch seed 46: the ball half hidden by the hand above it, seen 2.4 cm off at confidence 0.65
-    (aimed at 0.97): not a reason to move the hand."""
-    config = SupervisorConfig()
-    offset = np.array([-0.019, 0.01, -0.014])
-    assert aim_again(offset, config.reaim_m, config.reaim_max_m, (0.65, 0.97)) == AIM_HIDDEN
-    assert aim_again(offset, config.reaim_m, config.reaim_max_m, (0.95, 0.97)) == AIM_MOVE
+    actions = ManipulationActions()
+    actions.config = SupervisorConfig()
+    actions.memory = Memory()
+    actions.body = Body(bus=None)
+    actions.body.robot._info = robot_info_reply(load_robot("hrp2_like"))  # the sim's reply, no bus
+    actions.memory.remember(dataclasses.replace(_ball(AIMED, 0.97), size_m=(0.097, 0.097)))
+    yaw = np.radians(yaw_deg)
+    point = actions._grasp_point("right", "orange_ball", yaw)
+    # The ball's centre in the grasp frame (turned by yaw about the vertical), the fixed finger at +y.
+    c, s = np.cos(yaw), np.sin(yaw)
+    in_hand = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) @ (AIMED - point)
+    fixed_y = actions.body.robot.info.fixed_finger_y_m["right"]
+    radius = 0.05  # the ball's own
+    clearance = actions.config.grasp_clearance_m
+    assert fixed_y - (in_hand[1] + radius) == pytest.approx(clearance - 0.0015, abs=1e-6)
+    assert (in_hand[1] - radius) - (-fixed_y) > clearance  # the moving finger, open, farther still
+    assert abs(in_hand[0]) < 1e-9 and abs(in_hand[2]) < 1e-9
