@@ -32,10 +32,7 @@ class SupervisorConfig:
             this far from its mid-feet point; max_step_back_m: by at most this much at once;
         far_m, near_m: an object farther than far_m is first approached to near_m and localized again
             (near_face_m from a free face of it when there is no walk to the pose near_m short of it,
-            and not at all when there is none to a face either); approach_face_m: first, that far in
-            front of the free face navigation would walk to (0: off): the walk to the object is then
-            straight ahead (from near_m short of the middle, the face chosen was often to the side:
-            14-24 steps sideways and turning in session 9's fetches);
+            and not at all when there is none to a face either);
         retry_budget_s, retry_turning_radius_m: when navigation finds no path in its default budget,
             the second search's budget and turning radius (the first's is navigation's 0.5 m);
         walk_double_support_s: double support between the steps of a walk, 0.2 s. Kajita's HRP-2 0.1 s
@@ -140,7 +137,6 @@ class SupervisorConfig:
     far_m: float = 2.2
     near_m: float = 1.8
     near_face_m: float = 1.0
-    approach_face_m: float = 1.5
     retry_budget_s: float = 4.0
     retry_turning_radius_m: float = 0.3
     walk_double_support_s: float = 0.2

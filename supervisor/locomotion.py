@@ -147,12 +147,8 @@ class LocomotionActions:
 
     def _approach(self, name: str) -> None:
         """Far objects are seen roughly (a table 3 m away: its silhouette is a thin top on thin legs):
-        walk near it first, facing it, and localize it again from there: ``approach_face_m`` in front
-        of the free face of its map box that navigation would walk to (the walk to the object that
-        follows is then straight ahead: stopped facing the middle of the box, the face chosen from
-        there was often to the side, and that walk took 14-24 steps sideways and turning), else (0, or
-        no walk there) ``near_m`` short of the middle of its map box (the middle of its silhouette can
-        be a leg), else ``near_face_m`` from a free face."""
+        walk to ``near_m`` short of the middle of its map box first (the middle of its silhouette can be
+        a leg), facing it, and localize it again from there."""
         centre = np.asarray(box_estimate(self.memory.get(name)).center_m[:2])
         x, y, _yaw = self.body.base_xy_yaw()
         to = centre - (x, y)
@@ -162,27 +158,18 @@ class LocomotionActions:
         u = to / dist
         stop = centre - u * self.config.near_m
         what = f"approach {name}"
-        plan = None
-        if self.config.approach_face_m > 0.0:
+        try:
+            plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
+        except InfeasibleError as exc:
+            self.progress(f"{what}: no walk to {self.config.near_m:.1f} m short of it: {exc.message}")
             try:
-                plan = self.planners.goto_object(name, self.config.approach_face_m)
-            except InfeasibleError as exc:
-                self.progress(
-                    f"{what}: no walk to {self.config.approach_face_m:.1f} m from a face: {exc.message}"
-                )
-        if plan is None:
-            try:
-                plan = self.planners.goto_pose(float(stop[0]), float(stop[1]), math.atan2(u[1], u[0]))
-            except InfeasibleError as exc:
-                self.progress(f"{what}: no walk to {self.config.near_m:.1f} m short of it: {exc.message}")
-                try:
-                    plan = self.planners.goto_object(name, self.config.near_face_m)
-                except InfeasibleError as again:
-                    # Only a closer look is lost: the walk to the object itself plans with what is known.
-                    self.progress(f"{what}: none to a free face of it either ({again.message}): going on")
-                    return
+                plan = self.planners.goto_object(name, self.config.near_face_m)
+            except InfeasibleError as again:
+                # Only a closer look is lost: the walk to the object itself plans with what is known.
+                self.progress(f"{what}: none to a free face of it either ({again.message}): going on")
+                return
         self.progress(
-            f"{what} (seen {dist:.1f} m away: will look again from there): "
+            f"{what} (seen {dist:.1f} m away: will look again from {self.config.near_m:.1f} m): "
             f"{plan.describe()}"
         )
         self.body.execute(plan.q, what=what, progress=self.progress)
