@@ -39,7 +39,10 @@ class SupervisorConfig:
             passed session 9's fall study (``scripts/walk_timing_study.py``: 0 falls in 25 fetch-like
             walks at 0.7 / 0.1 s) but not the fetch: seeds 16 and 43 fell (tilt 28.7-28.9 deg, at
             the end of a 24-step straight walk and early in a 21-step one), seed 16 deterministically,
-            and at 0.2 s seed 16 succeeds (session 9's notes); 0.3 s before session 8.
+            and at 0.2 s seed 16 succeeds (session 9's notes); 0.3 s before session 8. The cause
+            (session 10, services/walking/README.md): touchdowns 30-90 ms off their planned time eat the
+            0.1 s, each weight transfer becomes a jolt that feeds the robot's rocking from foot to foot
+            (steps in place and sideways most), which nothing damps in open loop.
     Manipulation:
         last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
             the end of the approach) for the last steps, within last_steps_max steps and

@@ -174,6 +174,36 @@ def test_goal_pose_relative_to_the_robot_is_reached_within_the_bounds():
     assert [s.pose for s in world.steps] == pytest.approx([s.pose for s in back.steps])
 
 
+def test_a_walk_there_then_a_turn_turns_in_few_steps_and_may_face_the_way():
+    """Fetch seed 16's walk to the box: 1.02 m forward, 0.51 m left, -32 deg. Together the feet would
+    cross; walked there first, its turn took as many steps as the walk (24 steps, 12 of them turning
+    by 2.9 deg): now the turn takes the fewest pairs (2 steps), and facing the way (turn toward the
+    goal, walk straight, turn there: navigation's straight walks) is taken when it has fewer steps.
+    Both end at the goal, within the bounds."""
+    from services.model.ground import FootstepBounds, validate_footsteps
+    from services.walking.goals import walk_to_steps
+
+    robot = load_robot("hrp2_like")
+    soles = soles_on(robot, np.array(robot.q_half_sitting))
+    limits = FootstepBounds.from_robot(robot)
+    goal = (1.02, 0.51, math.radians(-32.0))
+    start = mid_feet(soles["left"], soles["right"])
+    for face, most in ((False, 14), (True, 13)):
+        seq = walk_to_steps(soles, *goal, limits, face_the_way=face)
+        validate_footsteps(seq, limits)
+        assert len(seq.steps) <= most
+        end = mid_feet(*seq.final_stance()).relative_to(start)
+        assert end == pytest.approx(goal, abs=1e-3)
+    turns = [
+        s for s in walk_to_steps(soles, *goal, limits).steps if abs(s.pose.yaw_rad - start.yaw_rad) > 1e-6
+    ]
+    assert len(turns) == 2
+    # 0.9 m to the left and 0.4 m forward: stepping sideways cannot (the feet cross), facing the way can.
+    with pytest.raises(InfeasibleError):
+        walk_to_steps(soles, 0.4, 0.9, 0.3, limits)
+    assert len(walk_to_steps(soles, 0.4, 0.9, 0.3, limits, face_the_way=True).steps) <= 14
+
+
 def test_goal_turn_on_the_spot_and_the_walk_it_plans():
     robot = load_robot("hrp2_like")
     reply = goal_reply(_goal(kind="turn", angle_rad=math.radians(90)))

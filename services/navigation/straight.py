@@ -73,7 +73,9 @@ def straight_walk(
     dyaw = math.remainder(goal.theta_rad - start.theta_rad, 2.0 * math.pi)
     limits = FootstepBounds.from_robot(robot)
     try:
-        sequence = walk_to_steps({"left": soles[0], "right": soles[1]}, dx, dy, dyaw, limits)
+        sequence = walk_to_steps(
+            {"left": soles[0], "right": soles[1]}, dx, dy, dyaw, limits, face_the_way=True
+        )
         check_clear(
             sequence,
             floor_boxes(scene),
