@@ -41,11 +41,11 @@ from services.walking.two_stage import COM_LOWERINGS_M
 REPLAN_EXTRA_MARGIN_M = 0.02
 """Margin [m] added, beyond the clearance missing, when stage 2 sends stage 1 back for a new path."""
 SLOW_WALK_FACTOR = 1.5
-#: CoM lowering [m] of a walk whose first whole-body motion has a joint too fast (the first nonzero of
-#: ``COM_LOWERINGS_M``: 2 cm made seed 6's walks with a stretched leg executable, 4 cm made others ring).
-STRETCHED_LEG_LOWERING_M = COM_LOWERINGS_M[1]
 """Single supports this much longer when stage 2's walk moves a joint faster than its limit: first those
 of the steps moving while it does, then (once more too fast) every step's."""
+STRETCHED_LEG_LOWERING_M = COM_LOWERINGS_M[1]
+"""CoM lowering [m] tried first when stage 2's walk moves a joint faster than its limit (the first nonzero
+of ``COM_LOWERINGS_M``: 2 cm made seed 6's walks with a stretched leg executable, 4 cm made others ring)."""
 ESCAPE_EXTRA_MARGIN_M = 0.02
 """A start overlapping an obstacle escapes to a pose this much clearer [m] than stage 1 requires."""
 log = logging.getLogger("humanoid.navigation")
