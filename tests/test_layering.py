@@ -82,9 +82,9 @@ class Import:
     lazy: bool
 
 
-def module_name(path: Path) -> str:
+def module_name(path: Path, root: Path = ROOT) -> str:
     """``services/walking/sweep.py`` -> ``services.walking.sweep``; a package's ``__init__``: the package."""
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    parts = list(path.relative_to(root).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts.pop()
     return ".".join(parts)
@@ -118,7 +118,7 @@ def read_imports(root: Path = ROOT) -> dict[str, list[Import]]:
 
     ``from a.b import c`` imports ``a.b.c`` when that is a module, else ``a.b``; importing ``a.b.c``
     also runs the packages ``a`` and ``a.b`` (their ``__init__``)."""
-    files = {module_name(p): p for top in SCANNED for p in sorted((root / top).rglob("*.py"))}
+    files = {module_name(p, root): p for top in SCANNED for p in sorted((root / top).rglob("*.py"))}
     modules = set(files)
     graph: dict[str, list[Import]] = {}
     for module, path in files.items():
