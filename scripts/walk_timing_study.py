@@ -9,7 +9,10 @@ out), then plans from the state the sim reports, as the supervisor does:
   whole-body stage 2 with its per-step slowdown when a joint is too fast) to a pose 1-3 m away in any
   direction, any final heading (turning steps, curves);
 - ``turn``: a turn on the spot of 60-180 deg (``turn_in_place``), as the fetch's turn after a grasp;
-- ``back``: 0.3-0.45 m straight back (the step back before that turn).
+- ``back``: 0.3-0.45 m straight back (the step back before that turn);
+- ``near``: navigation's walk to a goal 0.6-1.4 m away, up to 60 deg to the side and turned by up to
+  45 deg (the walk to the box or the table after the approach: walked straight, sideways and turning,
+  or facing the way: turning toward it, walking, turning there).
 
 and executes it (``World.execute``). Per setting: walks planned, refused by the planner, fallen,
 completed; the smallest planned multibody ZMP margin; the fastest knee (LEG_JOINT3) of the executed
@@ -45,9 +48,12 @@ from services.walking.footsteps import FootstepBounds, straight_walk, turn_in_pl
 from services.walking.timing import WalkTiming  # noqa: E402
 from services.walking.wholebody import plan_walk  # noqa: E402
 from sim.world import World  # noqa: E402
+from supervisor.config import SupervisorConfig  # noqa: E402
 
-CARRY_M = (0.25, -0.22, 0.85)  # supervisor.config carry_m for the right hand (forward, lateral, height)
+_FORWARD_M, _SIDE_M, _HEIGHT_M = SupervisorConfig().carry_m
+CARRY_M = (_FORWARD_M, -_SIDE_M, _HEIGHT_M)  # the supervisor's carry point, right hand (lateral to the right)
 KNEES = ("LLEG_JOINT3", "RLEG_JOINT3")
+KINDS = ("goto", "turn", "back", "near")
 
 
 def _carry(world: World) -> None:
@@ -66,11 +72,12 @@ def _carry(world: World) -> None:
 
 def _plan(
     world: World, kind: str, rng_values: dict[str, float], timing: WalkTiming
-) -> tuple[np.ndarray, float]:
-    """(q trajectory, smallest planned multibody ZMP margin [m]) of the walk ``kind`` from the sim's state."""
+) -> tuple[np.ndarray, float, int, str]:
+    """(q trajectory, smallest planned multibody ZMP margin [m], steps, path curve) of the walk ``kind``
+    from the sim's state."""
     robot = world.robot
     q = world.state().q
-    if kind == "goto":
+    if kind in ("goto", "near"):
         start = start_pose(robot, q)
         d, bearing, heading = rng_values["d"], rng_values["bearing"], rng_values["heading"]
         goal = Pose2D(
@@ -87,7 +94,8 @@ def _plan(
         )
         options = GotoOptions(stage2=Stage2Options(timing=timing))
         result = plan_goto(robot, Scene((), bounds), q, goal, options=options)
-        return result.motion.q, float(result.motion.zmp_margin_m)
+        steps = len(result.footsteps.sequence.steps)
+        return result.motion.q, float(result.motion.zmp_margin_m), steps, result.path.curve
     data = robot.new_data()
     left, right = (sole_pose_at(robot, q, side, data) for side in ("left", "right"))
     limits = FootstepBounds.from_robot(robot)
@@ -104,7 +112,7 @@ def _plan(
         n = max(2, round(rng_values["back"] / 0.1))
         seq = straight_walk(n, -rng_values["back"] / n, left_start=left, right_start=right, limits=limits)
     plan = plan_walk(robot, seq, q, timing=timing)
-    return plan.q, float(plan.min_zmp_margin_m)
+    return plan.q, float(plan.min_zmp_margin_m), len(seq.steps), kind
 
 
 def _knee_ratio(robot, q: np.ndarray, dt_s: float = 0.005) -> float:
@@ -129,7 +137,7 @@ def run_one(
         if carrying:
             _carry(world)
         try:
-            q, margin = _plan(world, kind, values, timing)
+            q, margin, row["steps"], row["curve"] = _plan(world, kind, values, timing)
         except HumanoidError as exc:
             row.update(outcome="refused", message=str(exc)[:200])
             return row
@@ -142,13 +150,13 @@ def run_one(
     return row
 
 
-def walks(n: int, seed: int) -> list[tuple[int, str, bool, dict[str, float]]]:
-    """The seeded walk set: goto, turn, back in turn, carrying on every other one of each kind."""
+def walks(n: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[tuple[int, str, bool, dict[str, float]]]:
+    """The seeded walk set: ``kinds`` in turn, carrying on every other one of each kind."""
     rng = np.random.default_rng(seed)
     out = []
     for i in range(n):
-        kind = ("goto", "turn", "back")[i % 3]
-        carrying = (i // 3) % 2 == 0
+        kind = kinds[i % len(kinds)]
+        carrying = (i // len(kinds)) % 2 == 0
         values = {
             "d": float(rng.uniform(1.0, 3.0)),
             "bearing": float(rng.uniform(-math.pi, math.pi)),
@@ -156,7 +164,18 @@ def walks(n: int, seed: int) -> list[tuple[int, str, bool, dict[str, float]]]:
             "angle": float(rng.choice([-1, 1]) * rng.uniform(math.radians(60), math.pi)),
             "back": float(rng.uniform(0.3, 0.45)),
         }
-        keep = {"goto": ("d", "bearing", "heading"), "turn": ("angle",), "back": ("back",)}[kind]
+        if kind == "near":
+            values.update(
+                d=float(rng.uniform(0.6, 1.4)),
+                bearing=float(rng.uniform(-math.pi / 3, math.pi / 3)),
+                heading=float(rng.uniform(-math.pi / 4, math.pi / 4)),
+            )
+        keep = {
+            "goto": ("d", "bearing", "heading"),
+            "near": ("d", "bearing", "heading"),
+            "turn": ("angle",),
+            "back": ("back",),
+        }[kind]
         out.append((i, kind, carrying, {k: values[k] for k in keep}))
     return out
 
@@ -188,6 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=12, help="walks (goto, turn, back in turn)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--kinds", default=",".join(KINDS), help="walk kinds in turn")
     parser.add_argument("--start", type=int, default=0, help="first walk index (resume a run)")
     parser.add_argument("--settings", default="0.7/0.2,0.7/0.1,0.6/0.2,0.6/0.1", help="ss/ds pairs [s]")
     parser.add_argument("--out", default="/tmp/walk_timing_study.jsonl")
@@ -197,7 +217,8 @@ def main(argv: list[str] | None = None) -> int:
     if not args.summarize:
         settings = [tuple(float(v) for v in s.split("/")) for s in args.settings.split(",")]
         with out.open("a") as f:
-            for index, kind, carrying, values in walks(args.n, args.seed)[args.start :]:
+            kinds = tuple(args.kinds.split(","))
+            for index, kind, carrying, values in walks(args.n, args.seed, kinds)[args.start :]:
                 for setting in settings:
                     row = run_one(index, kind, carrying, values, setting)  # type: ignore[arg-type]
                     f.write(json.dumps(row) + "\n")

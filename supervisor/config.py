@@ -39,7 +39,10 @@ class SupervisorConfig:
             passed session 9's fall study (``scripts/walk_timing_study.py``: 0 falls in 25 fetch-like
             walks at 0.7 / 0.1 s) but not the fetch: seeds 16 and 43 fell (tilt 28.7-28.9 deg, at
             the end of a 24-step straight walk and early in a 21-step one), seed 16 deterministically,
-            and at 0.2 s seed 16 succeeds (session 9's notes); 0.3 s before session 8.
+            and at 0.2 s seed 16 succeeds (session 9's notes); 0.3 s before session 8. The cause
+            (session 10, services/walking/README.md): touchdowns 30-90 ms off their planned time eat the
+            0.1 s, each weight transfer becomes a jolt that feeds the robot's rocking from foot to foot
+            (steps in place and sideways most), which nothing damps in open loop.
     Manipulation:
         last_steps: before a reach or a put, ask ``footsteps/plan`` (paper 000 §7: the fine-tuner of
             the end of the approach) for the last steps, within last_steps_max steps and
@@ -123,6 +126,10 @@ class SupervisorConfig:
             (dry runs; none: as without it). felt_obstacle_radius_m: the felt
             points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
             that the arm (forearm, upper arm) keeps out of, with the object itself.
+        grasp_clearance_m: the hand comes down onto an object with its centre this far [m] from
+            where it ends held (against the fixed finger), toward the jaws' middle (never past it):
+            the closing finger pushes it the rest of the way (fetch seed 46: lowered against the fixed
+            finger, the ball seen 1.5 mm smaller than it is was rolled 2.2 cm away).
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
@@ -177,6 +184,7 @@ class SupervisorConfig:
     jaws_lag_m: float = 0.001
     jaws_step_back_m: float = 0.15
     felt_obstacle_radius_m: float = 0.03
+    grasp_clearance_m: float = 0.01
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0

@@ -174,6 +174,36 @@ def test_goal_pose_relative_to_the_robot_is_reached_within_the_bounds():
     assert [s.pose for s in world.steps] == pytest.approx([s.pose for s in back.steps])
 
 
+def test_a_walk_there_then_a_turn_turns_in_few_steps_and_may_face_the_way():
+    """Fetch seed 16's walk to the box: 1.02 m forward, 0.51 m left, -32 deg. Together the feet would
+    cross; walked there first, its turn took as many steps as the walk (24 steps, 12 of them turning
+    by 2.9 deg): now the turn takes the fewest pairs (2 steps), and facing the way (turn toward the
+    goal, walk straight, turn there: navigation's straight walks) is taken when it has fewer steps.
+    Both end at the goal, within the bounds."""
+    from services.model.ground import FootstepBounds, validate_footsteps
+    from services.walking.goals import walk_to_steps
+
+    robot = load_robot("hrp2_like")
+    soles = soles_on(robot, np.array(robot.q_half_sitting))
+    limits = FootstepBounds.from_robot(robot)
+    goal = (1.02, 0.51, math.radians(-32.0))
+    start = mid_feet(soles["left"], soles["right"])
+    for face, most in ((False, 14), (True, 13)):
+        seq = walk_to_steps(soles, *goal, limits, face_the_way=face)
+        validate_footsteps(seq, limits)
+        assert len(seq.steps) <= most
+        end = mid_feet(*seq.final_stance()).relative_to(start)
+        assert end == pytest.approx(goal, abs=1e-3)
+    turns = [
+        s for s in walk_to_steps(soles, *goal, limits).steps if abs(s.pose.yaw_rad - start.yaw_rad) > 1e-6
+    ]
+    assert len(turns) == 2
+    # 0.9 m to the left and 0.4 m forward: stepping sideways cannot (the feet cross), facing the way can.
+    with pytest.raises(InfeasibleError):
+        walk_to_steps(soles, 0.4, 0.9, 0.3, limits)
+    assert len(walk_to_steps(soles, 0.4, 0.9, 0.3, limits, face_the_way=True).steps) <= 14
+
+
 def test_goal_turn_on_the_spot_and_the_walk_it_plans():
     robot = load_robot("hrp2_like")
     reply = goal_reply(_goal(kind="turn", angle_rad=math.radians(90)))
@@ -394,3 +424,36 @@ def test_humanoid_call_walking_plan_with_plain_json(services):
     assert len(reply["q"]) == len(reply["times_s"]) and len(reply["q"][0]) == 37
     assert reply["final_right_sole"] == [0.2, -0.095, 0.0]
     assert reply["figures"]["worst_zmp_outside_m"] == 0.0
+
+
+def test_a_robot_standing_taller_walks_with_its_com_lowered():
+    """After a reach the robot may stand a few cm higher than half-sitting (seed 6 of the fetch: 3.2 cm):
+    walking 0.2 m steps at that CoM height stretches the front leg at heel strike near its straight knee,
+    and a joint is refused for its speed (the knee, before session 10 a free arm ringing at 84-110
+    rad/s); walking/plan then lowers the CoM (COM_LOWERINGS_M) and returns a walk within every joint's
+    speed limit, unless the request fixes the CoM height."""
+    from services.ik import ComPositionTask, FramePoseTask, HierarchicalSolver, Level, PostureTask
+
+    robot = load_robot("hrp2_like")
+    data, model, q0 = robot.new_data(), robot.model, robot.q_half_sitting
+    feet = tuple(
+        FramePoseTask(model, robot.frames.sole(s), robot.frame_pose(q0, robot.frames.sole(s), data), name=s)
+        for s in ("left", "right")
+    )
+    com = ComPositionTask(model, robot.com(q0, data) + np.array([0.0, 0.0, 0.035]))
+    levels = [Level(feet), Level((com,)), Level((PostureTask(model, q0),), damping=1e-6)]
+    q_tall = HierarchicalSolver(model).run(levels, q0, max_iters=200).q
+    standing_m = float(robot.com(q_tall, data)[2])
+    steps = [
+        {"side": "right", "pose": [0.1, -0.095, 0.0]},
+        {"side": "left", "pose": [0.3, 0.095, 0.0]},
+        {"side": "right", "pose": [0.5, -0.095, 0.0]},
+        {"side": "left", "pose": [0.5, 0.095, 0.0]},
+    ]
+    request = {"steps": steps, "q_start": q_tall.tolist()}
+    with pytest.raises(InfeasibleError, match=r"JOINT\d+ would move at .* rad/s"):
+        plan_reply(from_builtins({**request, "com_height_m": standing_m}, msg.PlanRequest))
+    reply = plan_reply(from_builtins(request, msg.PlanRequest))
+    speed = np.abs(np.diff(reply.q[:, 7:], axis=0)) / (reply.times_s[1] - reply.times_s[0])
+    assert np.all(speed <= robot.v_max[6:] + 1e-9)
+    assert reply.com_m[-1, 2] < standing_m - 0.015  # it walked lower

@@ -19,7 +19,7 @@ on the spot needs room around the mid-feet point. Pure: no bus here (``service.p
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -126,11 +126,20 @@ def walk_to_steps(
     dyaw_rad: float,
     limits: FootstepBounds,
     lead: str | None = None,
+    *,
+    face_the_way: bool = False,
 ) -> FootstepSequence:
     """Footsteps that bring the mid-feet frame to (dx, dy [m], dyaw [rad]) in the starting mid-feet frame,
     the feet side by side at the end (a staggered start is evened out on the way). ``lead``: the foot
     that steps first (None: toward the side or the turn; straight back from a staggered stance, the
     front foot).
+
+    Stepping forward, sideways and turning together; when that crosses the feet, walking there and then
+    turning on the spot (:func:`turn_steps`). With ``face_the_way`` (a walk farther than
+    ``FACE_THE_WAY_MIN_M``), also turning toward the goal first, walking straight to it and turning to
+    the goal's heading there: of these, the walk of fewest steps (a sideways step gains at most
+    dy_max - spacing, 6 cm for HRP-2, a forward one 0.22 m: fetch seed 16's 1.0 m forward, 0.5 m
+    left, -32 deg took 24 steps, 12 of them turning on the spot by 2.9 deg each).
 
     Raises:
         InfeasibleError: no count of steps fits the bounds (:func:`fit_to_bounds`).
@@ -146,24 +155,99 @@ def walk_to_steps(
         first = front
     first = lead or first
 
-    def fractions(n: int) -> list[float]:  # n steps, the last one bringing the feet side by side
-        return [min(k, n - 1) / (n - 1) for k in range(1, n + 1)]
-
-    def along(poses: list[tuple[float, float, float]]) -> FootstepSequence:
-        return footsteps_along_mid_poses(poses, first, left_start=soles["left"], right_start=soles["right"])
-
     def together(n: int) -> FootstepSequence:
-        return along([(f * dx_m, f * dy_m, f * dyaw_rad) for f in fractions(n)])
+        return _along_line(soles, dx_m, dy_m, dyaw_rad, first, n)
 
-    def turn_last(n: int) -> FootstepSequence:  # walk there, then turn on the spot
-        m = max(2, n // 2)
-        walk = [(f * dx_m, f * dy_m, 0.0) for f in fractions(m)]
-        return along(walk + [(dx_m, dy_m, f * dyaw_rad) for f in fractions(max(2, n - m))])
+    goal = mid_feet(soles["left"], soles["right"]).compose(dx_m, dy_m, dyaw_rad)
 
-    try:
+    def turn_last() -> FootstepSequence:  # walk there, then turn on the spot
+        return _walk_then_turn(soles, goal, limits, first)
+
+    def straight() -> FootstepSequence:
         return fit_to_bounds(together, 2, limits, "a straight walk")
-    except InfeasibleError:  # turning while stepping sideways can cross the feet
-        return fit_to_bounds(turn_last, 4, limits, "a straight walk, then a turn")
+
+    if face_the_way and math.hypot(dx_m, dy_m) >= FACE_THE_WAY_MIN_M:
+        return _fewest_steps([straight, turn_last, lambda: _facing_the_way(soles, goal, limits)])
+    # turning while stepping sideways can cross the feet: then walking there first, and turning
+    return _fewest_steps([straight], [turn_last])
+
+
+def _fewest_steps(*groups: list[Callable[[], FootstepSequence]]) -> FootstepSequence:
+    """The sequence of fewest steps of the first group with a feasible one (the first of equals);
+    InfeasibleError of the last one tried when none is."""
+    error: InfeasibleError | None = None
+    for group in groups:
+        found = []
+        for make in group:
+            try:
+                found.append(make())
+            except InfeasibleError as exc:
+                error = exc
+        if found:
+            return min(found, key=lambda seq: len(seq.steps))
+    assert error is not None
+    raise error
+
+
+#: A walk to a pose farther than this [m] may turn toward it first (``walk_to_steps(face_the_way=True)``).
+FACE_THE_WAY_MIN_M = 0.4
+
+
+def _fractions(n: int) -> list[float]:
+    """Mid-feet fractions of a walk of ``n`` steps, the last one bringing the feet side by side."""
+    return [min(k, n - 1) / (n - 1) for k in range(1, n + 1)]
+
+
+def _along_line(
+    soles: dict[str, SolePose], dx_m: float, dy_m: float, dyaw_rad: float, first: str, n: int
+) -> FootstepSequence:
+    """``n`` steps bringing the mid-feet frame evenly to (dx, dy, dyaw) of the starting mid-feet frame."""
+    poses = [(f * dx_m, f * dy_m, f * dyaw_rad) for f in _fractions(n)]
+    return footsteps_along_mid_poses(poses, first, left_start=soles["left"], right_start=soles["right"])
+
+
+def _then_turn(walk: FootstepSequence, angle_rad: float, limits: FootstepBounds) -> FootstepSequence:
+    """``walk`` followed by a turn on the spot by ``angle_rad`` where it ends (none below 1e-6 rad)."""
+    if abs(angle_rad) < 1e-6:
+        return walk
+    left, right = walk.final_stance()
+    return joined(walk, turn_steps({"left": left, "right": right}, angle_rad, limits))
+
+
+def _walk_then_turn(
+    soles: dict[str, SolePose], goal: SolePose, limits: FootstepBounds, first: str | None = None
+) -> FootstepSequence:
+    """Walk straight (the heading kept) to the mid-feet ``goal`` (world), then turn on the spot to its
+    heading. A turn on the spot moves the opening foot outward (:func:`turn_in_place`) and the mid-feet
+    point a few mm to cm aside: the walk aims at the goal less that shift (measured on a first try)."""
+    mid = mid_feet(soles["left"], soles["right"])
+    aim = goal
+    for _ in range(2):
+        gx, gy, _ = SolePose(aim.x_m, aim.y_m, 0.0).relative_to(mid)
+        side = first or ("left" if gy > 0.02 else "right")
+        walk = fit_to_bounds(
+            lambda n, gx=gx, gy=gy, side=side: _along_line(soles, gx, gy, 0.0, side, n),
+            2,
+            limits,
+            "a straight walk, then a turn",
+        )
+        end = mid_feet(*walk.final_stance())
+        whole = _then_turn(walk, math.remainder(goal.yaw_rad - end.yaw_rad, 2 * math.pi), limits)
+        reached = mid_feet(*whole.final_stance())
+        aim = SolePose(aim.x_m + goal.x_m - reached.x_m, aim.y_m + goal.y_m - reached.y_m, 0.0)
+    return whole
+
+
+def _facing_the_way(soles: dict[str, SolePose], goal: SolePose, limits: FootstepBounds) -> FootstepSequence:
+    """Turn on the spot toward the mid-feet ``goal`` (world), walk straight to it, turn to its heading."""
+    start = mid_feet(soles["left"], soles["right"])
+    gx, gy, _ = SolePose(goal.x_m, goal.y_m, 0.0).relative_to(start)
+    bearing = math.atan2(gy, gx)
+    if abs(bearing) <= 1e-3:
+        return _walk_then_turn(soles, goal, limits)
+    turn = turn_steps(soles, bearing, limits)
+    left, right = turn.final_stance()
+    return joined(turn, _walk_then_turn({"left": left, "right": right}, goal, limits))
 
 
 def turn_steps(soles: dict[str, SolePose], angle_rad: float, limits: FootstepBounds) -> FootstepSequence:
