@@ -18,7 +18,7 @@ between its start and end; in ``--worker`` mode, the supervisor's requests as th
 ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure,
 sim_by_phase_s (simulated seconds per phase from the transcript: :func:`sim_by_phase`), cpu_s (CPU
 seconds of each process during the fetch: :class:`CpuWatch`), and ``median_sim_by_phase_s`` and
-``median_cpu_s`` over the runs. CPU time, unlike wall time, hardly moves with the machine's load: it
+``median_cpu_s`` over the runs. CPU time, unlike wall time, moves little with the machine's load: it
 says where a fetch's compute goes (the services are separate processes: sim, perception, navigation,
 footsteps, walking, reaching, record; ``supervisor`` is this process: the supervisor, the launcher's
 threads and this benchmark's bookkeeping).
