@@ -59,3 +59,21 @@ def test_cpu_seconds_of_a_working_and_of_a_sleeping_child(bench: ModuleType) -> 
     assert 0.45 < cpu["busy"] < 0.7  # its 0.5 s loop (10 ms ticks)
     assert cpu["supervisor"] >= 0.29  # this process's 0.3 s
     assert bench.process_cpu_s(busy.pid) == 0.0  # gone (reaped)
+
+
+def test_the_summary_has_the_median_cpu_of_each_process_and_of_the_stack(bench: ModuleType) -> None:
+    def run(seed: int, sim: float, nav: float) -> dict:
+        return {
+            "seed": seed,
+            "ok": True,
+            "wall_s": 40.0,
+            "sim_s": 90.0,
+            "retries": 0,
+            "think_samples_s": [0.2],
+            "footsteps_plan_calls": 2,
+            "cpu_s": {"navigation": nav, "sim": sim},
+        }
+
+    summary = bench.summarize([run(0, 30.0, 2.0), run(1, 40.0, 1.0), run(2, 35.0, 3.0)])
+    assert summary["median_cpu_s"] == {"navigation": 2.0, "sim": 35.0}
+    assert summary["median_cpu_total_s"] == 38.0  # the fetches' totals 32, 41, 38

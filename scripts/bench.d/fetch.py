@@ -18,7 +18,7 @@ between its start and end; in ``--worker`` mode, the supervisor's requests as th
 ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure,
 sim_by_phase_s (simulated seconds per phase from the transcript: :func:`sim_by_phase`), cpu_s (CPU
 seconds of each process during the fetch: :class:`CpuWatch`), and ``median_sim_by_phase_s`` and
-``median_cpu_s`` over the runs. CPU time, unlike wall time, hardly moves with the machine's load: it
+``median_cpu_s`` over the runs. CPU time, unlike wall time, moves little with the machine's load: it
 says where a fetch's compute goes (the services are separate processes: sim, perception, navigation,
 footsteps, walking, reaching, record; ``supervisor`` is this process: the supervisor, the launcher's
 threads and this benchmark's bookkeeping).
@@ -32,8 +32,9 @@ tree's stack runs in its own worker process (this file with ``--worker``, under 
 ``PYTHONPATH``); the seeds alternate between the two (this tree first on even seeds, the baseline first on
 odd ones) so that the machine's load hits both alike. Adds ``baseline`` (the baseline's figures and runs),
 ``baseline_median_wall_s`` and ``wall_ratio`` (this tree's median wall time / the baseline's),
-``baseline_median_sim_s`` and ``sim_ratio`` (the same for simulated time: independent of the load) to the
-JSON.
+``baseline_median_sim_s`` and ``sim_ratio`` (the same for simulated time: independent of the load) and
+``cpu_ratio`` (the medians of the whole stack's CPU seconds per fetch: nearly independent of the load) to
+the JSON.
 Neither stack has a subscriber on ``hrp/**`` (timings compare only under the same subscriber conditions).
 
 Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--baseline DIR]
@@ -302,6 +303,9 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
         }
         if runs and all("cpu_s" in r for r in runs)
         else None,
+        "median_cpu_total_s": round(statistics.median(sum(r["cpu_s"].values()) for r in runs), 2)
+        if runs and all("cpu_s" in r for r in runs)
+        else None,
     }
 
 
@@ -402,7 +406,8 @@ def side_by_side(args: argparse.Namespace, baseline: Path) -> int:
                 print(
                     f"{name:8s} seed {seed:3d}  {'ok  ' if run['ok'] else 'FAIL'}  "
                     f"wall {run['wall_s']:6.1f} s  "
-                    f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  load {run['load_avg_1min']}  "
+                    f"sim {run['sim_s']:6.1f} s  cpu {sum(run['cpu_s'].values()):5.1f} s  "
+                    f"retries {run['retries']}  load {run['load_avg_1min']}  "
                     f"{run['failure']}",
                     flush=True,
                 )
@@ -418,6 +423,10 @@ def side_by_side(args: argparse.Namespace, baseline: Path) -> int:
             if result["median_wall_s"] and base["median_wall_s"]
             else None,
             "baseline_median_sim_s": base["median_sim_s"],
+            # CPU seconds of the whole stack per fetch, this / the baseline: the load moves it little
+            "cpu_ratio": round(result["median_cpu_total_s"] / base["median_cpu_total_s"], 3)
+            if result["median_cpu_total_s"] and base["median_cpu_total_s"]
+            else None,
             "sim_ratio": round(result["median_sim_s"] / base["median_sim_s"], 3)
             if result["median_sim_s"] and base["median_sim_s"]
             else None,
@@ -449,6 +458,7 @@ def side_by_side(args: argparse.Namespace, baseline: Path) -> int:
         print_table(figures)
     print(f"\nwall ratio (this / baseline, medians): {result['wall_ratio']}")
     print(f"sim ratio (this / baseline, medians): {result['sim_ratio']}")
+    print(f"CPU ratio (this / baseline, medians of the stack's CPU s per fetch): {result['cpu_ratio']}")
     return write(result, Path(args.out))
 
 
