@@ -48,8 +48,10 @@ from services.walking.footsteps import FootstepBounds, straight_walk, turn_in_pl
 from services.walking.timing import WalkTiming  # noqa: E402
 from services.walking.wholebody import plan_walk  # noqa: E402
 from sim.world import World  # noqa: E402
+from supervisor.config import SupervisorConfig  # noqa: E402
 
-CARRY_M = (0.25, -0.22, 0.85)  # supervisor.config carry_m for the right hand (forward, lateral, height)
+_FORWARD_M, _SIDE_M, _HEIGHT_M = SupervisorConfig().carry_m
+CARRY_M = (_FORWARD_M, -_SIDE_M, _HEIGHT_M)  # the supervisor's carry point, right hand (lateral to the right)
 KNEES = ("LLEG_JOINT3", "RLEG_JOINT3")
 KINDS = ("goto", "turn", "back", "near")
 

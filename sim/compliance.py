@@ -144,9 +144,3 @@ class Admittance:
             dx = limb["offset"] * limb["normal"]
             out[limb["cols"]] += J.T @ np.linalg.solve(J @ J.T + JACOBIAN_DAMPING * np.eye(3), dx)
         return out
-
-    def report(self) -> list[tuple[str, float, float]]:
-        """(tip joint, last measured normal force [N], offset [m]) per limb."""
-        return [
-            (self.robot.model.names[limb["tip"]], limb["measured"], limb["offset"]) for limb in self._limbs
-        ]

@@ -19,7 +19,7 @@ simulated (planners check self-collision on the capsule model).
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import pybullet as p
@@ -60,11 +60,20 @@ class ContactRules:
     def other_name(self, body: int) -> str:
         return "floor" if body == self.floor_id else self.names.get(body, f"body{body}")
 
-    def robot_contacts(self) -> list[tuple[int, int, tuple[float, float, float], float]]:
-        """(robot link, other body, position, normal force) of every current robot-scene contact."""
+    def robot_contacts(
+        self, points: Sequence[tuple] | None = None
+    ) -> list[tuple[int, int, tuple[float, float, float], float]]:
+        """(robot link, other body, position, normal force) of every current robot-scene contact
+        (``points``: the robot's contact points now, as ``pybullet.getContactPoints(bodyA=robot)``
+        returns them, else queried here); a sole on the floor is left out (always planned)."""
         out = []
-        for c in p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client):
+        if points is None:
+            points = p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client)
+        floor, feet = self.floor_id, self.foot_links
+        for c in points:
             if c[_BODY_B] == self.robot_id or c[_NORMAL_FORCE] < self.min_force_n:
+                continue
+            if c[_BODY_B] == floor and c[_LINK_A] in feet:
                 continue
             out.append((c[_LINK_A], c[_BODY_B], c[_POS_ON_A], c[_NORMAL_FORCE]))
         return out
@@ -85,16 +94,16 @@ class ContactRules:
         """(held object, other) pairs in contact now (recorded when a motion starts)."""
         return frozenset((name, self.other_name(other)) for name, other, _, _ in self.held_contacts())
 
-    def collisions(self) -> list[Contact]:
-        """Unplanned contacts now, one per (robot link or held object, other) pair (strongest point)."""
+    def collisions(self, points: Sequence[tuple] | None = None) -> list[Contact]:
+        """Unplanned contacts now, one per (robot link or held object, other) pair (strongest point);
+        ``points``: as :meth:`robot_contacts`."""
         found: dict[tuple[str, str], Contact] = {}
         held_names = {body: name for name, body in self.held.items()}
-        contacts = self.robot_contacts()
-        self.leaving &= {self.other_name(other) for _, other, _, _ in contacts}  # broken: no longer
+        contacts = self.robot_contacts(points)
+        if self.leaving:
+            self.leaving &= {self.other_name(other) for _, other, _, _ in contacts}  # broken: no longer
         for link, other, pos, force in contacts:
             other_name = self.other_name(other)
-            if other == self.floor_id and link in self.foot_links:
-                continue
             if other_name in self.leaving or other_name in self.supports:
                 continue
             if link in self.hand_links and (other in held_names or other_name in self.allowed):
@@ -114,10 +123,15 @@ def _keep(found: dict[tuple[str, str], Contact], contact: Contact) -> None:
         found[key] = contact
 
 
-def floor_force(client: int, robot_id: int, floor_id: int, links: Iterable[int]) -> dict[int, float]:
-    """Total normal force [N] of the floor on each of ``links``."""
+def floor_force(
+    client: int, robot_id: int, floor_id: int, links: Iterable[int], points: Sequence[tuple] | None = None
+) -> dict[int, float]:
+    """Total normal force [N] of the floor on each of ``links`` (``points``: the robot's contact points
+    now, as ``pybullet.getContactPoints(bodyA=robot_id)`` returns them, else queried here)."""
     forces = dict.fromkeys(links, 0.0)
-    for c in p.getContactPoints(bodyA=robot_id, bodyB=floor_id, physicsClientId=client):
-        if c[_LINK_A] in forces:
+    if points is None:
+        points = p.getContactPoints(bodyA=robot_id, bodyB=floor_id, physicsClientId=client)
+    for c in points:
+        if c[_BODY_B] == floor_id and c[_LINK_A] in forces:
             forces[c[_LINK_A]] += c[_NORMAL_FORCE]
     return forces

@@ -235,6 +235,32 @@ class World:
         self._steps += 1
         self.sim_time_s = self._steps * self.config.physics_dt_s
 
+    def _step_commanded(self, targets: list[list[float]], v_ff: list[float]) -> None:
+        """One physics step per row of ``targets`` (the body joints' position targets [rad or m], the
+        order of ``_body_ids``), each commanded with the feed-forward velocities ``v_ff`` first: the
+        loop of :meth:`step` with the motor command inside, written out (it runs 1000 times per
+        simulated second)."""
+        client, robot_id, ids = self.client, self.robot_id, self._body_ids
+        kp, kd, forces = self._kp, self._kd, self._body_force
+        substeps, dt_s = self.config.substeps, self.config.physics_dt_s
+        for target in targets:
+            p.setJointMotorControlArray(
+                robot_id,
+                ids,
+                p.POSITION_CONTROL,
+                targetPositions=target,
+                targetVelocities=v_ff,
+                positionGains=kp,
+                velocityGains=kd,
+                forces=forces,
+                physicsClientId=client,
+            )
+            p.stepSimulation(physicsClientId=client)
+            self._steps += 1
+            self.sim_time_s = self._steps * dt_s
+            if self._steps % substeps == 0 and self.on_tick is not None:
+                self.on_tick(self)
+
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps with the current commands (the ``on_tick`` hook runs every
         control period)."""
@@ -475,13 +501,13 @@ class World:
             b_prev, b_next = body[k_prev], body[k_next]
             v_ff = ((b_next - b_prev) / dt).tolist()
             offsets = 0.0 if admittance is None else admittance.update(k_prev, self.pyrobot.read_q())
-            for target in ((1.0 - a) * b_prev + a * b_next + offsets).tolist():
-                self._command_joints(target, v_ff)
-                self.step(1)
+            self._step_commanded(((1.0 - a) * b_prev + a * b_next + offsets).tolist(), v_ff)
             self.q_cmd = q_next.copy()
             self.q_planned = q_next.copy()
             executed = min(k + 1, len(q_traj))
-            T_base = monitor.update(q_next)
+            # one contact query per period for the slip monitor and the collision rules
+            points = p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client)
+            T_base = monitor.update(q_next, points)
             height, tilt = float(T_base.translation[2]), self.tilt_rad(T_base)
             # A planned posture lower or more tilted than the fall limits (seated on a chair, leaning on
             # a table) moves the limits with it: a fall is then a base that much below or more tilted
@@ -495,7 +521,7 @@ class World:
                     f"{math.degrees(tilt):.1f} deg (limit {math.degrees(fall_tilt):.1f} deg)"
                 )
                 break
-            for contact in rules.collisions():
+            for contact in rules.collisions(points):
                 collided.setdefault((contact.robot_link, contact.other), contact)
             if collided and stop_on_collision:
                 break
@@ -683,15 +709,17 @@ class _Monitor:
         self.foot_slip_m = 0.0
         self._anchor: dict[str, tuple[float, float] | None] = {"left": None, "right": None}
 
-    def update(self, q_cmd: np.ndarray) -> pin.SE3:
-        """Account the state after a control period commanded at ``q_cmd``; the base pose (world)."""
+    def update(self, q_cmd: np.ndarray, points: Sequence[tuple] | None = None) -> pin.SE3:
+        """Account the state after a control period commanded at ``q_cmd``; the base pose (world).
+        ``points``: the robot's contact points now (``pybullet.getContactPoints(bodyA=robot)``), else
+        queried here."""
         w = self.world
-        q = w.robot.check_q(w.pyrobot.read_q())
+        q = w.pyrobot.read_q()  # from pybullet: (nq,) floats, finite while the physics is
         err = np.abs(q[w._body_iq] - q_cmd[w._body_iq])
         j = int(err.argmax())
         if err[j] > self.err_max:
             self.err_max, self.worst = float(err[j]), w._body_joint_names[j]
-        self.err_sq += float(np.mean(err**2))
+        self.err_sq += float(np.add.reduce(err * err)) / err.size  # np.mean(err**2), without its overhead
         self.count += 1
         # Joint placements, then only the three frames used here (not every frame of the model).
         model, data = w.robot.model, w._data
@@ -699,7 +727,7 @@ class _Monitor:
         T_base = pin.SE3(pin.updateFramePlacement(model, data, w._base_fid))
         dx, dy, dz = (q[:3] - q_cmd[:3]).tolist()
         self.base_error_m = max(self.base_error_m, math.sqrt(dx * dx + dy * dy + dz * dz))
-        forces = floor_force(w.client, w.robot_id, w.floor_id, w.foot_links.values())
+        forces = floor_force(w.client, w.robot_id, w.floor_id, w.foot_links.values(), points)
         for side, link in w.foot_links.items():
             if forces[link] < w.config.loaded_foot_force_n:
                 self._anchor[side] = None

@@ -126,6 +126,10 @@ class SupervisorConfig:
             (dry runs; none: as without it). felt_obstacle_radius_m: the felt
             points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
             that the arm (forearm, upper arm) keeps out of, with the object itself.
+        grasp_clearance_m: the hand comes down onto an object with its centre this far [m] from
+            where it ends held (against the fixed finger), toward the jaws' middle (never past it):
+            the closing finger pushes it the rest of the way (fetch seed 46: lowered against the fixed
+            finger, the ball seen 1.5 mm smaller than it is was rolled 2.2 cm away).
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
@@ -180,6 +184,7 @@ class SupervisorConfig:
     jaws_lag_m: float = 0.001
     jaws_step_back_m: float = 0.15
     felt_obstacle_radius_m: float = 0.03
+    grasp_clearance_m: float = 0.01
     recentre_fraction: float = 0.4
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0

@@ -31,7 +31,7 @@ from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import LastSteps, Plan, Planners
 from supervisor.report import ActionReport
-from supervisor.scene_map import box_estimate, is_obstacle
+from supervisor.scene_map import box_estimate, is_obstacle, neighbours, sphere_radius
 from supervisor.script import Step, parse_point
 
 
@@ -108,11 +108,10 @@ class ManipulationActions:
         *,
         allowed: list[str],
         stepping: bool,
-        yaw_rad: float | None,
+        yaw_rad: float | None = None,
         upright: bool = False,
         orientation: list[float] | None = None,
         lag_m: float | None = None,
-        motion: str | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
@@ -120,12 +119,8 @@ class ManipulationActions:
         that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
         posture, or fingers down), position only when reaching refuses it; else position only.
         ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m].
-        ``motion``: an unguarded motion's kind (``config.arm_timing``: fast if configured so), position
-        only; None: reaching's default timing."""
-        if motion is not None:
-            timing = self.config.arm_timing(motion)
-            plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping, timing=timing)
-            return self._play(plan, what, allowed)
+        Reaching's default timing (the guarded motions near objects; :meth:`_arm_motion` for the
+        unguarded ones)."""
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
                 plan = self.planners.reach(
@@ -146,6 +141,16 @@ class ManipulationActions:
                 return self._play(plan, what, allowed)
         plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping)
         return self._play(plan, what, allowed)
+
+    def _arm_motion(
+        self, hand: str, point: np.ndarray, what: str, *, allowed: list[str], motion: str
+    ) -> None:
+        """An unguarded arm motion of the ``hand`` grasp frame to ``point`` [m] (world), position only,
+        without stepping, timed as the config's ``motion`` (``config.arm_timing``: fast if configured
+        so, else reaching's default)."""
+        timing = self.config.arm_timing(motion)
+        plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=False, timing=timing)
+        self._play(plan, what, allowed)
 
     def _play(self, plan: Plan, what: str, allowed: list[str]) -> int:
         self.progress(f"{what}: {plan.describe()}")
@@ -215,11 +220,12 @@ class ManipulationActions:
         ahead = float(np.dot(here[:2] - (x, y), forward[:2]))
         point = here + forward * max(0.0, self.config.raise_ahead_m - ahead)
         point[2] = height_m
-        self._move_hand(hand, point, what, allowed=allowed, stepping=False, yaw_rad=yaw, motion="raise")
+        self._arm_motion(hand, point, what, allowed=allowed, motion="raise")
 
     def _grasp_point(self, hand: str, target: str, yaw_rad: float) -> np.ndarray:
-        """Where the grasp frame goes for ``target``: its centre (perception), moved so that the object
-        ends against the fixed finger without being pushed (services.model held_object_offset)."""
+        """Where the grasp frame goes for ``target`` with the hand turned by ``yaw_rad`` [rad] (world):
+        its centre (perception), moved so that the object ends near the fixed finger
+        (``Robot.held_object_offset``), ``grasp_clearance_m`` off it."""
         point = parse_point(target, 3, "reach target")
         if point is not None:
             return np.asarray(point, dtype=float)
@@ -227,7 +233,12 @@ class ManipulationActions:
         radius = float(np.clip(max(sighting.size_m) / 2.0, 0.01, 0.06))
         c, s = math.cos(yaw_rad), math.sin(yaw_rad)
         R_world_hand = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return sighting.position_m - R_world_hand @ self.body.robot.held_object_offset(hand, radius)
+        offset = self.body.robot.held_object_offset(hand, radius)
+        # ... but lowered ``grasp_clearance_m`` off the fixed finger (toward the jaws' middle, never past
+        # it): lowered against it, the finger came down on the side of the ball (seen 1.5 mm smaller
+        # than it is) and rolled it 2.2 cm away, and the hand closed on nothing (fetch seed 46)
+        offset[1] = math.copysign(max(0.0, abs(offset[1]) - self.config.grasp_clearance_m), offset[1])
+        return sighting.position_m - R_world_hand @ offset
 
     def do_reach(self, step: Step) -> ActionReport:
         """Reach a hand to an object or 'x,y,z' from above (stepping when out of reach), gripper open.
@@ -332,16 +343,15 @@ class ManipulationActions:
         keep = next((quat for quat in (final, upright) if quat and self._hand_at(hand, quat)), None)
         jaws_kept = jaws is not None and keep is not None and (keep is upright or jaws_quat is not None)
         yaw = jaws if jaws_kept else self._heading()  # the steps may have turned it
-        point = self._grasp_point(hand, target, yaw)
         if parse_point(target, 3, "reach target") is None:
             self.memory.aimed[target] = self.memory.get(target)
+        point = self._grasp_point(hand, target, yaw)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
             f"lower the {hand} hand onto {target}",
             allowed=allowed,
             stepping=False,
-            yaw_rad=yaw,
             orientation=keep,
             lag_m=lag,
         )
@@ -376,36 +386,24 @@ class ManipulationActions:
         (manipulability 5.4e-5, then a wrist joint at its limit); the hand at 134 deg was carried,
         but from that posture (the waist rolled 22 deg) no walk could start (the step back before
         the turn: an arm joint at ~100 rad/s)."""
-        if not self.config.last_steps:
-            return None, jaws
         felt = ", ".join(f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near)
-        # Upright first: the walk is planned from the posture it starts in (as in ``_last_steps``).
-        self.body.straighten()
         for yaw in (jaws, math.remainder(jaws + math.pi, math.tau)):
             quat = Rotation.from_euler("z", yaw).as_quat().tolist()
             point = self._grasp_point(hand, target, yaw)
             # planned above it: the posture reaching goes to first; the lowering keeps its orientation
             over = point + np.array([0.0, 0.0, self.config.approach_m])
-            what = (
-                f"step up to {target}, the jaws at {math.degrees(yaw):.0f} deg (felt at {felt} deg from it)"
+            decided = self._last_steps(
+                hand,
+                over,
+                point,
+                f"step up to {target}, the jaws at {math.degrees(yaw):.0f} deg (felt at {felt} deg from it)",
+                hand_obstacles=keep_out,
+                orientation=quat,
+                step_region_scale=self.config.jaws_step_region_scale,
+                check=lambda planned: self._what_follows_refused(hand, planned.q_final),
             )
-            try:
-                decided = self.planners.last_steps(
-                    hand, over, point, keep_out, quat, self.config.jaws_step_region_scale
-                )
-            except (InfeasibleError, RequestTimeoutError) as exc:
-                self.progress(f"{what}: footsteps/plan found no steps ({exc.message})")
-                continue
-            refused = self._what_follows_refused(hand, decided.q_final)
-            if refused is not None:
-                self.progress(f"{what}: {decided.found}; not taken: {refused}")
-                continue
-            if decided.walk is None:
-                self.progress(f"{what}: {decided.found}: no step needed")
-            else:
-                self.progress(f"{what}: {decided.found}; {decided.walk.describe()}")
-                self.body.execute(decided.walk.q, what=what, progress=self.progress)
-            return decided, yaw
+            if decided is not None:
+                return decided, yaw
         return None, jaws
 
     def _what_follows_refused(self, hand: str, q_final: np.ndarray) -> str | None:
@@ -415,14 +413,7 @@ class ManipulationActions:
         ``_lift_and_carry``), and, from that posture with the chest straightened (as before every
         walk), ``walking/goal`` steps back ``jaws_step_back_m`` (the turn that follows steps back from
         the object's support first)."""
-        x, y, yaw = self.body.base_xy_yaw()
-        carry = self._carry_point(hand)  # in front of the chest at the stance now ...
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = carry[0] - x, carry[1] - y
-        ahead, left = c * dx + s * dy, -s * dx + c * dy
-        fx, fy, fyaw = self.body.robot.mid_feet_pose(q_final)  # ... moved to the planned stance
-        c, s = math.cos(fyaw), math.sin(fyaw)
-        there = np.array([fx + c * ahead - s * left, fy + s * ahead + c * left, carry[2]])
+        there = self._carry_point(hand, pose=self.body.robot.mid_feet_pose(q_final))  # at the planned stance
         try:
             timing = self.config.arm_timing("carry")  # as the carry will be asked for
             self.planners.reach(hand, there, allow_stepping=False, q_start=q_final, timing=timing)
@@ -469,7 +460,8 @@ class ManipulationActions:
 
     def _grasp_obstacles(self, target: str) -> list[tuple[np.ndarray, float]]:
         """What the reaching arm (forearm, upper arm) keeps out of in footsteps/plan's final posture for a
-        grasp of ``target``: the object itself (its sighting: centre, half its largest seen size) and
+        grasp of ``target``: the object itself (its sighting: centre, half its largest seen size), the
+        balls seen within ``felt_radius_m`` of it (``scene_map.neighbours``) and
         what the hand felt near it (memory's felt points within ``felt_radius_m``, spheres of
         ``felt_obstacle_radius_m``: a ball beside it that perception has no model of), as (centre [m]
         world, radius [m]). The footstep IK then chooses the stance and the arm's posture clear of them
@@ -477,8 +469,9 @@ class ManipulationActions:
         if parse_point(target, 3, "reach target") is not None:
             return []
         sighting = self.memory.get(target)
-        radius = float(np.clip(max(sighting.size_m) / 2.0, 0.01, 0.06))
-        spheres = [(np.asarray(sighting.position_m, dtype=float), radius)]
+        spheres = [(np.asarray(sighting.position_m, dtype=float), sphere_radius(sighting))]
+        # the balls seen beside it (perception reports every object a look sees): known before a touch
+        spheres += neighbours(self.memory, sighting.position_m, self.config.felt_radius_m, {target})
         r_felt = self.config.felt_obstacle_radius_m
         return spheres + [(f, r_felt) for f in self._felt_near(sighting.position_m)]
 
@@ -618,13 +611,15 @@ class ManipulationActions:
         hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
         orientation: list[float] | None = None,
         step_region_scale: float | None = None,
+        check: Callable[[LastSteps], str | None] | None = None,
     ) -> LastSteps | None:
         """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` (turned
         to the world ``orientation`` [qx, qy, qz, qw] if given) and the gaze on ``gaze_m`` (paper 000
         §7: the fine-tuner of the end of the locomotion), the arm out of ``hand_obstacles`` ((centre,
         radius) spheres [m]), with footsteps/plan's step region scaled by ``step_region_scale`` (None:
-        its default), and walked; what it decided (its final posture included), None when it found no
-        steps (reaching steps then if it must)."""
+        its default), and walked unless ``check`` (given what was planned) says why not; what it
+        decided (its final posture included), None when it found no steps or ``check`` refused them
+        (reaching steps then if it must)."""
         if not self.config.last_steps:
             return None
         # Upright first: the walk is planned from the posture the robot will be in when it starts
@@ -637,6 +632,10 @@ class ManipulationActions:
             )
         except (InfeasibleError, RequestTimeoutError) as exc:  # none found, or none within its budget
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")
+            return None
+        refused = None if check is None else check(decided)
+        if refused is not None:
+            self.progress(f"{what}: {decided.found}; not taken: {refused}")
             return None
         if decided.walk is None:
             self.progress(f"{what}: {decided.found}: no step needed")
@@ -694,33 +693,34 @@ class ManipulationActions:
                 best, best_d = [other.name], d
         return best
 
-    def _carry_point(self, hand: str) -> np.ndarray:
-        """In front of the chest, on the hand's side, where a held object is carried [m] (world)."""
-        x, y, yaw = self.body.base_xy_yaw()
+    def _carry_point(self, hand: str, pose: tuple[float, float, float] | None = None) -> np.ndarray:
+        """In front of the chest, on the hand's side, where a held object is carried [m] (world), for the
+        mid-feet ``pose`` (x [m], y [m], yaw [rad]; None: the robot's now)."""
+        x, y, yaw = self.body.base_xy_yaw() if pose is None else pose
         forward, side, height = self.config.carry_m
         lateral = -side if hand == "right" else side
         c, s = math.cos(yaw), math.sin(yaw)
         return np.array([x + c * forward - s * lateral, y + s * forward + c * lateral, height])
 
-    def _lift_and_carry(self, hand: str, allowed: list[str], what: str, *, withdraw: bool = False) -> None:
-        """Raise the hand by ``lift_m``, then bring it to the carry point (no stepping); timed as the
-        config's "lift" and "carry" motions, or both as "withdraw" (the emptied hand after a put)."""
-        q = self.body.q()
-        robot = self.body.robot
-        here = robot.grasp_position(q, hand)
-        yaw = self._heading()
-        up = here + np.array([0.0, 0.0, self.config.lift_m])
-        lift, carry = ("withdraw", "withdraw") if withdraw else ("lift", "carry")
-        self._move_hand(hand, up, f"{what}: lift", allowed=allowed, stepping=False, yaw_rad=yaw, motion=lift)
-        self._move_hand(
-            hand,
-            self._carry_point(hand),
-            f"{what}: carry",
-            allowed=allowed,
-            stepping=False,
-            yaw_rad=yaw,
-            motion=carry,
-        )
+    def _lift_and_carry(
+        self,
+        hand: str,
+        allowed: list[str],
+        what: str,
+        *,
+        up: np.ndarray | None = None,
+        motions: tuple[str, str] = ("lift", "carry"),
+    ) -> None:
+        """Raise the hand to ``up`` [m] (world; None: ``lift_m`` straight above where it is), then bring
+        it to the carry point (no stepping), the two timed as the config's ``motions`` (the grasp's
+        "lift" and "carry"; the emptied hand after a put "withdraw" twice; a held object raised again
+        after a put that touched nothing "raise" and "carry")."""
+        if up is None:
+            here = self.body.robot.grasp_position(self.body.q(), hand)
+            up = here + np.array([0.0, 0.0, self.config.lift_m])
+        lift, carry = motions
+        self._arm_motion(hand, up, f"{what}: lift", allowed=allowed, motion=lift)
+        self._arm_motion(hand, self._carry_point(hand), f"{what}: carry", allowed=allowed, motion=carry)
 
     def do_grasp(self, step: Step) -> ActionReport:
         """Close the hand; ``not_grasped`` if nothing is held. Lifts what it holds and carries it."""

@@ -36,16 +36,23 @@ class Eyes:
         self.config = config or SupervisorConfig()
         self.body = body
         self.memory = memory
-        self._blob_models: list[str] | None = None  # perception's non-ball models, asked once
+        self._shapes: dict[str, str] | None = None  # perception's models: name -> shape, asked once
         self._last_box: tuple[float, float] | None = None  # image box centre [px] of the last sighting
 
     def locate(self, name: str, q: np.ndarray | None = None, camera: str = "wide") -> Sighting:
         """Localize ``name`` now (no motion) with the head's ``camera`` pair; NotFoundError from
         perception otherwise."""
         q = self.body.q() if q is None else q
+        return self._locate(name, q, camera, others=True)
+
+    def _locate(self, name: str, q: np.ndarray, camera: str, *, others: bool) -> Sighting:
+        """:meth:`locate`; with ``others``, the balls perception saw in the same images besides
+        ``name`` are remembered too (:meth:`_remember_in_passing`)."""
         reply = self.bus.call(
             perception_msg.LOCATE,
-            perception_msg.LocateRequest(object=name, model=self.body.robot.name, q=q, camera=camera),
+            perception_msg.LocateRequest(
+                object=name, model=self.body.robot.name, q=q, camera=camera, others=others
+            ),
             LOCATE_TIMEOUT_S,
         )
         T = np.asarray(reply.T_world_camera, dtype=float)
@@ -60,7 +67,40 @@ class Eyes:
             footprint=reply.footprint,
         )
         self._last_box = (reply.box_left.u_px, reply.box_left.v_px)
+        self._remember_in_passing(reply, sighting.camera_m)
         return self.memory.remember(sighting)  # (with the better-supported footprint)
+
+    def _remember_in_passing(self, reply: perception_msg.LocateReply, camera_m: np.ndarray) -> None:
+        """The balls (models of shape "sphere") seen in the images of ``reply`` besides the object
+        asked for go to memory, except a held one: the neighbours of a ball to grasp are then on the
+        map before the first touch (the hand's approach keeps clear of them). Boxes, tables and chairs
+        seen in passing are not: the survey maps them with their footprints (perception gives none in
+        passing), and a sighting without one could replace a better one."""
+        if not reply.others:
+            return
+        shapes = self._model_shapes()
+        held = set(self.memory.holding.values())
+        for seen in reply.others:
+            if shapes.get(seen.object) != "sphere" or seen.object in held:
+                continue
+            self.memory.remember(
+                Sighting(
+                    name=seen.object,
+                    position_m=np.asarray(seen.position, dtype=float),
+                    size_m=(float(seen.size_m[0]), float(seen.size_m[1])),
+                    distance_m=float(seen.distance_m),
+                    confidence=float(seen.confidence),
+                    sim_time_s=float(reply.sim_time_s),
+                    camera_m=camera_m,
+                )
+            )
+
+    def _model_shapes(self) -> dict[str, str]:
+        """Perception's learned objects and their model shapes ("sphere": a ball; "blob"), asked once."""
+        if self._shapes is None:
+            reply = self.bus.call(perception_msg.MODELS, perception_msg.ModelsRequest(), LOCATE_TIMEOUT_S)
+            self._shapes = {o.name: o.shape for o in reply.objects}
+        return self._shapes
 
     def survey(self, progress: Progress, exclude: set[str]) -> list[str]:
         """Localize, in the current view, every learned object that is not a ball (models of shape
@@ -68,22 +108,20 @@ class Eyes:
         ("avoiding known obstacles", Fig. 10 of the motion-autonomy paper), so whatever big object is in
         view goes on the map before a walk is planned. One seen but not localized by the wide pair (too
         close: out of one camera's view) is tried with the narrow, 90 deg one. Returns the names seen."""
-        if self._blob_models is None:
-            reply = self.bus.call(perception_msg.MODELS, perception_msg.ModelsRequest(), LOCATE_TIMEOUT_S)
-            self._blob_models = [o.name for o in reply.objects if o.shape != "sphere"]
+        blobs = [name for name, shape in self._model_shapes().items() if shape != "sphere"]
         q = self.body.q()
         seen = []
         last_box = self._last_box
-        for name in self._blob_models:
+        for name in blobs:
             if name in exclude:
                 continue
-            try:
-                self.locate(name, q)
+            try:  # each is asked for: nothing in passing
+                self._locate(name, q, "wide", others=False)
             except NotFoundError as exc:
                 if exc.details.get("reason") == perception_msg.REASON_NOT_IN_VIEW:
                     continue
                 try:  # close by (out of one wide camera's view, cut by the borders): the near pair
-                    self.locate(name, q, camera="narrow")
+                    self._locate(name, q, "narrow", others=False)
                 except NotFoundError:
                     continue
             seen.append(name)
@@ -112,23 +150,33 @@ class Eyes:
         turn: Callable[[float, str], None],
         progress: Progress,
         look_around: bool = True,
+        clear_view: Callable[[], None] | None = None,
     ) -> tuple[Sighting, int]:
         """Find ``name``: (sighting, views taken). Looks where it was last seen first, then scans with
-        the head and turns the body (``turn(angle_rad, why)``) between scans.
+        the head and turns the body (``turn(angle_rad, why)``) between scans. When perception says the
+        robot's own arm hides it (``hidden_by_own_body``: the hand left on or in front of it after a
+        failed grasp), ``clear_view()`` moves the arm away once (None: not done) and it is looked at
+        again from there.
 
         NotFoundError (reason ``not_found_around``) listing what was tried if it is nowhere.
         """
         views = 0
         reasons: list[str] = []
+        cleared = clear_view is None
 
         def attempt() -> Sighting | None:
-            nonlocal views
+            nonlocal views, cleared
             views += 1
             try:
                 return self.locate(name)
             except NotFoundError as exc:
                 reason = str(exc.details.get("reason", ""))
                 reasons.append(reason or "not_found")
+                if reason == perception_msg.REASON_HIDDEN_BY_OWN_BODY and not cleared and clear_view:
+                    cleared = True
+                    progress(f"{name} hidden by the robot's own arm: moving the arm out of the view")
+                    clear_view()
+                    return attempt()
                 if reason not in LOOK_AROUND_REASONS or not look_around:
                     raise
                 return None

@@ -69,7 +69,6 @@ class PutActions:
     progress: Progress
     do_look_at: Callable[[Step], ActionReport]
     _back_off: Callable[[str, list[str]], None]
-    _heading: Callable[[], float]
     _move_hand: Callable[..., int]
     _raise_hand: Callable[..., None]
     _last_steps: Callable[..., LastSteps | None]
@@ -77,7 +76,6 @@ class PutActions:
     _final_hand: Callable[..., list[float] | None]
     _as_planned: Callable[..., int | None]
     _hand_at: Callable[..., bool]
-    _carry_point: Callable[[str], np.ndarray]
     _lift_and_carry: Callable[..., None]
 
     def do_put(self, step: Step) -> ActionReport:
@@ -105,13 +103,14 @@ class PutActions:
                 self.do_look_at(Step(step.line, "look_at", (place,)))
                 point = self._put_point(place, missed=missed)
                 decided = self._last_steps(hand, point, point, f"step up to {place}", allowed=allowed)
-            yaw = self._heading()
             self._raise_hand(hand, float(point[2]), f"raise {obj}", allowed=allowed)
             final = self._final_hand(decided, place, "put")
-            if self._as_planned(hand, point, f"bring {obj} above {place}", allowed, final, place) is None:
-                self._move_hand(
-                    hand, point, f"bring {obj} above {place}", allowed=allowed, stepping=True, yaw_rad=yaw
-                )
+            # ... and the whole final posture planned with it (reaching executes it: paper 000 §7; the
+            # hand's task in footsteps/plan was this very point)
+            posture = decided.q_final if decided is not None and final is not None else None
+            what = f"bring {obj} above {place}"
+            if self._as_planned(hand, point, what, allowed, final, place, posture=posture) is None:
+                self._move_hand(hand, point, what, allowed=allowed, stepping=True)
             what = f"lower {obj} onto {place}"
             executed, low_z = self._lower_onto(hand, point, place, final, allowed, what)
             if executed.touched:
@@ -130,24 +129,8 @@ class PutActions:
             # Measured: the place's map rectangle holds a point with nothing under it.
             self.memory.drop_footprint(place)
             missed = point
-            self._move_hand(
-                hand,
-                point,
-                f"raise {obj} again",
-                allowed=allowed,
-                stepping=False,
-                yaw_rad=yaw,
-                motion="raise",
-            )
-            self._move_hand(  # carried again for the next last steps
-                hand,
-                self._carry_point(hand),
-                f"carry {obj}",
-                allowed=allowed,
-                stepping=False,
-                yaw_rad=yaw,
-                motion="carry",
-            )
+            # raised again, then carried for the next last steps
+            self._lift_and_carry(hand, allowed, f"raise {obj} again", up=point, motions=("raise", "carry"))
             if self._view_again(place, point):
                 missed = None  # mapped anew from a whole view: the put point comes from that rectangle
         robot = self.body.robot
@@ -161,7 +144,8 @@ class PutActions:
         self.progress(f"released {obj} on {place}: withdrawing the {hand} hand")
         note = ""
         try:
-            self._lift_and_carry(hand, [place, obj], f"withdraw from {place}", withdraw=True)
+            withdraw = ("withdraw", "withdraw")
+            self._lift_and_carry(hand, [place, obj], f"withdraw from {place}", motions=withdraw)
         except WorldOutcomeError as exc:  # the object is on the place: the put is done, the withdrawal is not
             note = f" (withdrawing the hand stopped: {exc.message})"
             touched = [c.other for c in exc.details.get("collisions", [])]
@@ -269,9 +253,9 @@ class PutActions:
                 )
             up = here + np.array([0.0, 0.0, c.put_height_m])
             off = [*allowed, place]  # it starts on the top or its edge
-            self._move_hand(hand, up, f"lift {obj} off {place}", allowed=off, stepping=False, yaw_rad=None)
+            self._move_hand(hand, up, f"lift {obj} off {place}", allowed=off, stepping=False)
             over = up + np.array([inward[0], inward[1], 0.0]) * c.put_edge_shift_m
-            self._move_hand(hand, over, f"{obj} over the top", allowed=allowed, stepping=False, yaw_rad=None)
+            self._move_hand(hand, over, f"{obj} over the top", allowed=allowed, stepping=False)
             what = f"lower {obj} onto {place} again"
             executed, low_z = self._lower_onto(hand, over, place, final, allowed, what)
             if not executed.touched:

@@ -11,7 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from services.bus.schemas import sim as sim_msg
-from services.errors import FellError, UnavailableError
+from services.errors import FellError, InfeasibleError, InvalidRequestError, UnavailableError
 from supervisor.body import Body, Progress
 from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
@@ -20,7 +20,7 @@ from supervisor.memory import Memory
 from supervisor.perceive import Eyes
 from supervisor.planners import Planners
 from supervisor.report import ActionReport
-from supervisor.scene_map import boxes, distance_to_box
+from supervisor.scene_map import boxes, distance_to_box, is_obstacle
 from supervisor.script import Step, parse_point
 
 
@@ -47,15 +47,25 @@ class Remedies:
     _turn_rad: Callable[[float, str], int]
     _survey: Callable[[set[str]], None]
     _move_hand: Callable[..., int]
+    _arm_motion: Callable[..., None]
+    _support: Callable[[str], list[str]]
 
     def relocalize(self, step: Step, report: ActionReport) -> None:
-        """Localize the step's object again (for a missed grasp: the reached object, then reach again)."""
+        """Localize the step's object again (for a missed grasp: the hand and the stance made ready
+        first, :meth:`_ready_after_a_miss`, then the reached object, then reach again)."""
         if step.action == "grasp":
             if self.last_reach is None:
                 return
             hand, target = self.last_reach
+            self._ready_after_a_miss(hand, target)
             if parse_point(target, 3, "target") is None:
-                self.eyes.localize(target, turn=self._turn_rad, progress=self.progress)
+                self.eyes.localize(
+                    target,
+                    turn=self._turn_rad,
+                    progress=self.progress,
+                    # the hand closed on nothing there, on the object's support: lift it off both
+                    clear_view=lambda: self._back_off(hand, [target, *self._support(target)]),
+                )
             self.progress(f"reaching {target} again")
             self.do_reach(Step(step.line, "reach", (hand, target)))
             return
@@ -65,6 +75,41 @@ class Remedies:
         name = step.args[target]
         if parse_point(name, 3, "target") is None and name not in self.memory.holding.values():
             self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
+
+    def _ready_after_a_miss(self, hand: str, target: str) -> None:
+        """After the ``hand`` closed on nothing at ``target``, before looking again and reaching again.
+
+        The open hand is where the lowering left it, beside the object, maybe on its support (contacts
+        the lowering was allowed); a head turn allows none, so a look from there stopped at once
+        (fetch seed 46: the wrist on the box), and the stopped turn left a sole 2.5 mm up and tilted
+        0.020 rad, from which reaching refused to plan the retry (``invalid_request``). So: the hand
+        straight up off the object and its support (``back_off_m`` x 1.5), then down beside the body
+        where it hangs in the half-sitting posture (out of the cameras' view of the object: with the
+        hand at the carry point instead, the ball was not found from the next stance, and seen 4.4
+        cm off from the one before), the chest upright, and ``walking/goal`` re-squares the stance
+        (the feet side by side at the mid-feet pose, ``[0, 0, 0]``, stepped in place; checked
+        against the map) so that the retry plans from a flat stance. A part a planner refuses is
+        reported and skipped."""
+        object_target = parse_point(target, 3, "target") is None
+        allowed = [target, *self._support(target)] if object_target else []
+        robot = self.body.robot
+        up = robot.grasp_position(self.body.q(), hand) + np.array([0.0, 0.0, 1.5 * self.config.back_off_m])
+        try:
+            self._move_hand(hand, up, f"lift the {hand} hand off {target}", allowed=allowed, stepping=False)
+            x, y, yaw = self.body.base_xy_yaw()
+            rest = robot.grasp_position(robot.place_on_ground(robot.q_half_sitting, x, y, yaw), hand)
+            what = f"the {hand} hand down beside the body"
+            self._arm_motion(hand, rest, what, allowed=allowed, motion="withdraw")
+        except (InfeasibleError, InvalidRequestError) as exc:
+            self.progress(f"the {hand} hand stays where it is ({exc.message})")
+        self.body.straighten()
+        try:
+            plan = self.planners.walk(0.0, 0.0, 0.0)
+        except (InfeasibleError, InvalidRequestError) as exc:
+            self.progress(f"the stance stays as it is: no walk squares it ({exc.message})")
+            return
+        self.progress(f"square the stance: {plan.describe()}")
+        self.body.execute(plan.q, what="square the stance", progress=self.progress)
 
     def replan(self, step: Step, report: ActionReport) -> None:
         """After a collision: free the robot (a leg or the body touched, or the robot stopped with a foot
@@ -89,11 +134,18 @@ class Remedies:
         self.relocalize(step, report)
 
     def _remember_felt(self, collisions: list[sim_msg.Contact]) -> None:
-        """Contacts of a hand with an object perception has not localized (it has no model of it: a
-        ball beside the target) go to the memory's felt points: the next reach approaches clear of
-        them (ManipulationActions._clear_of_felt)."""
+        """Contacts of a hand with a small object other than the one reached for (a ball beside the
+        target, seen in passing or not seen at all) go to the memory's felt points: the next reach
+        approaches clear of them (ManipulationActions._clear_of_felt). Objects on the map (boxes,
+        tables) are not felt points."""
+        reached = self.last_reach[1] if self.last_reach is not None else None
         for contact in collisions:
-            if _arm_link(contact.robot_link) and contact.other not in self.memory.sightings:
+            seen = self.memory.sightings.get(contact.other)
+            if (
+                _arm_link(contact.robot_link)
+                and contact.other != reached
+                and (seen is None or not is_obstacle(seen))
+            ):
                 self.memory.felt.append(np.asarray(contact.position, dtype=float))
 
     def _map_what_was_hit(self, contacts: list[list[float]]) -> None:
@@ -127,7 +179,6 @@ class Remedies:
                 f"lift the {hand} hand off",
                 allowed=sorted(set(allowed)),
                 stepping=False,
-                yaw_rad=yaw,
             )
             here, back = up, 2.0 * back * np.array([1.0, 1.0, 0.0])
         self._move_hand(
@@ -136,7 +187,6 @@ class Remedies:
             f"back the {hand} hand off",
             allowed=sorted(set(allowed)),
             stepping=False,
-            yaw_rad=yaw,
         )
 
     def wait_service(self, step: Step, report: ActionReport) -> None:

@@ -8,7 +8,8 @@ What the outline cannot show stays an assumption: a rectangle thinner than ``MIN
 length (a chair seen from behind: only its back) hides its depth, which is taken as long as the
 rectangle, behind what was seen. Without a footprint (the outline matched in too few rows) the box is
 taken square (depth = seen width), facing the camera that saw it, pushed back from the seen point by a
-quarter of its depth. Small objects (balls) and held objects are not obstacles.
+quarter of its depth. Small objects (balls) and held objects are not obstacles for navigation; the
+balls seen near one to grasp are spheres the reaching arm keeps clear of (:func:`neighbours`).
 """
 
 from __future__ import annotations
@@ -103,6 +104,34 @@ def boxes(memory: Memory) -> list[BoxEstimate]:
     """The map: the box of every object seen, except small and held ones."""
     held = set(memory.holding.values())
     return [box_estimate(s) for s in memory.sightings.values() if s.name not in held and is_obstacle(s)]
+
+
+#: A small object's sphere radius is half its largest seen size, within these bounds [m].
+SPHERE_RADIUS_RANGE_M = (0.01, 0.06)
+
+
+def sphere_radius(sighting: Sighting) -> float:
+    """The radius [m] of a small object (a ball) as perception saw it: half its largest seen size."""
+    return float(np.clip(max(sighting.size_m) / 2.0, *SPHERE_RADIUS_RANGE_M))
+
+
+def neighbours(
+    memory: Memory, point_m: np.ndarray, within_m: float, exclude: set[str]
+) -> list[tuple[np.ndarray, float]]:
+    """The small objects seen (balls, not held, not ``exclude``) whose centre lies within ``within_m``
+    [m] of ``point_m`` horizontally, as spheres (centre [m] world, radius [m]), nearest first: what a
+    hand reaching ``point_m`` keeps clear of (perception reports every learned object a look sees, so
+    the balls beside the one to grasp are known before the first touch)."""
+    held = set(memory.holding.values())
+    p = np.asarray(point_m, dtype=float)
+    near = []
+    for s in memory.sightings.values():
+        if s.name in exclude or s.name in held or is_obstacle(s):
+            continue
+        d = float(np.linalg.norm(s.position_m[:2] - p[:2]))
+        if d < within_m:
+            near.append((d, np.asarray(s.position_m, dtype=float), sphere_radius(s)))
+    return [(centre, radius) for _, centre, radius in sorted(near, key=lambda n: n[0])]
 
 
 def obstacles(memory: Memory) -> list[nav_msg.ObstacleMsg]:

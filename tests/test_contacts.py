@@ -126,6 +126,19 @@ def test_the_warm_started_lps_give_the_regions_of_cold_ones():
         assert _area(warm) == pytest.approx(_area(cold), abs=1e-9)
 
 
+def test_the_warm_lps_run_on_the_scipy_they_were_checked_against_only():
+    """stability._WarmLP drives scipy's private HiGHS bindings: only on a scipy of WARM_LP_SCIPY (the
+    installed one is, so the comparison above runs both paths), another goes through linprog."""
+    import scipy
+
+    from services.contacts import stability
+
+    assert stability._scipy_highs(scipy.__version__) is not None
+    assert stability._highs is not None
+    for other in ("1.16.3", "1.18.0", "2.0.0rc1", "unknown"):
+        assert stability._scipy_highs(other) is None
+
+
 def _area(polygon: np.ndarray) -> float:
     x, y = polygon[:, 0], polygon[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))

@@ -224,3 +224,20 @@ def test_a_transition_counts_the_arms_as_supports_only_when_its_ends_need_them()
     far = replace(helpers, helpers_end_margin_m=1.0)  # no CoM is a metre inside a chair's and feet's region
     assert not stands_on(g, start, leaning.q, far.helpers_end_margin_m)
     assert stability_contacts(g, s1, q0, leaning.q, far) == [s1]
+
+
+def test_the_force_control_experiment_hands_the_arms_their_planned_forces():
+    # closed_loop.replan_transition with InterpolationConfig.force_control (an experiment, off by
+    # default: sim/README.md, services/contacts/README.md): the hand released on the way back to the
+    # seated start gets its force profile for the sim's damping control, one value per sample played,
+    # unloading to zero at the transition's end
+    from services.contacts.closed_loop import replan_transition
+
+    assert not InterpolationConfig().force_control
+    g, q0, start, leaning = _seated_with_a_hand_on_the_table()
+    s1 = (*start, leaning.contact)
+    step = replan_transition(g, s1, start, q0, leaning.q, config=InterpolationConfig(n=4, force_control=True))
+    (target,) = step.force_targets
+    assert target.joints[0] == "RARM_JOINT5" and target.other == "table"
+    assert target.force_n.shape == (len(step.q),)
+    assert target.force_n[0] > 1.0 and target.force_n[-1] == pytest.approx(0.0, abs=1e-6)

@@ -285,6 +285,11 @@ def test_task_arguments_are_checked() -> None:
         FramePositionTask(model, "right_grasp", (0, 0, 0), mask=(False, False, False))
     with pytest.raises(InvalidRequestError, match="rotation matrix"):
         FrameOrientationTask(model, "right_grasp", np.ones((3, 3)))
+    # a reflection, non-finite, not orthonormal within 1e-6
+    for not_a_rotation in (np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan), 1.00002 * np.eye(3)):
+        with pytest.raises(InvalidRequestError, match="rotation matrix"):
+            FrameOrientationTask(model, "right_grasp", not_a_rotation)
+    FrameOrientationTask(model, "right_grasp", np.diag([-1.0, -1.0, 1.0]))  # a half turn is one
     with pytest.raises(InvalidRequestError, match="either polygon_world_xy"):
         ComSupportPolygonTask(model, 0.02)
     with pytest.raises(InvalidRequestError, match="unknown joint 'elbow'"):

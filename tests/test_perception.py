@@ -82,7 +82,7 @@ def yaw_of(quaternion_xyzw) -> float:
 
 def test_the_demo_objects_have_learned_models(models):
     assert set(DEMO_OBJECTS) <= set(models)
-    assert models["orange_ball"].shape == "sphere"
+    assert all(models[n].shape == "sphere" for n in ("orange_ball", "blue_ball", "purple_ball"))
     assert all(models[n].shape == "blob" for n in ("green_box", "yellow_table", "chair"))
     for name in DEMO_OBJECTS:
         assert "learn-sim" in models[name].source
@@ -97,6 +97,7 @@ def test_learn_sim_rewrites_models_that_match_the_committed_ones(tmp_path, model
         assert result.views_used[name] >= 2
         assert result.hits[name] == result.views_used[name], name
         assert result.false_hits[name] == 0, name
+        assert result.confused[name] == 0, name  # identities apart: never on another object's pixels
         fresh, committed = result.models[name].hist, models[name].hist
         assert cv2.compareHist(fresh, committed, cv2.HISTCMP_CORREL) > 0.9, name
         assert result.models[name].floor_size_m == models[name].floor_size_m, name  # the catalogue's

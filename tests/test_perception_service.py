@@ -56,6 +56,13 @@ def test_locate_the_ball_from_the_robot_configuration(bus, state, truth):
     assert reply.distance_m == pytest.approx(3.3, abs=0.2)
     assert 0.07 < reply.size_m[0] < 0.13 and reply.confidence > 0.5
     assert reply.box_left.u_px - reply.box_right.u_px == pytest.approx(reply.disparity_px, abs=1.0)
+    # The other learned objects in the same images: the balls beside it, the box they are on.
+    others = {o.object: o for o in reply.others}
+    assert {"blue_ball", "purple_ball", "green_box"} <= set(others) and "orange_ball" not in others
+    for name in ("blue_ball", "purple_ball"):
+        assert np.linalg.norm(np.subtract(others[name].position, truth[name].position)) < 0.05
+        assert 0.0 < others[name].confidence <= 1.0 and 0.07 < others[name].size_m[0] < 0.13
+    assert locate(bus, object="orange_ball", model=state.model, q=state.q, others=False).others == []
 
 
 def test_locate_without_q_uses_the_robots_current_state(bus, state, truth):

@@ -8,6 +8,7 @@ import pytest
 
 from services.bus.schemas import reaching as reach_msg
 from services.bus.schemas import sim as sim_msg
+from services.bus.schemas.common import Sphere
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 
@@ -74,3 +75,27 @@ def test_a_reach_timing_out_of_range_is_invalid_naming_the_field(services):
             ),
             timeout_s=30,
         )
+
+
+def test_a_sphere_the_gripper_cannot_clear_is_refused_over_the_bus_naming_sphere_and_link(services):
+    # fingers down at the target, the jaws along x, a ball 8 cm to its left: the palm above it is in it
+    robot = load_robot("hrp2_like")
+    target = [0.40, -0.22, 0.80]
+    ball = Sphere(center=[0.40, -0.14, 0.80], radius=0.06)
+    with pytest.raises(InfeasibleError, match=r"hand_obstacles\[0\]") as info:
+        services.call(
+            reach_msg.REACH,
+            reach_msg.ReachRequest(
+                hand="right",
+                target=target,
+                q_start=robot.q_half_sitting,
+                orientation=[0.0, 0.0, float(np.sin(np.pi / 4)), float(np.cos(np.pi / 4))],
+                allow_stepping=False,
+                hand_obstacles=[ball],
+                hand_clearance_m=0.02,
+            ),
+            timeout_s=60,
+        )
+    details = info.value.details
+    assert details["reason"] == reach_msg.REASON_HAND_OBSTACLE and details["sphere"] == 0
+    assert details["link"].startswith("right_gripper")

@@ -1,8 +1,13 @@
-"""The grasp's choice of which sighting to aim at (``ManipulationActions._where_it_was_aimed``), pure:
-memory and config only, no bus (fetch seed 37: a relocalization from the backed-off hand put the ball
-0.13 m off and 0.12 m low, less confidently, and the jaws were turned for the wrong neighbour)."""
+"""The grasp's choices of where to aim, pure: memory and config only, no bus.
+
+``ManipulationActions._where_it_was_aimed`` (fetch seed 37: a relocalization from the backed-off hand
+put the ball 0.13 m off and 0.12 m low, less confidently, and the jaws were turned for the wrong
+neighbour) and ``_grasp_point`` (fetch seed 46: aimed with the ball against the fixed finger, the hand
+came down on the ball's side, rolled it away and closed on nothing)."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -65,3 +70,32 @@ def test_without_an_earlier_lowering_the_sighting_is_kept(actions):
     actions.memory.remember(_ball(latest, 0.3))
     actions._where_it_was_aimed("orange_ball")
     assert np.allclose(actions.memory.get("orange_ball").position_m, latest)
+
+
+
+@pytest.mark.parametrize("yaw_deg", [-14.0, 0.0, 120.0])
+def test_the_ball_goes_down_between_the_jaws_clear_of_the_fixed_finger(yaw_deg):
+    """Fetch seed 46: the ball (radius 0.05 m) seen 0.097 m wide, aimed against the fixed finger, had
+    its side under that finger; now its surface is ``grasp_clearance_m`` less the 1.5 mm it was seen
+    too small off the fixed finger, and off the open moving finger too (the hand's own gap, 0.13 m)."""
+    from services.model.robot_model import load_robot
+    from sim.robot_info import robot_info_reply
+    from supervisor.body import Body
+
+    actions = ManipulationActions()
+    actions.config = SupervisorConfig()
+    actions.memory = Memory()
+    actions.body = Body(bus=None)
+    actions.body.robot._info = robot_info_reply(load_robot("hrp2_like"))  # the sim's reply, no bus
+    actions.memory.remember(dataclasses.replace(_ball(AIMED, 0.97), size_m=(0.097, 0.097)))
+    yaw = np.radians(yaw_deg)
+    point = actions._grasp_point("right", "orange_ball", yaw)
+    # The ball's centre in the grasp frame (turned by yaw about the vertical), the fixed finger at +y.
+    c, s = np.cos(yaw), np.sin(yaw)
+    in_hand = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) @ (AIMED - point)
+    fixed_y = actions.body.robot.info.fixed_finger_y_m["right"]
+    radius = 0.05  # the ball's own
+    clearance = actions.config.grasp_clearance_m
+    assert fixed_y - (in_hand[1] + radius) == pytest.approx(clearance - 0.0015, abs=1e-6)
+    assert (in_hand[1] - radius) - (-fixed_y) > clearance  # the moving finger, open, farther still
+    assert abs(in_hand[0]) < 1e-9 and abs(in_hand[2]) < 1e-9

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from services.bus.schemas.perception import FootprintMsg
-from supervisor.memory import Sighting
-from supervisor.scene_map import box_estimate, distance_to_box, ray_entry
+from supervisor.memory import Memory, Sighting
+from supervisor.scene_map import box_estimate, distance_to_box, neighbours, ray_entry
 
 
 def _fp(center, size, yaw, top_z, n_points) -> FootprintMsg:
@@ -57,6 +58,36 @@ def test_a_ray_enters_a_yawed_box_at_its_face():
     assert ray_entry(box, np.array([2.0, 0.1]), np.array([1.0, 0.0])) == 0.0  # from inside
     assert ray_entry(box, np.array([0.0, 0.0]), np.array([0.0, 1.0])) == math.inf  # misses
     assert ray_entry(box, np.array([0.0, 0.0]), np.array([-1.0, 0.0])) == math.inf  # behind the origin
+
+
+def _ball(name: str, xyz, seen_m: float = 0.1) -> Sighting:
+    return Sighting(
+        name=name,
+        position_m=np.asarray(xyz, dtype=float),
+        size_m=(seen_m, seen_m),
+        distance_m=1.0,
+        confidence=0.9,
+        sim_time_s=0.0,
+        camera_m=np.array([2.5, 0.0, 1.4]),
+    )
+
+
+def test_the_balls_seen_beside_one_to_grasp_are_spheres_the_arm_keeps_clear_of():
+    memory = Memory()
+    for s in (
+        _ball("orange_ball", (3.4, 0.8, 0.75)),
+        _ball("blue_ball", (3.58, 0.98, 0.75), 0.104),
+        _ball("purple_ball", (3.56, 0.64, 0.75), 0.2),  # seen too large: the radius is bounded
+        _ball("red_ball", (3.9, 0.8, 0.75)),  # 0.5 m away: not a neighbour
+        replace(_sighting(None, name="green_box"), position_m=np.array([3.5, 0.8, 0.4])),  # on the map
+    ):
+        memory.remember(s)
+    spheres = neighbours(memory, np.array([3.4, 0.8, 0.75]), 0.3, {"orange_ball"})
+    assert [tuple(c) for c, _ in spheres] == [(3.56, 0.64, 0.75), (3.58, 0.98, 0.75)]  # nearest first
+    assert [r for _, r in spheres] == pytest.approx([0.06, 0.052])
+    memory.holding["right"] = "blue_ball"  # a held ball is not beside it
+    spheres = neighbours(memory, np.array([3.4, 0.8, 0.75]), 0.3, {"orange_ball"})
+    assert [tuple(c) for c, _ in spheres] == [(3.56, 0.64, 0.75)]
 
 
 def test_making_room_steps_away_from_the_object_not_always_straight_back():

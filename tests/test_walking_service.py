@@ -430,3 +430,36 @@ def test_humanoid_call_walking_plan_with_plain_json(services):
     assert len(reply["q"]) == len(reply["times_s"]) and len(reply["q"][0]) == 37
     assert reply["final_right_sole"] == [0.2, -0.095, 0.0]
     assert reply["figures"]["worst_zmp_outside_m"] == 0.0
+
+
+def test_a_robot_standing_taller_walks_with_its_com_lowered():
+    """After a reach the robot may stand a few cm higher than half-sitting (seed 6 of the fetch: 3.2 cm):
+    walking 0.2 m steps at that CoM height stretches the front leg at heel strike near its straight knee,
+    and a joint is refused for its speed (the knee, before session 10 a free arm ringing at 84-110
+    rad/s); walking/plan then lowers the CoM (COM_LOWERINGS_M) and returns a walk within every joint's
+    speed limit, unless the request fixes the CoM height."""
+    from services.ik import ComPositionTask, FramePoseTask, HierarchicalSolver, Level, PostureTask
+
+    robot = load_robot("hrp2_like")
+    data, model, q0 = robot.new_data(), robot.model, robot.q_half_sitting
+    feet = tuple(
+        FramePoseTask(model, robot.frames.sole(s), robot.frame_pose(q0, robot.frames.sole(s), data), name=s)
+        for s in ("left", "right")
+    )
+    com = ComPositionTask(model, robot.com(q0, data) + np.array([0.0, 0.0, 0.035]))
+    levels = [Level(feet), Level((com,)), Level((PostureTask(model, q0),), damping=1e-6)]
+    q_tall = HierarchicalSolver(model).run(levels, q0, max_iters=200).q
+    standing_m = float(robot.com(q_tall, data)[2])
+    steps = [
+        {"side": "right", "pose": [0.1, -0.095, 0.0]},
+        {"side": "left", "pose": [0.3, 0.095, 0.0]},
+        {"side": "right", "pose": [0.5, -0.095, 0.0]},
+        {"side": "left", "pose": [0.5, 0.095, 0.0]},
+    ]
+    request = {"steps": steps, "q_start": q_tall.tolist()}
+    with pytest.raises(InfeasibleError, match=r"JOINT\d+ would move at .* rad/s"):
+        plan_reply(from_builtins({**request, "com_height_m": standing_m}, msg.PlanRequest))
+    reply = plan_reply(from_builtins(request, msg.PlanRequest))
+    speed = np.abs(np.diff(reply.q[:, 7:], axis=0)) / (reply.times_s[1] - reply.times_s[0])
+    assert np.all(speed <= robot.v_max[6:] + 1e-9)
+    assert reply.com_m[-1, 2] < standing_m - 0.015  # it walked lower

@@ -14,8 +14,9 @@ import numpy as np
 from vision.histogram import ObjectModel, colour_mask
 
 
-def back_project(hsv: np.ndarray, model: ObjectModel) -> np.ndarray:
-    """Back projection of ``model`` onto an 8-bit HSV image: uint8 H x W, 255 = most typical colour."""
-    cfg = model.config
+def back_project(hsv: np.ndarray, model: ObjectModel, coloured: np.ndarray | None = None) -> np.ndarray:
+    """Back projection of ``model`` onto an 8-bit HSV image: uint8 H x W, 255 = most typical colour.
+    ``coloured``: the image's :func:`~vision.histogram.colour_mask` for ``model.config`` if already
+    computed (None: computed here)."""
     bp = cv2.calcBackProject([hsv], [0, 1], model.lut, [0, 180, 0, 256], 1.0)
-    return cv2.bitwise_and(bp, colour_mask(hsv, cfg))
+    return cv2.bitwise_and(bp, colour_mask(hsv, model.config) if coloured is None else coloured)

@@ -13,7 +13,7 @@ Failures raise NotFoundError whose message says why and whose ``details["reason"
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import cv2
@@ -21,6 +21,7 @@ import numpy as np
 
 from services import budget
 from services.bus.schemas.perception import (
+    REASON_HIDDEN_BY_OWN_BODY,
     REASON_NO_DISPARITY,
     REASON_NOT_IN_RIGHT_VIEW,
     REASON_STEREO_MISMATCH,
@@ -30,7 +31,8 @@ from vision.backproject import back_project
 from vision.camera import StereoRig
 from vision.camshift import Detection, DetectionConfig, RotatedBox, Window, check_unambiguous, detect_all
 from vision.footprint import Footprint, footprint, outline_points
-from vision.histogram import ObjectModel, to_hsv
+from vision.hidden_ball import Circle, free_circle, touches
+from vision.histogram import ObjectModel, colour_mask, to_hsv
 from vision.stereo import (
     StereoConfig,
     dense_disparity_median,
@@ -54,6 +56,10 @@ class LocalizeConfig:
     # No footprint nearer than this [m] (depth of the located point): a table 0.8 m away fills the wide
     # pair's view, the robot's own arm and what it holds hide parts of its outline in one image only.
     footprint_min_depth_m: float = 1.0
+    # A ball nearer than this [m] is checked against the robot's own body in the images (the own-body
+    # masks are drawn for it): the hand backed off a ball after a failed grasp hides part of it
+    # (vision.hidden_ball). Farther, the hands are not between the cameras and a ball.
+    hidden_ball_max_depth_m: float = 1.5
 
 
 @dataclass(frozen=True)
@@ -97,20 +103,30 @@ class ObjectLocation:
         return self.left.window
 
 
+#: The robot's own body in a stereo pair: boolean (H, W) masks of the left and right images, or what
+#: draws them when first needed (services/perception/own_body.py: ~20 ms a pair).
+OwnBodyMasks = tuple[np.ndarray, np.ndarray] | Callable[[], tuple[np.ndarray, np.ndarray]]
+
+
 @dataclass
 class StereoFrame:
-    """A stereo pair with the per-image work shared by every model (HSV, grey)."""
+    """A stereo pair with the per-image work shared by every model (HSV, grey, the own-body masks)."""
 
     left_bgr: np.ndarray
     right_bgr: np.ndarray
     rig: StereoRig
     T_world_left_camera: np.ndarray
-    #: Boolean (H, W) masks of the robot's own body in the left and right images (None: not known): it
+    #: Boolean (H, W) masks of the robot's own body in the left and right images, or a function drawing
+    #: them, called once when a footprint or a partly hidden ball first needs them (None: not known): it
     #: hides what is behind it like another object (services/perception/own_body.py draws them).
-    own_body: tuple[np.ndarray, np.ndarray] | None = None
+    own_body: OwnBodyMasks | None = None
     hsv_left: np.ndarray = field(init=False)
     hsv_right: np.ndarray = field(init=False)
     _gray: tuple[np.ndarray, np.ndarray] | None = field(init=False, default=None)
+    #: back projections by (model name, "left"/"right"): a look that reports every object seen uses
+    #: each model's up to three times (detection, another object's outline, one object per region)
+    _back_projections: dict[tuple[str, str], np.ndarray] = field(init=False, default_factory=dict)
+    _colour_masks: dict[tuple[str, str], np.ndarray] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         k = self.rig.intrinsics
@@ -122,15 +138,43 @@ class StereoFrame:
                 f"T_world_left_camera must be a 4x4 homogeneous transform, got {T.shape}"
             )
         self.T_world_left_camera = T
-        if self.own_body is not None:
-            shape = self.left_bgr.shape[:2]
-            if any(np.shape(m) != shape for m in self.own_body):
-                raise InvalidRequestError(
-                    f"own_body masks must be {shape[1]}x{shape[0]} like the images, got "
-                    f"{[np.shape(m) for m in self.own_body]}"
-                )
+        if self.own_body is not None and not callable(self.own_body):
+            self._check_own_body(self.own_body)
         self.hsv_left = to_hsv(self.left_bgr)
         self.hsv_right = to_hsv(self.right_bgr)
+
+    def _check_own_body(self, masks: tuple[np.ndarray, np.ndarray]) -> None:
+        shape = self.left_bgr.shape[:2]
+        if len(masks) != 2 or any(np.shape(m) != shape for m in masks):
+            raise InvalidRequestError(
+                f"own_body masks must be two {shape[1]}x{shape[0]} masks like the images, got "
+                f"{[np.shape(m) for m in masks]}"
+            )
+
+    def back_projection(self, model: ObjectModel, side: str) -> np.ndarray:
+        """``model``'s back projection onto the ``side`` ("left" or "right") image (computed once)."""
+        key = (model.name, side)
+        bp = self._back_projections.get(key)
+        if bp is None:
+            hsv = self.hsv_left if side == "left" else self.hsv_right
+            mask_key = (repr(model.config), side)  # the pixels coloured enough, shared by the models
+            coloured = self._colour_masks.get(mask_key)
+            if coloured is None:
+                coloured = self._colour_masks[mask_key] = colour_mask(hsv, model.config)
+            bp = self._back_projections[key] = back_project(hsv, model, coloured)
+        return bp
+
+    @property
+    def own_masks(self) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        """The own-body masks of the left and right images ((None, None): not known), drawn at the
+        first use when the frame was given a function drawing them."""
+        if self.own_body is None:
+            return None, None
+        if callable(self.own_body):
+            masks = self.own_body()
+            self._check_own_body(masks)
+            self.own_body = (np.asarray(masks[0], dtype=bool), np.asarray(masks[1], dtype=bool))
+        return self.own_body
 
     @property
     def gray(self) -> tuple[np.ndarray, np.ndarray]:
@@ -199,15 +243,121 @@ def _centroid_point(
     model: ObjectModel, left: Detection, right: Detection, rig: StereoRig
 ) -> tuple[np.ndarray, float]:
     """Left-optical-frame point [m] and disparity [px] from the two silhouette centroids."""
-    uv_left, uv_right = left.centre_px, right.centre_px
-    p_camera = triangulate_centroids(rig, uv_left, uv_right)
     if model.shape == "sphere":
-        radius = 0.25 * (left.box[1][0] + left.box[1][1]) * p_camera[2] / rig.intrinsics.fx
-        p_right = p_camera - rig.T_left_right[:3, 3]
-        uv_left = sphere_centre_pixel(rig, uv_left, radius, float(np.linalg.norm(p_camera)))
-        uv_right = sphere_centre_pixel(rig, uv_right, radius, float(np.linalg.norm(p_right)))
-        p_camera = triangulate_centroids(rig, uv_left, uv_right)
+        radius_px = 0.25 * (left.box[1][0] + left.box[1][1])  # the box's sides are the diameter
+        return _sphere_point(left.centre_px, right.centre_px, radius_px, rig)
+    p_camera = triangulate_centroids(rig, left.centre_px, right.centre_px)
+    return p_camera, float(left.centre_px[0] - right.centre_px[0])
+
+
+def _sphere_point(
+    uv_left: tuple[float, float], uv_right: tuple[float, float], radius_px: float, rig: StereoRig
+) -> tuple[np.ndarray, float]:
+    """Left-optical-frame centre [m] and disparity [px] of a ball whose silhouettes are centred at
+    ``uv_left``, ``uv_right`` [px] with the radius ``radius_px`` in the left image (the silhouette's
+    centre moved to the image of the ball's centre: :func:`vision.stereo.sphere_centre_pixel`)."""
+    p_camera = triangulate_centroids(rig, uv_left, uv_right)
+    radius = radius_px * p_camera[2] / rig.intrinsics.fx
+    p_right = p_camera - rig.T_left_right[:3, 3]
+    uv_left = sphere_centre_pixel(rig, uv_left, radius, float(np.linalg.norm(p_camera)))
+    uv_right = sphere_centre_pixel(rig, uv_right, radius, float(np.linalg.norm(p_right)))
+    p_camera = triangulate_centroids(rig, uv_left, uv_right)
     return p_camera, float(uv_left[0] - uv_right[0])
+
+
+#: A ball's silhouette whose outline runs along the robot's own pixels is taken as hidden when it covers
+#: less than this fraction of its fitted circle in one image (:func:`_free_circles`).
+HIDDEN_AREA_FRACTION = 0.9
+
+
+def _free_circles(
+    left: Detection,
+    right: Detection,
+    frame: StereoFrame,
+    config: DetectionConfig,
+    bp_left: np.ndarray,
+    bp_right: np.ndarray,
+    whether_hidden: bool = True,
+) -> tuple[Circle, Circle] | None:
+    """The circles of a ball's two silhouettes fitted to their outlines off the robot's own pixels
+    (vision.hidden_ball), or None when the robot hides neither silhouette (``whether_hidden``: checked
+    first; an outline along the robot's pixels with each silhouette covering more than
+    ``HIDDEN_AREA_FRACTION`` of its circle is not hidden) or either fit fails (too little of the
+    outline free)."""
+    own_left, own_right = frame.own_masks
+    if own_left is None or own_right is None:
+        return None
+    sil_left = _silhouette(bp_left, left.window, config)
+    sil_right = _silhouette(bp_right, right.window, config)
+    if whether_hidden and not (
+        touches(sil_left, left.window, own_left) or touches(sil_right, right.window, own_right)
+    ):
+        return None
+    circle_left = free_circle(sil_left, left.window, own_left)
+    circle_right = free_circle(sil_right, right.window, own_right)
+    if circle_left is None or circle_right is None:
+        return None
+    if whether_hidden:  # touching is not hiding: a whole silhouette's centroid is the better estimate
+        seen = min(
+            np.count_nonzero(sil) / (np.pi * circle.radius_px**2)
+            for sil, circle in ((sil_left, circle_left), (sil_right, circle_right))
+        )
+        if seen > HIDDEN_AREA_FRACTION:
+            return None
+    return circle_left, circle_right
+
+
+def _raise_if_own_body_hides(
+    left: Detection,
+    frame: StereoFrame,
+    bp_left: np.ndarray,
+    config: DetectionConfig,
+    unmatched: NotFoundError,
+) -> None:
+    """NotFoundError ``hidden_by_own_body`` when the left silhouette ``left``, not matched in the right
+    image (``unmatched``), runs along the robot's own pixels: its arm hides it there (after a failed
+    grasp the hand rests on the ball, in front of it in one image, 7 px of it left in the other:
+    fetch seed 77). Nothing when the frame has no own-body masks or the silhouette does not touch them."""
+    own_left, _ = frame.own_masks
+    if own_left is None or not touches(_silhouette(bp_left, left.window, config), left.window, own_left):
+        return
+    raise NotFoundError(
+        f"'{left.name}' is seen in the left image at pixel ({left.centre_px[0]:.0f}, "
+        f"{left.centre_px[1]:.0f}) next to the robot's own arm and not in the right image: the arm hides "
+        "it; move the arm out of the view and look again",
+        {"reason": REASON_HIDDEN_BY_OWN_BODY},
+    ) from unmatched
+
+
+def _match_hidden_ball(
+    left: Detection,
+    candidates: list[Detection],
+    frame: StereoFrame,
+    config: LocalizeConfig,
+    bp_left: np.ndarray,
+    bp_right: np.ndarray,
+) -> tuple[Detection, tuple[Circle, Circle]] | None:
+    """The right-image candidate of a ball refused by :func:`_match_right` (the robot's own arm cuts its
+    silhouette in one image: the sizes differ, the centroids are not on the same rows), matched by the
+    circles fitted to the free parts of the outlines: the same rows, a disparity in range, radii
+    within ``max_size_ratio`` ** 0.5 of each other. (detection, its circles), or None."""
+    d_lo, d_hi = disparity_range(frame.rig, config.stereo)
+    best, best_cost = None, np.inf
+    for c in candidates:
+        circles = _free_circles(left, c, frame, config.detection, bp_left, bp_right, whether_hidden=False)
+        if circles is None:
+            continue
+        cl, cr = circles
+        ratio = cr.radius_px / cl.radius_px
+        if not (0.9 * d_lo <= cl.u_px - cr.u_px <= 1.1 * d_hi):
+            continue
+        if abs(cl.v_px - cr.v_px) > config.stereo.max_row_difference_px + 0.05 * cl.radius_px:
+            continue
+        if abs(np.log(ratio)) > 0.5 * np.log(config.max_size_ratio):
+            continue
+        if abs(np.log(ratio)) < best_cost:
+            best, best_cost = (c, circles), abs(np.log(ratio))
+    return best
 
 
 def _dense_point(
@@ -266,13 +416,17 @@ def _edges_point(
 
 
 def _occluder_mask(
-    hsv: np.ndarray, occluders: Sequence[ObjectModel], config: DetectionConfig, own: np.ndarray | None
+    frame: StereoFrame,
+    side: str,
+    occluders: Sequence[ObjectModel],
+    config: DetectionConfig,
+    own: np.ndarray | None,
 ) -> np.ndarray | None:
-    """Boolean (H, W) mask of the pixels of the ``occluders``' colours (back projection >= threshold)
-    and of the robot's ``own`` body (its mask, or None), None without either."""
+    """Boolean (H, W) mask of the ``side`` image's pixels of the ``occluders``' colours (back projection
+    >= threshold) and of the robot's ``own`` body (its mask, or None), None without either."""
     mask = None if own is None else np.asarray(own, dtype=bool)
     for other in occluders:
-        seen = back_project(hsv, other) >= config.threshold
+        seen = frame.back_projection(other, side) >= config.threshold
         mask = seen if mask is None else mask | seen
     return mask
 
@@ -282,20 +436,35 @@ def locate_in_frame(
     frame: StereoFrame,
     config: LocalizeConfig | None = None,
     occluders: Sequence[ObjectModel] = (),
+    with_footprint: bool = True,
 ) -> ObjectLocation:
     """Localize ``model``'s object in a prepared :class:`StereoFrame` (NotFoundError when not found).
     ``occluders``: the other objects' models, whose pixels next to its outline hide it there (its
-    footprint leaves those edges out: vision.footprint), as do the robot's own (``frame.own_body``)."""
+    footprint leaves those edges out: vision.footprint), as do the robot's own (``frame.own_body``).
+    ``with_footprint`` False: no footprint (an object seen in passing: :func:`others_in_frame`)."""
     config = config or LocalizeConfig()
     det_cfg = config.detection
-    bp_left = back_project(frame.hsv_left, model)
+    bp_left = frame.back_projection(model, "left")
     try:
         left = check_unambiguous(detect_all(bp_left, model.name, det_cfg), det_cfg, f"'{model.name}'")
     except NotFoundError as e:
         e.details.setdefault("object", model.name)
         raise
-    bp_right = back_project(frame.hsv_right, model)
-    right = _match_right(left, detect_all(bp_right, model.name, det_cfg), frame, config, bp_left, bp_right)
+    bp_right = frame.back_projection(model, "right")
+    candidates = detect_all(bp_right, model.name, det_cfg)
+    circles = None  # a ball's circles fitted off the robot's own pixels (vision.hidden_ball)
+    try:
+        right = _match_right(left, candidates, frame, config, bp_left, bp_right)
+    except NotFoundError as unmatched:
+        hidden = (
+            None
+            if model.shape != "sphere"
+            else _match_hidden_ball(left, candidates, frame, config, bp_left, bp_right)
+        )
+        if hidden is None:
+            _raise_if_own_body_hides(left, frame, bp_left, det_cfg, unmatched)
+            raise
+        right, circles = hidden
 
     rig = frame.rig
     method = config.stereo.method
@@ -304,7 +473,21 @@ def locate_in_frame(
         # A silhouette cut by a side border moves the centroid differently in each image; a cut by the
         # top or bottom border removes the same rows from both (rectified), which the centroid tolerates.
         method = "bm"
-    if method == "centroid":
+    if method == "centroid" and model.shape == "sphere":
+        if circles is None:
+            p_camera, disparity = _centroid_point(model, left, right, rig)
+            if p_camera[2] < config.hidden_ball_max_depth_m:  # the robot's hand may hide part of it
+                circles = _free_circles(left, right, frame, det_cfg, bp_left, bp_right)
+        if circles is not None:  # its centre and radius from the outline's free part
+            method = "free_outline"
+            circle_left, circle_right = circles
+            p_camera, disparity = _sphere_point(
+                (circle_left.u_px, circle_left.v_px),
+                (circle_right.u_px, circle_right.v_px),
+                circle_left.radius_px,
+                rig,
+            )
+    elif method == "centroid":
         p_camera, disparity = _centroid_point(model, left, right, rig)
     elif method == "edges":
         p_camera, disparity = _edges_point(left, right, bp_left, bp_right, rig, det_cfg)
@@ -325,12 +508,14 @@ def locate_in_frame(
                 ) from edges_failed
     z = float(p_camera[2])
     size_m = (float(left.box[1][0] * z / rig.intrinsics.fx), float(left.box[1][1] * z / rig.intrinsics.fy))
+    if method == "free_outline":  # the box is the seen part's: the whole ball's diameter instead
+        size_m = (2.0 * circles[0].radius_px * z / rig.intrinsics.fx,) * 2
     p_world = to_world(p_camera, frame.T_world_left_camera)
     floor_rectangle = None
     cut = {"left", "right", "top"} & {*left.border_sides, *right.border_sides}
-    if model.shape != "sphere" and not cut and z >= config.footprint_min_depth_m:
+    if with_footprint and model.shape != "sphere" and not cut and z >= config.footprint_min_depth_m:
         others = [other for other in occluders if other.name != model.name]
-        own_left, own_right = frame.own_body if frame.own_body is not None else (None, None)
+        own_left, own_right = frame.own_masks
         outline = outline_points(
             _silhouette(bp_left, left.window, det_cfg),
             left.window,
@@ -338,8 +523,8 @@ def locate_in_frame(
             right.window,
             rig,
             frame.T_world_left_camera,
-            _occluder_mask(frame.hsv_left, others, det_cfg, own_left),
-            _occluder_mask(frame.hsv_right, others, det_cfg, own_right),
+            _occluder_mask(frame, "left", others, det_cfg, own_left),
+            _occluder_mask(frame, "right", others, det_cfg, own_right),
         )
         floor_rectangle = footprint(
             outline.points,
@@ -363,6 +548,68 @@ def locate_in_frame(
     )
 
 
+#: Two models' silhouettes sharing more than this fraction of the smaller one's pixels are one object
+#: (:func:`others_in_frame`).
+SAME_PIXELS_FRACTION = 0.5
+
+
+def _left_silhouette(
+    loc: ObjectLocation, model: ObjectModel, frame: StereoFrame, config: DetectionConfig
+) -> np.ndarray:
+    """Boolean (H, W) mask of ``loc``'s silhouette in the left image (its window only)."""
+    mask = np.zeros(frame.hsv_left.shape[:2], dtype=bool)
+    x, y, w, h = loc.left.window
+    mask[y : y + h, x : x + w] = _silhouette(frame.back_projection(model, "left"), loc.left.window, config)
+    return mask
+
+
+def others_in_frame(
+    found: ObjectLocation,
+    models: Sequence[ObjectModel],
+    frame: StereoFrame,
+    config: LocalizeConfig | None = None,
+) -> list[ObjectLocation]:
+    """The objects of ``models`` other than ``found`` (localized in ``frame``) seen in the same stereo
+    pair, most confident first, without footprints (seen in passing: each position, size and
+    confidence as :func:`locate_in_frame` gives them; ask for one to get its footprint); the others
+    are not seen there (any NotFoundError reason).
+
+    Identity: a model is one named object of the catalogue, learned from that object's pixels only
+    (services/perception/learn_from_sim.py checks that no model's detection falls on another object),
+    and a model seeing two similar regions is ``ambiguous`` (vision.camshift), never two objects. When
+    two models still claim one region (more than ``SAME_PIXELS_FRACTION`` of the smaller silhouette's
+    pixels in the left image are the other's), it is one object: ``found`` (asked for) or else the
+    more confident detection; the other is left out."""
+    config = config or LocalizeConfig()
+    by_name = {m.name: m for m in models}
+    seen: list[ObjectLocation] = []
+    for model in models:
+        if model.name == found.name:
+            continue
+        budget.check(f"the localization of {model.name} in passing", {"found": found.name})
+        try:
+            seen.append(locate_in_frame(model, frame, config, with_footprint=False))
+        except NotFoundError:
+            continue
+    if not seen:
+        return []
+    kept: list[tuple[ObjectLocation, np.ndarray]] = []
+    if found.name in by_name:
+        kept.append((found, _left_silhouette(found, by_name[found.name], frame, config.detection)))
+    others: list[ObjectLocation] = []
+    for loc in sorted(seen, key=lambda o: -o.confidence):
+        mask = _left_silhouette(loc, by_name[loc.name], frame, config.detection)
+        area = int(mask.sum())
+        if any(
+            np.count_nonzero(mask & other) > SAME_PIXELS_FRACTION * max(1, min(area, int(other.sum())))
+            for _, other in kept
+        ):
+            continue
+        kept.append((loc, mask))
+        others.append(loc)
+    return others
+
+
 def localize(
     models: Sequence[ObjectModel],
     left_bgr: np.ndarray,
@@ -372,7 +619,7 @@ def localize(
     config: LocalizeConfig | None = None,
     require_all: bool = True,
     occluders: Sequence[ObjectModel] = (),
-    own_body: tuple[np.ndarray, np.ndarray] | None = None,
+    own_body: OwnBodyMasks | None = None,
 ) -> list[ObjectLocation]:
     """Localize every model's object in a rectified stereo pair.
 
@@ -414,7 +661,7 @@ def locate(
     T_world_left_camera: np.ndarray,
     config: LocalizeConfig | None = None,
     occluders: Sequence[ObjectModel] = (),
-    own_body: tuple[np.ndarray, np.ndarray] | None = None,
+    own_body: OwnBodyMasks | None = None,
 ) -> ObjectLocation:
     """Localize one object (see :func:`localize`); NotFoundError saying why when it is not found."""
     return localize(

@@ -16,8 +16,12 @@ the robot: how long the robot stands still thinking), ``footsteps_plan_calls`` (
 ``footsteps/**`` message to an MCAP file beside ``--out`` and each fetch's requests are those logged
 between its start and end; in ``--worker`` mode, the supervisor's requests as they go out), and per run: seed,
 ok, script_ok, on_table, wall_s, sim_s, retries, think_s (median), footsteps_plan_calls, failure,
-sim_by_phase_s (simulated seconds per phase from the transcript: :func:`sim_by_phase`), and
-``median_sim_by_phase_s`` over the runs.
+sim_by_phase_s (simulated seconds per phase from the transcript: :func:`sim_by_phase`), cpu_s (CPU
+seconds of each process during the fetch: :class:`CpuWatch`), and ``median_sim_by_phase_s`` and
+``median_cpu_s`` over the runs. CPU time, unlike wall time, hardly moves with the machine's load: it
+says where a fetch's compute goes (the services are separate processes: sim, perception, navigation,
+footsteps, walking, reaching, record; ``supervisor`` is this process: the supervisor, the launcher's
+threads and this benchmark's bookkeeping).
 The supervisor's transcript of each fetch goes to ``LOG_DIR/transcript_<seed>.txt``.
 Goals (issues 10, 15): success >= 95 %, wall time <= sim time, median think <= 1 s, >= 2 footstep
 plans per fetch.
@@ -118,6 +122,47 @@ class CallWatch:
             self._started = None
 
 
+def process_cpu_s(pid: int) -> float:
+    """CPU time [s] (user + system, every thread, ended ones included) of process ``pid`` so far (Linux
+    ``/proc/<pid>/stat``, 10 ms resolution); 0.0 when the process is gone."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return 0.0
+    fields = stat.rsplit(")", 1)[1].split()  # after the command name, which may hold spaces
+    utime, stime = int(fields[11]), int(fields[12])  # fields 14 and 15 of proc(5)
+    return (utime + stime) / os.sysconf("SC_CLK_TCK")
+
+
+class CpuWatch:
+    """CPU seconds of each process of the stack between :meth:`reset` and :meth:`read`: the launcher's
+    children by service name (a restarted service counts from its new process's start) and
+    ``supervisor``, this process."""
+
+    def __init__(self, launcher: Any) -> None:  # services.bus.launcher.Launcher
+        self.launcher = launcher
+        self._start: dict[str, tuple[int, float]] = {}
+
+    def _now(self) -> dict[str, tuple[int, float]]:
+        children = dict(self.launcher.children)
+        if getattr(self.launcher, "recorder", None) is not None:
+            children["record"] = self.launcher.recorder
+        out = {name: (child.pid, process_cpu_s(child.pid)) for name, child in children.items() if child.pid}
+        out["supervisor"] = (os.getpid(), time.process_time())
+        return out
+
+    def reset(self) -> None:
+        self._start = self._now()
+
+    def read(self) -> dict[str, float]:
+        """``{process: CPU s since reset}``, sorted by name."""
+        out = {}
+        for name, (pid, cpu_s) in self._now().items():
+            pid0, cpu0_s = self._start.get(name, (pid, 0.0))
+            out[name] = round(cpu_s - (cpu0_s if pid0 == pid else 0.0), 2)
+        return dict(sorted(out.items()))
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="scripts/bench fetch", description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=20, help="number of seeded layouts (20)")
@@ -150,16 +195,18 @@ def main(argv: list[str]) -> int:
         Path(args.log_dir).mkdir(parents=True, exist_ok=True)
         stack_options = {"record": record, "config_path": record_config(Path(args.log_dir) / "record.yaml")}
     with (
-        running_stack(bus, log_dir=args.log_dir, **stack_options),
+        running_stack(bus, log_dir=args.log_dir, **stack_options) as launcher,
         Supervisor.connect(bus) as sup,
     ):
         missing = sup.wait_for_services(30.0)
         if missing:
             print(f"services missing: {', '.join(missing)}", file=sys.stderr)
         watch = CallWatch(sup)
+        cpu = CpuWatch(launcher)
         seeds = _stdin_seeds() if args.worker else range(args.seed0, args.seed0 + args.n)
         for seed in seeds:
             watch.reset()
+            cpu.reset()
             start_ns = time.time_ns()
             # The supervisor's transcript of each fetch beside the services' logs (failures by cause).
             with open(Path(args.log_dir) / f"transcript_{seed}.txt", "w") as transcript:
@@ -169,6 +216,7 @@ def main(argv: list[str]) -> int:
                 finally:
                     sup.out = None
             windows.append((start_ns, time.time_ns()))
+            cpu_s = cpu.read()
             transcript_text = (Path(args.log_dir) / f"transcript_{seed}.txt").read_text()
             gt = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
             on_table, why = ball_on_table(gt)
@@ -185,12 +233,14 @@ def main(argv: list[str]) -> int:
                 "footsteps_plan_calls": watch.footsteps_plans,
                 "failure": summary.failure or why,
                 "sim_by_phase_s": sim_by_phase(transcript_text, summary.sim_s),
+                "cpu_s": cpu_s,
             }
             runs.append(run)
             print(
                 f"seed {seed:3d}  {'ok  ' if run['ok'] else 'FAIL'}  wall {run['wall_s']:6.1f} s  "
                 f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  think {run['think_s']} s  "
-                f"footsteps/plan x{run['footsteps_plan_calls']}  {run['failure']}",
+                f"footsteps/plan x{run['footsteps_plan_calls']}  cpu {sum(cpu_s.values()):.1f} s  "
+                f"{run['failure']}",
                 flush=True,
             )
             if args.worker:
@@ -246,6 +296,12 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
         }
         if runs and all("sim_by_phase_s" in r for r in runs)
         else None,
+        "median_cpu_s": {
+            name: round(statistics.median(r["cpu_s"].get(name, 0.0) for r in runs), 2)
+            for name in sorted({name for r in runs for name in r["cpu_s"]})
+        }
+        if runs and all("cpu_s" in r for r in runs)
+        else None,
     }
 
 
@@ -266,6 +322,9 @@ def print_table(result: dict[str, Any]) -> None:
     if result.get("median_sim_by_phase_s"):
         phases = ", ".join(f"{k} {v:.1f}" for k, v in result["median_sim_by_phase_s"].items())
         print(f"median sim per phase [s]: {phases}")
+    if result.get("median_cpu_s"):
+        cpu = ", ".join(f"{k} {v:.1f}" for k, v in result["median_cpu_s"].items())
+        print(f"median CPU per process [s]: {cpu} (total {sum(result['median_cpu_s'].values()):.1f})")
 
 
 def write(result: dict[str, Any], out: Path) -> int:

@@ -57,6 +57,12 @@ def add_cli(subparsers: Any) -> None:
         "paper-like setting of sessions 7-8: --no-limb-load --slope-k 30)",
     )
     p.add_argument(
+        "--force-control",
+        action="store_true",
+        help="executed set by set, the arms in contact follow their planned forces (sim/compliance.py; "
+        "an experiment, off by default: it fell earlier, services/contacts/README.md)",
+    )
+    p.add_argument(
         "--open-loop",
         action="store_true",
         help="play the planned motion as is (default: set by set, re-planned from the measured state)",
@@ -68,10 +74,18 @@ SUPPORTS = ("chair", "table")  # objects any link may touch during the motion (s
 
 
 def _closed_loop(
-    robot: Any, environment: Any, sets: list, witnesses: list, world: Any, n: int, limb_load: bool
+    robot: Any,
+    environment: Any,
+    sets: list,
+    witnesses: list,
+    world: Any,
+    n: int,
+    limb_load: bool,
+    force_control: bool = False,
 ) -> tuple[str, str]:
     """Play the plan set by set in ``world``, each transition re-planned from the measured state
-    (``services.contacts.closed_loop``); prints one line per transition; (outcome, message)."""
+    (``services.contacts.closed_loop``; ``force_control``: the arms follow their planned forces);
+    prints one line per transition; (outcome, message)."""
     from services.contacts.closed_loop import TransitionReport, execute_set_by_set, execution_generator
     from services.contacts.interpolate import InterpolationConfig
 
@@ -97,7 +111,7 @@ def _closed_loop(
         witnesses,
         play,
         lambda: world.state().q,
-        InterpolationConfig(n=n),
+        InterpolationConfig(n=n, force_control=force_control),
         report,
     )
     world.hold(1.0)
@@ -183,7 +197,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
             outcome, message = executed.outcome, executed.message
         else:
             outcome, message = _closed_loop(
-                robot, environment, sets, witnesses, world, args.n, args.limb_load
+                robot, environment, sets, witnesses, world, args.n, args.limb_load, args.force_control
             )
         q = world.state().q
         standing = all(

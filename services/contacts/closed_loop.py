@@ -115,10 +115,6 @@ PREFER_UNASSISTED = True
 # its ends are (interpolate.stability_contacts): during a swing on one sole, postures stable with the
 # hand drifted the CoM 6-9 cm outboard while the sim's hand carried 0-131 N, and the robot tipped over
 ARMS_AS_HELPERS = True
-# the limbs in contact follow their planned contact forces (sim.compliance's damping control,
-# contact_forces.py): off, every variant tried on the chair egress fell earlier than without it
-# (services/contacts/README.md, session 9)
-FORCE_CONTROL = False
 # a new contact the measured supports do not admit where it was planned is searched again in this
 # volume around its planned place (x [m], y [m], theta [rad] half sizes)
 FLOAT_HALF = (0.05, 0.05, 0.25)
@@ -192,13 +188,15 @@ def regenerate_witness(
 ) -> tuple[ContactSet, ContactSet, np.ndarray | None, str]:
     """(s1 measured, s2 with its held contacts measured, the new witness or None, why not): the son's
     rule of the search (§2.3): a removal keeps the removed contact as geometry with the stability on the
-    rest; an addition puts the new contact (at its planned place) out of the stability. The posture
-    generation starts from the measured posture, then (if it fails) from the planned witness, then (an
-    addition) lets the posture generator place the new contact within ``FLOAT_HALF`` of its planned
-    place (§2.6's floating contact); when all fail, the planned sets and witness are returned with the
-    reason (the transition then drags the
-    slid supports back, as the open-loop replay does). The request's time budget
-    (:mod:`services.budget`) is checked before each posture generation (RequestTimeoutError)."""
+    rest; an addition puts the new contact (at its planned place) out of the stability. Tries, in order:
+    0 (``PREFER_UNASSISTED``, when arms are in contact) a witness statically stable without the arms
+    (kept as geometry), from the measured posture, then (an addition) with the new contact placed by
+    the posture generator within ``FLOAT_HALF`` of its planned place (§2.6's floating contact,
+    :func:`_new_contact_moved`); 1 the stability on all the contacts from the measured posture; 2 from
+    the planned witness; 3 (an addition) the new contact moved as in try 0. When all fail, the planned
+    sets and witness are returned with the reason (the transition then drags the slid supports back, as
+    the open-loop replay does). The request's time budget (:mod:`services.budget`) is checked before
+    each posture generation (RequestTimeoutError)."""
     s1 = measured_contacts(gen, s1_planned, q_measured)
     by_pair = {c.pair: c for c in s1}
     s2 = tuple(by_pair.get(c.pair, c) for c in s2_planned)
@@ -215,32 +213,55 @@ def regenerate_witness(
         result = gen.generate(geometric, unassisted, q_measured, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
-        if added:  # the new contact placed by the posture generator near its planned place (§2.6)
-            new = added[0]
-            floating = Floating(new.spot, new.surface, around((new.x, new.y, new.theta), FLOAT_HALF))
-            result = gen.generate(s1, unassisted, q_measured, reference, floating, config=relaxed)
-            if result.ok and result.contact is not None:
-                return s1, tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""
+        if added:
+            try_0 = "try 0 (the new contact moved)"
+            moved, q, _why = _new_contact_moved(
+                gen, s1, s2, added[0], unassisted, q_measured, reference, relaxed, try_0
+            )
+            if q is not None:
+                return s1, moved, q, ""
     for k, start in enumerate((q_measured, q2_planned)):
         budget.check(f"the witness's regeneration, try {k + 1}")
         result = gen.generate(geometric, stable, start, reference, config=relaxed)
         if result.ok:
             return s1, s2, result.q, ""
         reasons.append(result.reason)
-    if added:  # the new contact chosen again by the posture generator near its planned place (§2.6)
+    if added:
         new = added[0]
-        volume = around((new.x, new.y, new.theta), FLOAT_HALF)
-        floating = Floating(new.spot, new.surface, volume)
-        budget.check("the witness's regeneration, try 3 (the new contact moved)")
-        result = gen.generate(s1, s1, q_measured, reference, floating, config=relaxed)
-        if result.ok and result.contact is not None:
-            return s1, tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""
-        reasons.append(f"{new.spot} within {FLOAT_HALF} of its place: {result.reason}")
+        moved, q, why = _new_contact_moved(
+            gen, s1, s2, new, s1, q_measured, reference, relaxed, "try 3 (the new contact moved)"
+        )
+        if q is not None:
+            return s1, moved, q, ""
+        reasons.append(f"{new.spot} within {FLOAT_HALF} of its place: {why}")
     if s1 != tuple(s1_planned):
         reason = f"no witness for the supports where they slid ({'; '.join(reasons)}): the planned one"
         return tuple(s1_planned), tuple(s2_planned), np.asarray(q2_planned, float), reason
     tried = ("from the measured posture", "from the planned one", "the new contact moved")
     return s1, s2, None, "; ".join(f"{t}: {r}" for t, r in zip(tried, reasons, strict=False))
+
+
+def _new_contact_moved(
+    gen: PostureGenerator,
+    s1: ContactSet,
+    s2: ContactSet,
+    new: Contact,
+    stable: ContactSet,
+    q_measured: np.ndarray,
+    reference: PostureTask,
+    config: PostureConfig,
+    attempt: str,
+) -> tuple[ContactSet, np.ndarray | None, str]:
+    """The witness of an addition with the new contact ``new`` placed by the posture generator within
+    ``FLOAT_HALF`` of its planned place (§2.6's floating contact), statically stable on ``stable``,
+    from the measured posture: (s2 with the new contact where it was put, the witness, "") or (s2, None,
+    the posture generator's reason). ``attempt`` names the try in the budget's timeout message."""
+    budget.check(f"the witness's regeneration, {attempt}")
+    floating = Floating(new.spot, new.surface, around((new.x, new.y, new.theta), FLOAT_HALF))
+    result = gen.generate(s1, stable, q_measured, reference, floating, config=config)
+    if result.ok and result.contact is not None:
+        return tuple(result.contact if c.pair == new.pair else c for c in s2), result.q, ""
+    return s2, None, result.reason
 
 
 @dataclass(frozen=True)
@@ -249,7 +270,8 @@ class ReplannedTransition:
     at the measured configuration), the new ``witness``, the largest distance [m] between a held
     contact's measured and planned place, and a segment still colliding after local re-planning
     or a fallback to the planned witness (``collision``: what was played anyway, "" if nothing), and
-    the joints to play with a reduced effort (``effort_scale``, module docstring)."""
+    the joints to play with a reduced effort (``effort_scale``, module docstring), and the arms'
+    planned contact forces when ``InterpolationConfig.force_control`` is on (``force_targets``)."""
 
     q: np.ndarray
     dt_s: float
@@ -297,7 +319,7 @@ def replan_transition(
         segment = f"segment {hit[0] * 100:.1f} cm into {hit[2]} ({hit[1]})"
         collision = f"{collision}; {segment}" if collision else segment
     scale = support_effort_scale(gen, s1)  # held from q1 (a contact made now: its arm still moves)
-    targets = force_targets(gen, s1, s2, timed, config.dt_s) if FORCE_CONTROL else ()
+    targets = force_targets(gen, s1, s2, timed, config.dt_s) if config.force_control else ()
     return ReplannedTransition(timed, config.dt_s, q2, error, collision, scale, targets)
 
 

@@ -6,9 +6,12 @@ the force QP (``stability.equilibrium_forces``, the least-norm forces) picks one
 Along a transition from S1 to S2 the contacts held are S1's (a removed contact is released at q2, a new
 one is made at q2: §2.3), so at a sample with CoM c the planned forces are those of S1 at c; for a
 removal they are blended, with the transition's progress, into those of S2 at c (the released contact
-unloads to zero at q2 instead of jumping there). Which contacts get a profile is ``LIMBS`` (by default
-the hands and forearms: their arms close the rigid loops in which position control sets the forces by
-millimetre errors, ``sim/compliance.py``; the legs carry the rest).
+unloads to zero at q2 instead of jumping there). The hands and forearms get a profile: their arms close
+the rigid loops in which position control sets the forces by millimetre errors (``sim/compliance.py``);
+the legs carry the rest (force targets on the soles too, or on the arms only when one other contact
+closes the loop, fell earlier on the chair egress: services/contacts/README.md, session 9).
+
+Used only when ``InterpolationConfig.force_control`` is on (an experiment, off by default).
 """
 
 from __future__ import annotations
@@ -23,11 +26,6 @@ from services.contacts.stability import N_GENERATORS, cone_generators, equilibri
 from services.errors import InfeasibleError
 from sim.force_target import ForceTarget
 
-SOLE_SPOTS = ("left_sole", "right_sole")
-# which contacts held get a force target: "arms" (hands and forearms), "all" (arms and soles), or
-# "determinate" (the arms, only when one other contact closes the loop: the arms' forces then fix the
-# rest); measured on the chair egress in services/contacts/README.md (session 9)
-LIMBS = "arms"
 CHECK_EVERY_S = 0.1  # the force QP every this much of the motion [s]; linear in between
 RESIDUAL_TOL = 1e-6  # a force QP with a larger residual has no equilibrium (its forces are not used)
 
@@ -58,12 +56,10 @@ def normal_forces(gen: PostureGenerator, stable: ContactSet, com: np.ndarray) ->
 def force_targets(
     gen: PostureGenerator, s1: ContactSet, s2: ContactSet, q: np.ndarray, dt_s: float
 ) -> tuple[ForceTarget, ...]:
-    """The force targets of the contacts of ``s1`` (``LIMBS``) held along the timed transition ``q``
+    """The force targets of the arms' contacts of ``s1`` held along the timed transition ``q``
     (N x nq, every ``dt_s`` [s]) from S1 to S2 (module docstring); () when none is chosen or no
     equilibrium is found at the start."""
-    arms = [c for c in s1 if c.spot in ARM_SPOTS or (LIMBS == "all" and c.spot in SOLE_SPOTS)]
-    if LIMBS == "determinate" and len(s1) - len(arms) > 1:
-        return ()
+    arms = [c for c in s1 if c.spot in ARM_SPOTS]
     if not arms:
         return ()
     removal = set(s2) < set(s1)

@@ -2,8 +2,8 @@
 surfaces on which contacts may be taken (the floor, a chair's seat, the tops of tables and boxes) and
 the boxes the robot must not collide with (every primitive of every static object, and the floor).
 
-Read from the scene YAML through ``sim.scene`` and ``sim.objects.parts_of`` (the same geometry the sim
-builds), never from pybullet.
+Read from the scene YAML through ``sim.scene`` and ``sim.parts.parts_of`` (the same geometry the sim
+builds), never from pybullet (not even imported).
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-import pybullet as p
 
 from services.errors import InvalidRequestError
-from sim.objects import parts_of
+from services.model.ground import yaw_of
+from sim.parts import parts_of
 from sim.scene import Layout
 
 FLOOR_HALF_SIZE_M = 2.5  # the floor surface: a square of this half size around the robot's start [m]
@@ -50,7 +50,7 @@ class Surface:
         return (
             float(local.translation[0]),
             float(local.translation[1]),
-            math.atan2(float(local.rotation[1, 0]), float(local.rotation[0, 0])),
+            yaw_of(local.rotation),
         )
 
 
@@ -132,7 +132,7 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
             continue
         T_obj = _yaw_se3(obj.yaw_rad, obj.position)
         for i, part in enumerate(parts_of(spec)):
-            if part.shape != p.GEOM_BOX:
+            if part.shape != "box":
                 continue
             T_part = T_obj * pin.SE3(np.eye(3), np.array(part.xyz))
             boxes.append(Box(f"{spec.name}[{i}]", T_part, np.array(part.half_extents), spec.name))

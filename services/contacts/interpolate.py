@@ -89,6 +89,11 @@ class InterpolationConfig:
     # contacts; the transition with the arms counted if that fails (:func:`stability_contacts`)
     arms_as_helpers: bool = False
     helpers_end_margin_m: float = 0.02
+    # an execution set by set (closed_loop.py) gives each transition the arms' planned normal forces
+    # (contact_forces.py) for the sim's damping control (sim/compliance.py): an experiment, off: every
+    # variant tried on the chair egress fell earlier than without it (services/contacts/README.md,
+    # session 9); `humanoid scenario chair-egress --force-control` runs it
+    force_control: bool = False
 
 
 @dataclass(frozen=True)

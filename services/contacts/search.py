@@ -42,6 +42,7 @@ from services.contacts.potential import PotentialTask, RoughTrajectory
 from services.contacts.sets import Contact, ContactSet, canonical, sets_close, turn_moving_corners_by
 from services.contacts.volumes import SearchVolume, around, full_volume, subtract
 from services.errors import InvalidRequestError
+from services.model.ground import yaw_of
 
 
 @dataclass(frozen=True)
@@ -235,7 +236,7 @@ class ContactPlanner:
         if abs(local.translation[2]) > cfg.reach_z_m:
             return None
         x, y = float(local.translation[0]), float(local.translation[1])
-        heading = math.atan2(float(local.rotation[1, 0]), float(local.rotation[0, 0]))
+        heading = yaw_of(local.rotation)
         full = full_volume(*(max(h - cfg.edge_margin_m, 0.0) for h in surface.half_size_m))
         reach = SearchVolume(
             (x - cfg.reach_m, y - cfg.reach_m, heading - cfg.reach_theta_rad),

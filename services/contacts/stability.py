@@ -32,19 +32,40 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 import proxsuite
+import scipy
 import scipy.sparse
 from scipy.optimize import linprog
 
-try:  # HiGHS as scipy ships it, driven directly: one model per region, re-solved warm (below)
-    from scipy.optimize._highspy import _core as _highs
-except ImportError:  # pragma: no cover - another scipy layout: linprog (the same LPs, cold)
-    _highs = None
-
 from services.errors import InfeasibleError
 from services.model.ground import convex_hull_indices
+
+WARM_LP_SCIPY = ((1, 17),)
+"""The scipy releases (major, minor) whose bundled HiGHS bindings :class:`_WarmLP` was checked against
+(``scipy.optimize._highspy._core``: private, its layout may change in any release; scipy 1.17 bundles
+HiGHS 1.12). Another scipy runs the same LPs through the public ``linprog``, cold (8x slower, the same
+regions up to the LPs' tolerance: tests/test_contacts.py); after checking a new release, add it here."""
+
+
+def _scipy_highs(version: str = scipy.__version__) -> ModuleType | None:
+    """scipy's bundled HiGHS bindings when scipy ``version`` is one of :data:`WARM_LP_SCIPY`, else None."""
+    try:
+        release = tuple(int(part) for part in version.split(".")[:2])
+    except ValueError:
+        return None
+    if release not in WARM_LP_SCIPY:
+        return None
+    try:
+        from scipy.optimize._highspy import _core
+    except ImportError:
+        return None
+    return _core
+
+
+_highs = _scipy_highs()  # HiGHS driven directly: one model per region, re-solved warm (_WarmLP)
 
 N_GENERATORS = 4  # edges of each linearized friction cone
 REGION_BOUND_M = 5.0  # the region is clipped to this square around the contacts [m] (unbounded LPs)
@@ -160,7 +181,8 @@ def equilibrium_region(
 ) -> np.ndarray:
     """The static-equilibrium CoM region (k x 2 counter-clockwise polygon [m]) by Bretl and Lall's
     projection: ``tol_m`` is the largest distance between the inner and outer approximations.
-    ``warm``: the LPs re-solved on one HiGHS model (:class:`_WarmLP`); False: each by ``linprog``.
+    ``warm``: the LPs re-solved on one HiGHS model (:class:`_WarmLP`, with a scipy of
+    :data:`WARM_LP_SCIPY`); False: each by ``linprog``.
 
     Raises InfeasibleError when no CoM position is in equilibrium (e.g. one contact too steep).
     """

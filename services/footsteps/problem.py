@@ -222,6 +222,7 @@ def desired_task(chain: VirtualChain, task: FootstepTask, gain: float, max_rate:
             model,
             robot.frames.grasp(task.hand),
             chain.T_root_world.rotation @ R_world,
+            mask=(True, True, not task.free_yaw),  # the model's z is the world's vertical
             gain=gain,
             name=task.name,
         )

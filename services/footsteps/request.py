@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from services.errors import InvalidRequestError
+from services.ik.hand_obstacles import SphereObstacle, check_spheres
 from services.walking.footsteps import Footstep, FootstepSequence, SolePose
 
 TaskKind = Literal["reach", "gaze", "posture", "orient"]
@@ -33,8 +34,11 @@ class FootstepTask:
     keeps the gaze axis through ``target_m`` (OG x OB = 0, section 4.3); ``posture`` is eq. (14),
     q - q_rest = 0 over the actuated joints (``q_rest``: a full robot configuration, default the
     half-sitting); ``orient`` turns the ``hand`` grasp frame to the world ``orientation`` [qx, qy, qz,
-    qw] (a grasp's wrist yaw, fingers down, chosen clear of a neighbouring object), log3 error [rad].
-    ``tolerance`` and ``epsilon`` default per kind (see ``DEFAULT_TOLERANCE`` and ``DEFAULT_EPSILON``)."""
+    qw] (a grasp's wrist yaw, fingers down, chosen clear of a neighbouring object), log3 error [rad];
+    with ``free_yaw`` only its tilt (the rotations about the horizontal axes: e.g. fingers down), the yaw
+    about the vertical left to the IK: the gripper's rows against ``hand_obstacles`` (level 0) turn
+    the jaws clear of a neighbour, and the chosen yaw is ``q_final``'s. ``tolerance`` and ``epsilon``
+    default per kind (see ``DEFAULT_TOLERANCE`` and ``DEFAULT_EPSILON``)."""
 
     kind: str
     target_m: tuple[float, float, float] | None = None
@@ -43,6 +47,7 @@ class FootstepTask:
     epsilon: float | None = None
     q_rest: tuple[float, ...] | None = None
     orientation: tuple[float, float, float, float] | None = None
+    free_yaw: bool = False
 
     @property
     def name(self) -> str:
@@ -70,6 +75,8 @@ class FootstepTask:
                 raise InvalidRequestError(f"{where}.orientation: an orient task needs [qx, qy, qz, qw]")
             if not math.isclose(math.sqrt(sum(v * v for v in quat)), 1.0, abs_tol=1e-3):
                 raise InvalidRequestError(f"{where}.orientation: {list(quat)} is not a unit quaternion")
+        if self.free_yaw and self.kind != "orient":
+            raise InvalidRequestError(f"{where}.free_yaw: only an orient task has a yaw to free")
         if self.kind in ("reach", "orient") and self.hand not in ("left", "right"):
             raise InvalidRequestError(f"{where}.hand: must be 'left' or 'right', got {self.hand!r}")
         for attr in ("tolerance", "epsilon"):
@@ -84,17 +91,6 @@ class DiskObstacle:
 
     x_m: float
     y_m: float
-    radius_m: float
-
-
-@dataclass(frozen=True)
-class SphereObstacle:
-    """A sphere above the ground that the reaching arm's capsules keep out of (a ball beside the one to
-    grasp; the object itself when the hand is planned above it): centre (x, y, z), radius [m], world."""
-
-    x_m: float
-    y_m: float
-    z_m: float
     radius_m: float
 
 
@@ -166,7 +162,9 @@ class FootstepPlanRequest:
             half-sitting with the mid-feet frame at the origin.
         tasks: desired tasks, highest priority first.
         disks: disk obstacles on the ground.
-        hand_obstacles: spheres the reaching arm keeps out of (level 0, ``arm_obstacles.py``).
+        hand_obstacles: spheres the reaching arm, gripper included, keeps out of in the final posture
+            (level 0, ``arm_obstacles.py``; the gripper not out of the one a reach target lies in or
+            above: the object it closes on).
         front_foot: the foot that makes the last step; "auto" solves for both and keeps the solution
             with fewer steps, ties broken by the posture residual (section 5.2). With a root insertion
             per added step, the two choices give the two possible first stepping feet at any count.
@@ -205,12 +203,7 @@ class FootstepPlanRequest:
         for i, disk in enumerate(self.disks):
             if not all(math.isfinite(v) for v in (disk.x_m, disk.y_m, disk.radius_m)) or disk.radius_m <= 0:
                 raise InvalidRequestError(f"disks[{i}]: needs finite x_m, y_m and radius_m > 0, got {disk}")
-        for i, sphere in enumerate(self.hand_obstacles):
-            values = (sphere.x_m, sphere.y_m, sphere.z_m, sphere.radius_m)
-            if not all(math.isfinite(v) for v in values) or sphere.radius_m <= 0:
-                raise InvalidRequestError(
-                    f"hand_obstacles[{i}]: needs finite x_m, y_m, z_m and radius_m > 0, got {sphere}"
-                )
+        check_spheres(self.hand_obstacles)
         if self.front_foot not in FOOT_CHOICES:
             raise InvalidRequestError(f"front_foot: {self.front_foot!r} is not one of {list(FOOT_CHOICES)}")
         if not 0 <= self.initial_steps <= self.max_steps:

@@ -155,6 +155,7 @@ def to_planner_request(
             epsilon=t.epsilon,
             q_rest=_vector(t.q_rest, robot, f"tasks[{i}].q_rest"),
             orientation=None if t.orientation is None else tuple(float(v) for v in t.orientation),  # type: ignore[arg-type]
+            free_yaw=t.free_yaw,
         )
         for i, t in enumerate(request.tasks)
     )

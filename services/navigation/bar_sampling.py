@@ -22,12 +22,13 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from services.collision.carried import BarGrip
+from services.collision.motion import MotionChecker
+from services.collision.obstacles import Scene, obstacle_geometry
 from services.ik import Level
 from services.ik.dofs import dof_mask
 from services.ik.solver import HierarchicalSolver
-from services.navigation.carry import BarGrip, BarTrajectory, HandOnBarTask, bar_rotation
-from services.navigation.collision3d import MotionChecker
-from services.navigation.geometry import Scene
+from services.navigation.carry import BarTrajectory, bar_rotation, hands_on_bar
 from services.navigation.reshaping import (
     BarOffset,
     ReshapeOptions,
@@ -35,7 +36,6 @@ from services.navigation.reshaping import (
     apply_offsets,
     make_window,
 )
-from services.navigation.upper_body import _obstacle_geometry
 
 _R_CAPSULE_Z_TO_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # capsule axis z -> x
 
@@ -76,17 +76,7 @@ class ArmReach:
         self.grip = grip
         self.iterations = iterations
         self.solver = HierarchicalSolver(model)
-        self.tasks = {
-            side: HandOnBarTask(
-                model,
-                grip.grasp_frames[side],
-                grip.held_point_in_grasp_m[side],
-                grip.centre_world_m + grip.along_m[side] * grip.axis_world,
-                grip.axis_world,
-                name=f"{side}_hand_on_bar",
-            )
-            for side in ("left", "right")
-        }
+        self.tasks = hands_on_bar(model, grip)
         arms = robot.arm_joints("left") + robot.arm_joints("right")  # type: ignore[attr-defined]
         self.level = Level(tuple(self.tasks.values()), name="hands_on_bar", selection=dof_mask(model, arms))
         joints = [model.joints[model.getJointId(name)] for name in arms]
@@ -155,7 +145,7 @@ class BarPoseSampler:
         self.reach = reach
         self.rng = rng
         self.checker = checker
-        self.obstacles = [(o, *_obstacle_geometry(o)) for o in scene.obstacles]
+        self.obstacles = [(o, *obstacle_geometry(o)) for o in scene.obstacles]
         self.bar_shape = coal.Capsule(grip.bar.radius_m, grip.bar.length_m)
         self.hand_shape = coal.Sphere(options.sampling.hand_radius_m)
         self._request = coal.DistanceRequest()

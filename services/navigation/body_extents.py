@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from services.collision.motion import part_group
 from services.model.geometry import shape_points
-from services.navigation.collision3d import part_group
 from services.navigation.geometry import BodyModel
 
 

@@ -5,7 +5,8 @@ into a whole-body motion "by taking account of dynamic balance based on ZMP" whi
 carried object; the smooth reshaping then changes "the bar's configuration at key frames" (Figure 2 (b))
 and "New constraints are enforced by using a whole-body IK solver" (Figure 2 (d)). This module holds:
 
-- :class:`BarGrip`: how the robot holds the bar, read from its starting configuration (the held point of
+- :class:`BarGrip` (:mod:`services.collision.carried`): how the robot holds the bar, read from its
+  starting configuration by :func:`grip_from_configuration` (the held point of
   each hand on the bar's axis, the bar frame in the left grasp frame);
 - :class:`HandOnBarTask`: the IK task of one hand on the bar: the hand's held point on a target point
   of the bar's axis and the grasp x axis along the bar; the roll of the hand about the bar is left free
@@ -27,10 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from services.collision.carried import BarGrip, CarriedBar
 from services.errors import InvalidRequestError
 from services.ik.kinematics import frame_id, frame_jacobian, point_jacobian
 from services.ik.task import Task
-from services.navigation.upper_body import CarriedBar
 from services.walking.pattern import WalkPattern
 
 MAX_AXIS_ANGLE_RAD = math.radians(20.0)
@@ -51,28 +52,6 @@ def bar_rotation(axis_world: np.ndarray) -> np.ndarray:
     y = _cross(up, x)
     y /= math.sqrt(y @ y)
     return np.column_stack([x, y, _cross(x, y)])
-
-
-@dataclass(frozen=True, eq=False)
-class BarGrip:
-    """The bar held in both hands, as found in a configuration.
-
-    ``held_point_in_grasp_m[side]`` is where the bar's axis crosses the grasp frame of ``side`` (3,) [m]
-    (``RobotModel.held_object_offset``); ``along_m[side]`` the signed position of that point along the
-    bar's x axis from its centre [m]; ``T_left_grasp_bar`` the bar frame in the left grasp frame (the bar
-    is rigid with the left hand, as in the sim, where the left gripper's constraint holds it);
-    ``centre_world_m`` / ``axis_world`` the bar at the configuration; ``grip_error_m`` how far the right
-    held point is from the bar's axis there (0 when the bar is centred between the hands' held points).
-    """
-
-    bar: CarriedBar
-    grasp_frames: dict[str, str]
-    held_point_in_grasp_m: dict[str, np.ndarray]
-    along_m: dict[str, float]
-    T_left_grasp_bar: pin.SE3
-    centre_world_m: np.ndarray
-    axis_world: np.ndarray
-    grip_error_m: float
 
 
 def grip_from_configuration(
@@ -189,6 +168,22 @@ class HandOnBarTask(Task):
         return self.compute(q, data)[1]
 
 
+def hands_on_bar(model: pin.Model, grip: BarGrip) -> dict[str, HandOnBarTask]:
+    """Both hands' :class:`HandOnBarTask` (``left``, ``right``), each held point on its place on the bar
+    as ``grip`` holds it (the targets move with the bar: ``set_target``)."""
+    return {
+        side: HandOnBarTask(
+            model,
+            grip.grasp_frames[side],
+            grip.held_point_in_grasp_m[side],
+            grip.centre_world_m + grip.along_m[side] * grip.axis_world,
+            grip.axis_world,
+            name=f"{side}_hand_on_bar",
+        )
+        for side in ("left", "right")
+    }
+
+
 @dataclass(frozen=True, eq=False)
 class BarTrajectory:
     """The bar's task-space motion on a time grid: ``times_s`` (n,) [s], ``centre_m`` (n, 3) [m] and unit
@@ -262,5 +257,6 @@ __all__ = [
     "bar_poses",
     "bar_rotation",
     "grip_from_configuration",
+    "hands_on_bar",
     "nominal_bar_trajectory",
 ]

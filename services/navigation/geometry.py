@@ -4,7 +4,8 @@ Stage 1 of the two-stage planner ("Two-stage Planning Method", section "Manipula
 `001_771c0ce3779b0683.txt`): "the motion planner computes a collision-free walking path for the lower part
 of the robot body approximated by a bounding box". This module holds:
 
-- obstacles: vertical-axis oriented boxes (yaw only) and vertical cylinders, in the world frame [m, rad];
+- obstacles: vertical-axis oriented boxes (yaw only) and vertical cylinders, in the world frame [m, rad]
+  (:mod:`services.collision.obstacles`, shared with walking; re-exported here);
 - :class:`BodyModel`: the per-robot bounding boxes (lower body footprint on the floor, upper body box);
 - :class:`FootprintChecker`: is the lower-body rectangle at (x, y, theta) free of the floor projections
   of the obstacles that reach into the lower body's height range? Exact separating-axis tests, behind a
@@ -23,6 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from services.collision.obstacles import BoxObstacle as BoxObstacle
+from services.collision.obstacles import CylinderObstacle as CylinderObstacle
+from services.collision.obstacles import Obstacle as Obstacle
+from services.collision.obstacles import Scene as Scene
 from services.errors import InvalidRequestError, NotFoundError
 from services.model.ground import Rectangle
 
@@ -40,107 +45,6 @@ class Pose2D:
             raise InvalidRequestError(
                 f"pose must be finite numbers, got {(self.x_m, self.y_m, self.theta_rad)}"
             )
-
-
-@dataclass(frozen=True)
-class BoxObstacle:
-    """A box with vertical z axis: centre ``center_xyz_m`` [m] in world, full sizes [m], yaw [rad]."""
-
-    name: str
-    center_xyz_m: tuple[float, float, float]
-    size_xyz_m: tuple[float, float, float]
-    yaw_rad: float = 0.0
-
-    def __post_init__(self) -> None:
-        if any(not math.isfinite(v) for v in (*self.center_xyz_m, *self.size_xyz_m, self.yaw_rad)):
-            raise InvalidRequestError(f"obstacle {self.name!r}: centre, size and yaw must be finite numbers")
-        if min(self.size_xyz_m) <= 0.0:
-            raise InvalidRequestError(
-                f"obstacle {self.name!r}: sizes must be > 0 m, got {tuple(self.size_xyz_m)}"
-            )
-
-    @property
-    def z_range_m(self) -> tuple[float, float]:
-        """Bottom and top heights [m]."""
-        cz, sz = self.center_xyz_m[2], self.size_xyz_m[2]
-        return cz - 0.5 * sz, cz + 0.5 * sz
-
-    @property
-    def bounding_radius_xy_m(self) -> float:
-        """Radius [m] of the smallest disc around the centre containing the floor projection."""
-        return 0.5 * math.hypot(self.size_xyz_m[0], self.size_xyz_m[1])
-
-    @property
-    def footprint(self) -> Rectangle:
-        """The floor projection: a rectangle of the x and y sizes, turned by the yaw."""
-        return Rectangle(
-            (self.center_xyz_m[0], self.center_xyz_m[1]),
-            (self.size_xyz_m[0], self.size_xyz_m[1]),
-            self.yaw_rad,
-        )
-
-
-@dataclass(frozen=True)
-class CylinderObstacle:
-    """A vertical cylinder: centre ``center_xyz_m`` [m] (middle of its height), radius and height [m]."""
-
-    name: str
-    center_xyz_m: tuple[float, float, float]
-    radius_m: float
-    height_m: float
-
-    def __post_init__(self) -> None:
-        if any(not math.isfinite(v) for v in (*self.center_xyz_m, self.radius_m, self.height_m)):
-            raise InvalidRequestError(f"obstacle {self.name!r}: centre, radius and height must be finite")
-        if self.radius_m <= 0.0 or self.height_m <= 0.0:
-            raise InvalidRequestError(
-                f"obstacle {self.name!r}: radius and height must be > 0 m, "
-                f"got {self.radius_m}, {self.height_m}"
-            )
-
-    @property
-    def z_range_m(self) -> tuple[float, float]:
-        """Bottom and top heights [m]."""
-        cz = self.center_xyz_m[2]
-        return cz - 0.5 * self.height_m, cz + 0.5 * self.height_m
-
-    @property
-    def bounding_radius_xy_m(self) -> float:
-        """Radius [m] of the floor projection."""
-        return self.radius_m
-
-
-Obstacle = BoxObstacle | CylinderObstacle
-
-
-@dataclass(frozen=True)
-class Scene:
-    """Obstacles in the world frame and the rectangle ``bounds_xy_m`` = (xmin, xmax, ymin, ymax) [m]
-    the robot's base may occupy (the planner's sampling region). Names must be unique."""
-
-    obstacles: tuple[Obstacle, ...]
-    bounds_xy_m: tuple[float, float, float, float]
-
-    def __post_init__(self) -> None:
-        names = [o.name for o in self.obstacles]
-        duplicates = sorted({n for n in names if names.count(n) > 1})
-        if duplicates:
-            raise InvalidRequestError(f"obstacle names must be unique; repeated: {duplicates}")
-        xmin, xmax, ymin, ymax = self.bounds_xy_m
-        if not (xmax > xmin and ymax > ymin):
-            raise InvalidRequestError(
-                f"scene bounds (xmin, xmax, ymin, ymax) must be increasing, got {self.bounds_xy_m}"
-            )
-
-    def find(self, name: str) -> Obstacle:
-        """The obstacle called ``name``; NotFoundError lists the known names."""
-        for obstacle in self.obstacles:
-            if obstacle.name == name:
-                return obstacle
-        raise NotFoundError(
-            f"no object named {name!r} in the scene; known objects: {sorted(o.name for o in self.obstacles)}",
-            {"name": name, "known": sorted(o.name for o in self.obstacles)},
-        )
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ import numpy as np
 from services import budget
 from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
+from services.model.ground import FootstepBounds, sole_pose_of
 from services.navigation.body_extents import with_arms_of
 from services.navigation.carry import grip_from_configuration
 from services.navigation.footsteps_along_path import FootstepOptions, PathFootsteps, footsteps_along_path
@@ -33,12 +34,16 @@ from services.navigation.path import PlannerConfig, SampledPath, escape_pose, pl
 from services.navigation.stage2 import Stage2Options, WholeBodyMotion, plan_motion
 from services.navigation.straight import StraightWalkOptions, straight_walk
 from services.navigation.upper_body import CarriedBar, SweepResult, sweep_carried_object
-from services.walking.footsteps import FootstepLimits, FootstepSequence, SolePose
+from services.walking.footsteps import FootstepSequence, SolePose
 from services.walking.timing import WalkTiming, build_schedule
+from services.walking.two_stage import COM_LOWERINGS_M
 
 REPLAN_EXTRA_MARGIN_M = 0.02
 """Margin [m] added, beyond the clearance missing, when stage 2 sends stage 1 back for a new path."""
 SLOW_WALK_FACTOR = 1.5
+#: CoM lowering [m] of a walk whose first whole-body motion has a joint too fast (the first nonzero of
+#: ``COM_LOWERINGS_M``: 2 cm made seed 6's walks with a stretched leg executable, 4 cm made others ring).
+STRETCHED_LEG_LOWERING_M = COM_LOWERINGS_M[1]
 """Single supports this much longer when stage 2's walk moves a joint faster than its limit: first those
 of the steps moving while it does, then (once more too fast) every step's."""
 ESCAPE_EXTRA_MARGIN_M = 0.02
@@ -97,10 +102,6 @@ def _steps_too_fast(
     return tuple(sorted(out))
 
 
-def _yaw(R: np.ndarray) -> float:
-    return math.atan2(float(R[1, 0]), float(R[0, 0]))
-
-
 def start_soles(robot: Any, q: np.ndarray) -> tuple[SolePose, SolePose]:
     """The (left, right) sole poses of configuration ``q``; InvalidRequestError unless both soles are flat
     on the floor."""
@@ -116,7 +117,7 @@ def start_soles(robot: Any, q: np.ndarray) -> tuple[SolePose, SolePose]:
                 f"{1e3 * MAX_START_SOLE_HEIGHT_M:.0f} mm of z = 0); send the robot's current configuration",
                 {"field": "q_start", "side": side},
             )
-        soles.append(SolePose(float(T.translation[0]), float(T.translation[1]), _yaw(T.rotation)))
+        soles.append(sole_pose_of(T))
     return soles[0], soles[1]
 
 
@@ -266,7 +267,7 @@ def plan_goto(
         if steps is None:
             footstep_options = options.footsteps or FootstepOptions.for_body(body)
             steps = footsteps_along_path(
-                path, FootstepLimits.from_robot(robot), footstep_options, start_soles=soles
+                path, FootstepBounds.from_robot(robot), footstep_options, start_soles=soles
             )
         if escape is not None:
             path, steps = _joined(escape, path, steps)
@@ -282,6 +283,15 @@ def plan_goto(
             motion = plan_motion(robot, scene, steps.sequence, q_start, bar, options.stage2)
         except InfeasibleError as error:
             timings["stage2_s"] += time.perf_counter() - t3
+            lowered = options.stage2.com_lowering_m or 0.0
+            if "joint" in error.details and lowered < STRETCHED_LEG_LOWERING_M:
+                # a joint faster than its limit, most often a leg stretched near its straight knee (the
+                # IK flips the knee or swings a free arm to hold the CoM height): the same footsteps
+                # with the CoM lowered (services.walking.two_stage.COM_LOWERINGS_M), then slower
+                log.info("stage 2: %s; the CoM lowered by %.2f m", error.message, STRETCHED_LEG_LOWERING_M)
+                stage2 = replace(options.stage2, com_lowering_m=STRETCHED_LEG_LOWERING_M)
+                options = replace(options, stage2=stage2)
+                continue
             if "joint" in error.details and not slowed:
                 # a joint faster than its limit (a knee on a turning step): the same footsteps with slower
                 # single supports (the second stage's pattern and whole-body IK again), first of the

@@ -1,7 +1,7 @@
 """The key frames of one reshaping iteration: from the collisions of a whole-body motion to the windows
 the next one is solved with (Figure 2 (a)-(b) of `001_771c0ce3779b0683.txt`).
 
-For each collision of the bar or an arm (:class:`~services.navigation.collision3d.CollisionEvent`), the
+For each collision of the bar or an arm (:class:`~services.collision.motion.CollisionEvent`), the
 colliding times are where the part comes within the target clearance of the obstacle ("The reshaping
 limits are set by identifying the anticipating, colliding and regaining times", Figure 2 (a)); the bar's
 configuration held there is
@@ -22,11 +22,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from services.bus.schemas.navigation import REASON_LIFT_TOO_HIGH, REASON_NO_COLLISION_FREE_SAMPLE
+from services.collision.carried import BarGrip
+from services.collision.motion import CollisionEvent, MotionCheck
+from services.collision.obstacles import Scene
 from services.errors import InfeasibleError
 from services.navigation.bar_sampling import BarPoseSampler, SampleStats
-from services.navigation.carry import BarGrip, BarTrajectory
-from services.navigation.collision3d import CollisionEvent, MotionCheck
-from services.navigation.geometry import Scene
+from services.navigation.carry import BarTrajectory
 from services.navigation.reshaping import (
     ZERO_OFFSET,
     BarOffset,

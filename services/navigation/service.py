@@ -25,17 +25,19 @@ from services import budget
 from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import navigation as msg
 from services.bus.service import Service, handles, run_service
+from services.collision.carried import CarriedBar
+from services.collision.obstacles import Scene
+from services.collision.obstacles import obstacle_from_msg as obstacle_from_msg
 from services.errors import InvalidRequestError
 from services.model import load_robot
 from services.model.options import add_model_argument, with_model
-from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle, Pose2D, Scene
+from services.navigation.geometry import Pose2D
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto, start_pose
 from services.navigation.path import PlannerConfig
 from services.navigation.reshaping import ReshapeOptions, SamplingOptions
 from services.navigation.stage2 import Stage2Options
 from services.navigation.straight import StraightWalkOptions
-from services.navigation.upper_body import CarriedBar
 from services.walking.timing import WalkTiming
 
 DEFAULT_BOUNDS_MARGIN_M = 1.5
@@ -71,32 +73,10 @@ class NavigationConfig:
             raise InvalidRequestError(f"navigation max_iterations must be >= 1, got {self.max_iterations}")
 
 
-def obstacle_from_msg(o: msg.ObstacleMsg) -> Obstacle:
-    """A navigation obstacle from its message; InvalidRequestError names the bad field."""
-    if len(o.center) != 3:
-        raise InvalidRequestError(
-            f"obstacle {o.name!r}: center must be [x, y, z], got {o.center}", {"field": "center"}
-        )
-    center = (float(o.center[0]), float(o.center[1]), float(o.center[2]))
-    if o.kind == "box":
-        if len(o.size) != 3:
-            raise InvalidRequestError(
-                f"obstacle {o.name!r}: a box needs size [sx, sy, sz], got {o.size}", {"field": "size"}
-            )
-        return BoxObstacle(
-            o.name, center, (float(o.size[0]), float(o.size[1]), float(o.size[2])), float(o.yaw)
-        )
-    if o.kind == "cylinder":
-        return CylinderObstacle(o.name, center, float(o.radius), float(o.height))
-    raise InvalidRequestError(
-        f"obstacle {o.name!r}: kind must be 'box' or 'cylinder', got {o.kind!r}", {"field": "kind"}
-    )
-
-
 def scene_from_request(request: msg.GotoRequest, start: Pose2D) -> Scene:
     """The planner's scene: the obstacles and the floor bounds (given, or around start, goal and
     obstacles with a 1.5 m margin)."""
-    obstacles = tuple(obstacle_from_msg(o) for o in request.obstacles)
+    obstacles = tuple(obstacle_from_msg(o, i) for i, o in enumerate(request.obstacles))
     if request.bounds:
         if len(request.bounds) != 4:
             raise InvalidRequestError(

@@ -40,22 +40,22 @@ from services.bus.schemas.navigation import (
     REASON_NO_COLLISION_FREE_RESHAPING,
     REASON_ZMP_OUTSIDE_SUPPORT,
 )
+from services.collision.carried import BarGrip, CarriedBar
+from services.collision.motion import RESHAPABLE_GROUPS, CollisionEvent, MotionCheck, MotionChecker
+from services.collision.obstacles import Scene
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import Level
 from services.navigation.bar_sampling import ArmReach, BarPoseSampler, SampleStats
 from services.navigation.carry import (
-    BarGrip,
     BarTrajectory,
     HandOnBarTask,
     bar_poses,
     grip_from_configuration,
+    hands_on_bar,
     nominal_bar_trajectory,
 )
-from services.navigation.collision3d import RESHAPABLE_GROUPS, CollisionEvent, MotionCheck, MotionChecker
-from services.navigation.geometry import Scene
 from services.navigation.keyframes import next_windows
 from services.navigation.reshaping import ReshapeOptions, ReshapeWindow, reshaped_trajectory
-from services.navigation.upper_body import CarriedBar
 from services.walking.footsteps import FootstepSequence
 from services.walking.pattern import WalkPattern
 from services.walking.timing import WalkTiming
@@ -313,17 +313,7 @@ def plan_motion(
     tasks: dict[str, HandOnBarTask] = {}
     if grip is not None:
         nominal = _nominal_heights(pattern, float(grip.centre_world_m[2]), options.carry_height_m)
-        tasks = {
-            side: HandOnBarTask(
-                planner.model,
-                grip.grasp_frames[side],
-                grip.held_point_in_grasp_m[side],
-                grip.centre_world_m + grip.along_m[side] * grip.axis_world,
-                grip.axis_world,
-                name=f"{side}_hand_on_bar",
-            )
-            for side in ("left", "right")
-        }
+        tasks = hands_on_bar(planner.model, grip)
         extra = [Level((tasks["left"], tasks["right"]), name="hands_on_bar")]
         nominal_bar = nominal_bar_trajectory(pattern, grip, nominal)
         if rs.mode == "sample":

@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 
 from services.errors import InfeasibleError
-from services.model.ground import FootstepBounds, Rectangle, SolePose
+from services.model.ground import FootstepBounds, SolePose
 from services.navigation.footsteps_along_path import PathFootsteps
-from services.navigation.geometry import BoxObstacle, Pose2D, Scene
+from services.navigation.geometry import Pose2D, Scene
 from services.navigation.path import SampledPath
 from services.walking.goals import MapBox, check_clear, walk_to_steps
 
@@ -53,14 +53,7 @@ class StraightWalkOptions:
 
 def floor_boxes(scene: Scene) -> list[MapBox]:
     """The scene's obstacles as floor rectangles (a cylinder as its bounding square)."""
-    out = []
-    for o in scene.obstacles:
-        if isinstance(o, BoxObstacle):
-            out.append(MapBox(o.name, o.footprint))
-        else:
-            d = 2.0 * o.radius_m
-            out.append(MapBox(o.name, Rectangle(o.center_xyz_m[:2], (d, d), 0.0)))
-    return out
+    return [MapBox(o.name, o.footprint) for o in scene.obstacles]
 
 
 def straight_walk(

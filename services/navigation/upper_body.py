@@ -23,32 +23,11 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 
+from services.collision.carried import CarriedBar as CarriedBar
+from services.collision.obstacles import Scene, obstacle_geometry
 from services.errors import InvalidRequestError
-from services.navigation.geometry import BodyModel, BoxObstacle, Obstacle, Scene
+from services.navigation.geometry import BodyModel
 from services.navigation.path import SampledPath
-
-
-@dataclass(frozen=True)
-class CarriedBar:
-    """A bar held horizontally in both hands, across the walking direction, in the ``base`` frame.
-
-    ``length_m``, ``radius_m`` [m] and ``mass_kg`` of the paper's bar (1.8 m, 2.4 cm diameter, 0.5 kg);
-    its centre is ``forward_m`` [m] ahead of the base origin at height ``height_m`` [m] above the floor;
-    ``yaw_in_base_rad`` [rad] is the bar's axis direction in the base frame (pi/2: along base y).
-    """
-
-    length_m: float = 1.8
-    radius_m: float = 0.012
-    mass_kg: float = 0.5
-    forward_m: float = 0.35
-    height_m: float = 0.9
-    yaw_in_base_rad: float = math.pi / 2
-
-    def __post_init__(self) -> None:
-        if not (self.length_m > 0.0 and self.radius_m > 0.0 and self.mass_kg > 0.0):
-            raise InvalidRequestError("bar length, radius and mass must be > 0")
-        if not all(math.isfinite(v) for v in (self.forward_m, self.height_m, self.yaw_in_base_rad)):
-            raise InvalidRequestError("bar forward offset, height and yaw must be finite")
 
 
 @dataclass(frozen=True)
@@ -98,18 +77,6 @@ class SweepResult:
     def sweep_free(self) -> bool:
         """Also free between samples: every sample clears by half the largest move between samples."""
         return self.min_distance_m >= 0.5 * self.max_sample_gap_m
-
-
-def _obstacle_geometry(o: Obstacle) -> tuple[coal.CollisionGeometry, coal.Transform3s, float]:
-    """coal shape, its world placement, and the radius of its floor projection's bounding disc."""
-    if isinstance(o, BoxObstacle):
-        shape = coal.Box(*o.size_xyz_m)
-        c, s = math.cos(o.yaw_rad), math.sin(o.yaw_rad)
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    else:
-        shape = coal.Cylinder(o.radius_m, o.height_m)
-        R = np.eye(3)
-    return shape, coal.Transform3s(R, np.asarray(o.center_xyz_m, dtype=float)), o.bounding_radius_xy_m
 
 
 def _rot_z(theta: float) -> np.ndarray:
@@ -210,7 +177,7 @@ def sweep_carried_object(
     if clearance_m < 0.0 or lead_m < 0.0:
         raise InvalidRequestError(f"clearance_m and lead_m must be >= 0, got {clearance_m}, {lead_m}")
 
-    obstacles = [(o, *_obstacle_geometry(o)) for o in scene.obstacles]
+    obstacles = [(o, *obstacle_geometry(o)) for o in scene.obstacles]
     tops = {o.name: o.z_range_m[1] for o in scene.obstacles}
     theta = path.theta_rad
     heading = np.column_stack([np.cos(theta), np.sin(theta)])

@@ -39,7 +39,9 @@ from vision.camera import look_at
 from vision.camshift import DetectionConfig, detect_all
 from vision.histogram import DEFAULT_MODELS_DIR, HistogramConfig, ObjectModel, learn_model, save_model, to_hsv
 
-DEMO_OBJECTS = ("orange_ball", "green_box", "yellow_table", "chair")
+#: Every object of the ball_fetch scene's catalogue: the ball to fetch, the balls beside it (their
+#: models put them on the map before the hand comes near), the box, the table and the chair.
+DEMO_OBJECTS = ("orange_ball", "blue_ball", "purple_ball", "green_box", "yellow_table", "chair")
 
 
 @dataclass(frozen=True)
@@ -94,7 +96,9 @@ class LearnSimResult:
     """The learned models, where they were written, and the detection check on the learning views.
 
     views_used[name]: views that showed the object; hits[name]: views where its model's best detection
-    lies on its mask; false_hits[name]: views without the object where its model still detected something.
+    lies on its mask; false_hits[name]: views without the object where its model still detected something;
+    confused[name]: views where its model's best detection lies on another object's pixels, off its own
+    (two objects of one colour: the models could not tell them apart).
     """
 
     models: dict[str, ObjectModel]
@@ -102,6 +106,7 @@ class LearnSimResult:
     views_used: dict[str, int]
     hits: dict[str, int]
     false_hits: dict[str, int]
+    confused: dict[str, int] = field(default_factory=dict)
 
 
 def _aim_point(obj) -> np.ndarray:
@@ -191,18 +196,21 @@ def learn_from_views(
 
 def check_models(
     models: dict[str, ObjectModel], views: Sequence[View], min_view_pixels: int
-) -> tuple[dict[str, int], dict[str, int], dict[str, int]]:
+) -> tuple[dict[str, int], dict[str, int], dict[str, int], dict[str, int]]:
     """(views showing each object, views where its best detection is on it, views without it where the
-    model detected something anyway)."""
+    model detected something anyway, views where its best detection lies on another object's pixels
+    and off its own: :class:`LearnSimResult`)."""
     cfg = DetectionConfig()
     used = dict.fromkeys(models, 0)
     hits = dict.fromkeys(models, 0)
     false_hits = dict.fromkeys(models, 0)
+    confused = dict.fromkeys(models, 0)
     for view in views:
         hsv = to_hsv(view.image_bgr)
         for name, model in models.items():
             candidates = detect_all(back_project(hsv, model), name, cfg)
             visible = np.count_nonzero(view.masks[name]) >= min_view_pixels
+            on_it = False
             if visible:
                 used[name] += 1
                 if candidates:
@@ -210,11 +218,16 @@ def check_models(
                     ys, xs = np.nonzero(view.masks[name])
                     # On the object: the centroid is inside the mask's bounding box (a table's centroid
                     # may fall between its legs).
-                    if xs.min() - 1 <= u <= xs.max() + 1 and ys.min() - 1 <= v <= ys.max() + 1:
-                        hits[name] += 1
+                    on_it = bool(xs.min() - 1 <= u <= xs.max() + 1 and ys.min() - 1 <= v <= ys.max() + 1)
+                    hits[name] += on_it
             elif candidates and not np.any(view.masks[name]):
                 false_hits[name] += 1
-    return used, hits, false_hits
+            if candidates and not on_it:
+                u, v = (round(c) for c in candidates[0].centre_px)
+                height, width = view.masks[name].shape
+                if 0 <= u < width and 0 <= v < height:
+                    confused[name] += any(mask[v, u] for other, mask in view.masks.items() if other != name)
+    return used, hits, false_hits, confused
 
 
 def catalogued_floor_size(scene: str, name: str) -> tuple[float, float] | None:
@@ -252,8 +265,8 @@ def learn_sim(
         name: replace(m, floor_size_m=catalogued_floor_size(config.scene, name)) for name, m in models.items()
     }
     paths = {name: save_model(model, models_dir) for name, model in models.items()}
-    used, hits, false_hits = check_models(models, views, config.min_view_pixels)
-    return LearnSimResult(models, paths, used, hits, false_hits)
+    used, hits, false_hits, confused = check_models(models, views, config.min_view_pixels)
+    return LearnSimResult(models, paths, used, hits, false_hits, confused)
 
 
 # ---------------------------------------------------------------------------------------------- command line
@@ -319,7 +332,8 @@ def run_cli(args: argparse.Namespace) -> int:
         m = result.models[name]
         print(
             f"{name:<14} {m.shape:<6} {m.n_pixels:>8} px -> {path}   detected on it in "
-            f"{result.hits[name]}/{result.views_used[name]} views, elsewhere in {result.false_hits[name]}"
+            f"{result.hits[name]}/{result.views_used[name]} views, elsewhere in {result.false_hits[name]}, "
+            f"on another object in {result.confused[name]}"
         )
     return 0
 

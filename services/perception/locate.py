@@ -12,13 +12,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from services.errors import InvalidRequestError
+from services import budget
+from services.errors import InvalidRequestError, NotFoundError
 from services.model import RobotModel
 from services.model.specs import StereoPair
 from services.perception.own_body import OwnBody
 from vision.camera import CameraIntrinsics, StereoRig
 from vision.histogram import ObjectModel, select_models
-from vision.localize import LocalizeConfig, ObjectLocation, locate
+from vision.localize import LocalizeConfig, ObjectLocation, StereoFrame, locate_in_frame, others_in_frame
 from vision.stereo import METHODS, StereoConfig
 
 
@@ -110,21 +111,42 @@ def locate_object(
     NotFoundError with ``details["reason"]`` (not_in_view, ambiguous, not_in_right_view, no_disparity,
     stereo_mismatch) when it is not found.
     """
+    return locate_with_others(models, name, head, left_bgr, right_bgr, config, own_body, q, others=False)[0]
+
+
+def locate_with_others(
+    models: dict[str, ObjectModel],
+    name: str,
+    head: HeadStereo,
+    left_bgr: np.ndarray,
+    right_bgr: np.ndarray,
+    config: LocalizeConfig | None = None,
+    own_body: OwnBody | None = None,
+    q: np.ndarray | None = None,
+    others: bool = True,
+) -> tuple[ObjectLocation, list[ObjectLocation]]:
+    """:func:`locate_object`, and with ``others`` every other known object seen in the same pair
+    (vision.localize.others_in_frame: no footprints; [] without ``others``). The own-body masks are
+    drawn only when used (a footprint's outline, a ball partly hidden by the robot's hand)."""
     model = object_model(models, name)
-    others = [m for other, m in models.items() if other != name]  # what may hide parts of it
+    occluders = [m for other, m in models.items() if other != name]  # what may hide parts of it
+    config = config or LocalizeConfig()
     masks = None
     if own_body is not None and q is not None:
-        masks = own_body.stereo_masks(q, head.rig.intrinsics, head.T_world_left_camera, head.rig.baseline_m)
-    return locate(
-        model,
-        left_bgr,
-        right_bgr,
-        head.rig,
-        head.T_world_left_camera,
-        config or LocalizeConfig(),
-        others,
-        own_body=masks,
-    )
+
+        def masks() -> tuple[np.ndarray, np.ndarray]:
+            rig = head.rig
+            return own_body.stereo_masks(q, rig.intrinsics, head.T_world_left_camera, rig.baseline_m)
+
+    frame = StereoFrame(left_bgr, right_bgr, head.rig, head.T_world_left_camera, masks)
+    budget.check(f"the localization of {name}")
+    try:
+        found = locate_in_frame(model, frame, config, occluders)
+    except NotFoundError as e:
+        e.details.setdefault("object", name)
+        raise
+    seen = others_in_frame(found, list(models.values()), frame, config) if others else []
+    return found, seen
 
 
 def default_localize_config(method: str = "centroid", max_depth_m: float = 8.0) -> LocalizeConfig:

@@ -40,7 +40,7 @@ from services.perception.locate import (
     default_localize_config,
     head_stereo,
     localize_config,
-    locate_object,
+    locate_with_others,
     object_model,
     stereo_pair,
 )
@@ -69,8 +69,27 @@ def _box(box: tuple[tuple[float, float], tuple[float, float], float]) -> msg.Pix
     return msg.PixelBox(u_px=u + 0.5, v_px=v + 0.5, width_px=w, height_px=h, angle_deg=angle)
 
 
-def to_reply(loc: ObjectLocation, head: HeadStereo, rendered: bool, sim_time_s: float) -> msg.LocateReply:
-    """The bus reply of a localization."""
+def seen_object(loc: ObjectLocation) -> msg.SeenObject:
+    """An object seen in passing, for the bus."""
+    return msg.SeenObject(
+        object=loc.name,
+        position=list(loc.position_world),
+        distance_m=float(np.linalg.norm(loc.position_camera)),
+        size_m=list(loc.size_m),
+        confidence=loc.confidence,
+        method=loc.method,
+        box_left=_box(loc.left.box),
+    )
+
+
+def to_reply(
+    loc: ObjectLocation,
+    head: HeadStereo,
+    rendered: bool,
+    sim_time_s: float,
+    others: list[ObjectLocation] | None = None,
+) -> msg.LocateReply:
+    """The bus reply of a localization (``others``: the other objects seen in the same images)."""
     return msg.LocateReply(
         object=loc.name,
         position=list(loc.position_world),
@@ -88,6 +107,7 @@ def to_reply(loc: ObjectLocation, head: HeadStereo, rendered: bool, sim_time_s: 
         rendered=rendered,
         sim_time_s=sim_time_s,
         footprint=None if loc.footprint is None else _footprint(loc.footprint),
+        others=[seen_object(o) for o in others or []],
     )
 
 
@@ -217,15 +237,16 @@ class PerceptionService(Service):
             rendered, sim_time_s = True, render.sim_time_s
         budget.check("the stereo localization", {"rendered": rendered})
         try:
-            loc = locate_object(
-                self.models, request.object, head, left, right, config, self._own_body(robot), q
+            own = self._own_body(robot)
+            loc, others = locate_with_others(
+                self.models, request.object, head, left, right, config, own, q, request.others
             )
         except NotFoundError as e:
             details = {**e.details, "object": request.object, "camera": request.camera}
             raise NotFoundError(
                 f"{request.object} in the {request.camera} stereo pair: {e.message}", details
             ) from e
-        return to_reply(loc, head, rendered, sim_time_s)
+        return to_reply(loc, head, rendered, sim_time_s, others)
 
     # ------------------------------------------------------------------------------ helpers
     def _own_body(self, robot: RobotModel) -> OwnBody:

@@ -16,6 +16,7 @@ import pinocchio as pin
 
 from services.bus.schemas.reaching import (
     CRITERION_EE_ERROR,
+    CRITERION_HAND_OBSTACLE,
     CRITERION_JOINT_LIMITS,
     CRITERION_JOINT_SPEED,
     CRITERION_JOINT_TORQUE,
@@ -105,12 +106,16 @@ class Thresholds:
 
 @dataclass(frozen=True)
 class Violation:
-    """A criterion out of its admissible range at ``time_s`` [s]: ``value`` against ``threshold``."""
+    """A criterion out of its admissible range at ``time_s`` [s]: ``value`` against ``threshold``; for
+    ``hand_obstacle``, ``sphere`` is the index of the request's sphere and ``link`` the arm's capsule."""
 
     criterion: str
     time_s: float
     value: float
     threshold: float
+    sphere: int = -1
+    link: str = ""
+    held_back: str = ""  # hand_obstacle: the criterion that failed while the sphere held the arm off
 
     def describe(self) -> str:
         """A sentence for error messages."""
@@ -133,6 +138,18 @@ class Violation:
             return (
                 f"holding the posture takes {100 * self.value:.0f} % of a joint's effort limit (admissible "
                 f"{100 * self.threshold:.0f} %) at t={self.time_s:.2f} s"
+            )
+        if self.criterion == CRITERION_HAND_OBSTACLE and self.held_back:
+            return (
+                f"'{self.held_back}' failed while hand_obstacles[{self.sphere}] held the arm's {self.link} "
+                f"off at {1e3 * self.value:.0f} mm (clearance {1e3 * self.threshold:.0f} mm) at "
+                f"t={self.time_s:.2f} s: the hand's path passes by it"
+            )
+        if self.criterion == CRITERION_HAND_OBSTACLE:
+            return (
+                f"the arm's {self.link} comes within {1e3 * self.value:.0f} mm of "
+                f"hand_obstacles[{self.sphere}] (clearance {1e3 * self.threshold:.0f} mm) at "
+                f"t={self.time_s:.2f} s"
             )
         if self.criterion == CRITERION_MULTIBODY_ZMP and self.value > 0:
             return (

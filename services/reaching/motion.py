@@ -4,6 +4,7 @@ the gaze point (task iv), on the 5 ms grid; built for standing still or from a w
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,8 @@ class MotionSpec:
         posture_ref: (n, nq) whole-body posture reference (joint coordinates used), or None: from the
             starting configuration to a requested final posture along the hand's profile (a rest-level
             task below the four of the paper: it only uses the redundancy they leave).
+        clearance: the request's spheres the arm keeps out of
+            (:class:`services.reaching.obstacles.ArmClearance`), or None.
     """
 
     times_s: np.ndarray
@@ -45,6 +48,7 @@ class MotionSpec:
     reach_end_s: float
     pattern: WalkPattern | None = None
     posture_ref: np.ndarray | None = None
+    clearance: Any = None
 
     @property
     def n_samples(self) -> int:

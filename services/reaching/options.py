@@ -117,6 +117,14 @@ class ReachingOptions:
             slower when a joint of its motion moves faster than this fraction of its velocity limit
             (``ReachPlanner.plan``).
 
+    Spheres to keep out of (``ReachRequest.hand_obstacles``, paper 000 eqs. 12-13 on the arm's capsules,
+    the gripper's included):
+        hand_clearance_m: the surface-to-surface clearance [m] a motion keeps from them (a request may
+            give its own); the IK's inequality rows keep ``hand_clearance_slack_m`` more, so that the
+            5 ms spline between its knots stays outside the clearance.
+        approach_heights_m: a motion that passes within the clearance is planned again with the hand
+            first this far [m] above the target, then straight down, each in turn; then refused.
+
     Stepping (pattern generator):
         single_support_s, double_support_s: step timing [s]; ``None``: from the robot's parameters,
             the single support ``step_slowdown`` times ``step_duration_s - double_support_s`` and the
@@ -170,6 +178,9 @@ class ReachingOptions:
     comfort_reach_ratio: float = 0.55
     zmp_margin_m: float = 0.01
     max_corrections: int = 2
+    hand_clearance_m: float = 0.02
+    hand_clearance_slack_m: float = 0.005
+    approach_heights_m: tuple[float, ...] = (0.1, 0.2)
 
     def __post_init__(self) -> None:
         if self.criteria is not None:
@@ -209,7 +220,19 @@ class ReachingOptions:
         for name, value in positive.items():
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise InvalidRequestError(f"option {name} must be a positive number, got {value!r}")
-        for name in ("joint_limit_margin_rad", "final_hold_s", "zmp_margin_m", "base_height_margin_m"):
+        object.__setattr__(self, "approach_heights_m", tuple(self.approach_heights_m))
+        if not all(isinstance(h, int | float) and 0.0 < h <= 0.5 for h in self.approach_heights_m):
+            raise InvalidRequestError(
+                f"option approach_heights_m must be heights in (0, 0.5] m, got {self.approach_heights_m!r}"
+            )
+        for name in (
+            "joint_limit_margin_rad",
+            "final_hold_s",
+            "zmp_margin_m",
+            "base_height_margin_m",
+            "hand_clearance_m",
+            "hand_clearance_slack_m",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise InvalidRequestError(f"option {name} must be >= 0, got {value!r}")

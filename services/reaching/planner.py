@@ -32,9 +32,11 @@ import pinocchio as pin
 from services import budget
 from services.bus.schemas.reaching import (
     CRITERION_EE_ERROR,
+    CRITERION_HAND_OBSTACLE,
     CRITERION_MANIPULABILITY,
     CRITERION_MULTIBODY_ZMP,
     REASON_FAILED_AFTER_RESHAPING,
+    REASON_HAND_OBSTACLE,
     REASON_STEPPING_NOT_ALLOWED,
     REASON_TOO_MANY_STEPS,
 )
@@ -44,6 +46,7 @@ from services.model.ground import sole_pose_at
 from services.reaching.envelope import ReachEnvelope, measure_envelope
 from services.reaching.monitors import MonitorSeries, Violation
 from services.reaching.motion import MotionSpec, pattern_frame, standing_frame
+from services.reaching.obstacles import ArmClearance
 from services.reaching.options import CRITERIA, ReachingOptions
 from services.reaching.posture import blended_postures, posture_references
 from services.reaching.references import body_frame_path, body_frame_rotations, minimum_jerk
@@ -139,9 +142,75 @@ class ReachPlanner:
         Raises:
             InvalidRequestError: malformed request (names the field).
             InfeasibleError: the target cannot be reached; the message and ``details`` name the
-                criterion that failed (``criterion``, ``time_s``, ``value``, ``threshold``).
+                criterion that failed (``criterion``, ``time_s``, ``value``, ``threshold``); with
+                ``hand_obstacles``, ``reason`` ``hand_obstacle`` when no motion keeps the arm clear of
+                them (``sphere``, ``link``: :meth:`_clear_of_spheres`).
         """
         req = request.validated(self.robot)
+        if req.hand_obstacles:
+            return self._clear_of_spheres(req)
+        return self._plan_timed(req)
+
+    def _clear_of_spheres(self, req: ReachRequest) -> ReachResult:
+        """:meth:`plan` of a validated request with ``hand_obstacles``: the motion whose arm (gripper and
+        wrist included) keeps the clearance from every sphere (the IK's rows, then the executed
+        trajectory checked: :mod:`services.reaching.obstacles`). A motion that comes within it, or
+        whose hand the rows held back, is planned again with the hand first above the target, then
+        straight down (each of ``options.approach_heights_m`` in turn; motions without a requested
+        posture); then the request is refused: ``infeasible`` with ``details.reason``
+        ``hand_obstacle``, ``details.sphere`` the sphere's index and ``details.link`` the capsule.
+        When no motion came too near a sphere (each was refused for another reason), the first
+        motion's refusal is the reply, as without spheres."""
+        heights = [req.approach_above_m]
+        if req.q_posture is None and req.approach_above_m == 0.0:
+            heights += list(self.options.approach_heights_m)
+        last: Violation | None = None
+        first: InfeasibleError | None = None
+        tried: list[str] = []
+        for height in heights:
+            variant = dataclasses.replace(req, approach_above_m=height)
+            how = "straight" if height == 0.0 else f"from {height:.2f} m above"
+            try:
+                result = self._plan_timed(variant)
+            except InfeasibleError as exc:
+                first = first or exc
+                if exc.details.get("criterion") != CRITERION_HAND_OBSTACLE:
+                    tried.append(f"{how}: {exc.message.split(' m: ', 1)[-1]}")  # without "cannot reach"
+                    continue
+                d = exc.details
+                last = Violation(
+                    CRITERION_HAND_OBSTACLE,
+                    d["time_s"],
+                    d["value"],
+                    d["threshold"],
+                    d["sphere"],
+                    d["link"],
+                    d.get("held_back", ""),
+                )
+                tried.append(f"{how}: {last.describe()}")
+                continue
+            clearance = ArmClearance.of(self.robot, variant, self.options)
+            assert clearance is not None
+            violation = clearance.path_violation(result.q, result.times_s)
+            if violation is None:
+                return result
+            last = violation
+            tried.append(f"{how}: {violation.describe()}")
+        if last is None:
+            assert first is not None
+            raise first
+        raise self._infeasible(
+            req,
+            last,
+            "no motion keeps the arm clear of it (" + "; ".join(tried) + ")",
+            reason=REASON_HAND_OBSTACLE,
+            distance_m=last.value,
+            clearance_m=last.threshold,
+            approach_heights_m=heights,
+        )
+
+    def _plan_timed(self, req: ReachRequest) -> ReachResult:
+        """:meth:`plan` of a validated request, at its own timing first when it has one."""
         if req.timing is None:
             return self._plan(req)
         timed = dataclasses.replace(req, allow_stepping=False)
@@ -444,6 +513,11 @@ class ReachPlanner:
         if req.q_posture is not None:  # the joints' travel to the posture, at the hand's turning speed
             travel = float(np.abs(req.q_posture[7:] - req.q_start[7:]).max())
             duration = max(duration, self._reach_duration(0.0, travel, req.timing))
+        via = req.approach_above_m > 0.0 and req.q_posture is None
+        if via:  # first above the target (the hand's travel and turn), then straight down onto it
+            above = req.target_world_m + np.array([0.0, 0.0, req.approach_above_m])
+            first_s = self._reach_duration(float(np.linalg.norm(above - hand0)), turn, req.timing)
+            duration = first_s + self._reach_duration(req.approach_above_m, 0.0, req.timing)
         n = round((duration + self._final_hold_s(req)) / DT_S) + 1
         frame = standing_frame(
             n,
@@ -455,6 +529,17 @@ class ReachPlanner:
         )
         s = minimum_jerk(frame["times_s"], 0.0, duration)
         hand, rot, gaze = self._references(req, frame, s, frame["body_yaw_rad"])
+        if via:
+            times, body_xy, yaw = frame["times_s"], frame["com_xy_m"], frame["body_yaw_rad"]
+            s_first = minimum_jerk(times, 0.0, first_s)
+            s_down = minimum_jerk(times, first_s, duration - first_s)
+            hand = np.where(
+                (times <= first_s)[:, None],
+                body_frame_path(body_xy, yaw, s_first, hand0, above),
+                body_frame_path(body_xy, yaw, s_down, above, req.target_world_m),
+            )
+            if req.R_world_hand is not None:  # turned on the way up, kept on the way down
+                rot = body_frame_rotations(yaw, s_first, T_hand0.rotation, req.R_world_hand)
         posture = None
         if req.q_posture is not None:
             # The requested final posture reached with the hand: its joints (the hand's references along
@@ -475,6 +560,7 @@ class ReachPlanner:
             gaze_ref_m=gaze,
             reach_end_s=duration,
             posture_ref=posture,
+            clearance=ArmClearance.of(robot, req, self.options),
             **frame,
         )
 
@@ -499,7 +585,13 @@ class ReachPlanner:
         smooth_yaw = yaw[0] + (yaw[-1] - yaw[0]) * minimum_jerk(frame["times_s"], 0.0, t_arrive)
         hand, rot, gaze = self._references(req, frame, s, smooth_yaw)
         return MotionSpec(
-            hand_ref_m=hand, hand_rot=rot, gaze_ref_m=gaze, reach_end_s=t_end, pattern=pattern, **frame
+            hand_ref_m=hand,
+            hand_rot=rot,
+            gaze_ref_m=gaze,
+            reach_end_s=t_end,
+            pattern=pattern,
+            clearance=ArmClearance.of(self.robot, req, self.options),
+            **frame,
         )
 
     def _hand_overrun_s(self, req: ReachRequest, pattern: WalkPattern) -> float:
@@ -612,6 +704,11 @@ class ReachPlanner:
                 "time_s": violation.time_s,
                 "value": violation.value,
                 "threshold": violation.threshold,
+                **(
+                    {"sphere": violation.sphere, "link": violation.link, "held_back": violation.held_back}
+                    if violation.sphere >= 0
+                    else {}
+                ),
                 **details,
             },
         )

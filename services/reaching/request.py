@@ -11,10 +11,13 @@ import pinocchio as pin
 
 from services.bus.schemas.reaching import MAX_FINAL_HOLD_S, MAX_HAND_SPEED_M_S, MIN_DURATION_RANGE_S
 from services.errors import InvalidRequestError
+from services.ik.hand_obstacles import SphereObstacle, check_spheres
 from services.model.specs import check_side
 
 MAX_SOLE_HEIGHT_M = 0.005  # a starting sole farther than this from the ground is not standing
 MAX_SOLE_TILT_RAD = 0.02  # nor a sole tilted by more than this
+MAX_HAND_CLEARANCE_M = 0.2  # a hand_clearance_m above this is not a clearance but a request to stay away
+MAX_APPROACH_ABOVE_M = 0.5  # the hand's detour above its target at most [m]
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,17 @@ class ReachRequest:
             (:mod:`services.reaching.posture`; its own gaze replaces the gaze task), in the motion on
             the current support polygon only (a reshaping step changes the stance it was planned for).
         timing: the motion's own timing (None: the planner's defaults); see :class:`ReachTiming`.
+        hand_obstacles: spheres (world [m]) the arm keeps out of over the whole motion, its gripper and
+            wrist included (paper 000 eqs. 12-13 on the arm's capsules: ``services.ik.hand_obstacles``;
+            the gripper not out of a sphere the target lies in or straight above, the object it closes
+            on); the planner re-plans a motion that passes within ``hand_clearance_m`` of one or
+            refuses it (``ReachPlanner.plan``).
+        hand_clearance_m: surface-to-surface clearance [m] kept from ``hand_obstacles``; None: the
+            planner's ``ReachingOptions.hand_clearance_m``.
+        approach_above_m: the hand goes first this far [m] straight above the target (its orientation
+            reached there), then down onto it; 0: straight to the target. Set by the planner when it
+            re-plans a motion that passed too close to a sphere; motions on the current support
+            polygon without a requested posture only.
     """
 
     hand: str
@@ -80,6 +94,9 @@ class ReachRequest:
     allow_stepping: bool = True
     q_posture: np.ndarray | None = field(default=None, repr=False)
     timing: ReachTiming | None = None
+    hand_obstacles: tuple[SphereObstacle, ...] = ()
+    hand_clearance_m: float | None = None
+    approach_above_m: float = 0.0
 
     def validated(self, robot: Any) -> ReachRequest:
         """A copy with arrays checked and converted; InvalidRequestError naming the field otherwise."""
@@ -126,6 +143,16 @@ class ReachRequest:
                     "plan from the robot's measured standing configuration"
                 )
         timing = None if self.timing is None else self.timing.validated()
+        spheres = tuple(self.hand_obstacles)
+        check_spheres(spheres)
+        for name, value, high in (
+            ("hand_clearance_m", self.hand_clearance_m, MAX_HAND_CLEARANCE_M),
+            ("approach_above_m", self.approach_above_m, MAX_APPROACH_ABOVE_M),
+        ):
+            if value is not None and not (
+                isinstance(value, int | float) and math.isfinite(value) and 0.0 <= value <= high
+            ):
+                raise InvalidRequestError(f"{name} must be in [0, {high}] m, got {value!r}", {"field": name})
         return ReachRequest(
             self.hand,
             target,
@@ -135,6 +162,9 @@ class ReachRequest:
             bool(self.allow_stepping),
             q_posture=posture,
             timing=timing,
+            hand_obstacles=spheres,
+            hand_clearance_m=None if self.hand_clearance_m is None else float(self.hand_clearance_m),
+            approach_above_m=float(self.approach_above_m),
         )
 
 

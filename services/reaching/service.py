@@ -7,7 +7,9 @@ of the config file (:class:`ReachingConfig`: the robot model and every :class:`R
 Endpoint ``reaching/reach`` (:mod:`services.bus.schemas.reaching`): a stateless planner, the reply is a
 deterministic function of the request. Failure codes: ``invalid_request`` (unknown hand, malformed
 target or orientation, ``q_start`` of the wrong size or not standing on flat ground), ``infeasible``
-(the message and ``details.criterion`` name the criterion that failed and why reshaping did not help),
+(the message and ``details.criterion`` name the criterion that failed and why reshaping did not help;
+``details.reason`` ``hand_obstacle``: the arm passes within ``hand_clearance_m`` of a ``hand_obstacles``
+sphere however it is planned, ``details.sphere`` and ``details.link`` name them),
 ``timeout`` (``time_budget_s`` ran out: ``details.stage`` and the ``attempts`` made).
 """
 
@@ -28,6 +30,7 @@ from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import reaching as msg
 from services.bus.service import Service, handles, run_service
 from services.errors import InvalidRequestError
+from services.ik.hand_obstacles import SphereObstacle
 from services.model import load_robot
 from services.model.options import add_model_argument, with_model
 from services.reaching.monitors import MonitorSeries
@@ -118,6 +121,11 @@ class ReachingService(Service):
                     allow_stepping=request.allow_stepping,
                     q_posture=None if request.posture is None else np.asarray(request.posture, dtype=float),
                     timing=_timing(request),
+                    hand_obstacles=tuple(
+                        SphereObstacle(*(float(v) for v in sphere.center), float(sphere.radius))
+                        for sphere in request.hand_obstacles
+                    ),
+                    hand_clearance_m=request.hand_clearance_m,
                 )
             )
         return to_reply(result, list(self.robot.joint_names))

@@ -193,8 +193,14 @@ class ReachTracker:
         base_height = FramePositionTask(
             m, frames.base, np.zeros(3), mask=(False, False, True), lower=base_min_z, name="base_height"
         )
+        # The request's spheres (paper 000 eqs. 12-13 on the arm's capsules, the gripper's included):
+        # inequalities with the feet, so that no task below can move the arm into one.
+        spheres: tuple[Any, ...] = ()
+        if spec.clearance is not None:
+            start = spec.clearance.distances(m).at(q_start)
+            spheres = tuple(spec.clearance.tasks(m, start))
         levels = [
-            Level((feet["left"], feet["right"], base_height), name="feet", weights=W),
+            Level((feet["left"], feet["right"], base_height, *spheres), name="feet", weights=W),
             Level((com,), name="com", weights=W, lock_near_limits_rad=S_l),
             Level((hand_task,), name="hand", weights=W, lock_near_limits_rad=S_l, damping=HAND_DAMPING),
         ]
@@ -273,6 +279,10 @@ class ReachTracker:
         com_z = float(self.robot.com(q_start)[2])
         fade_s = max(DT_S, 0.8 * (spec.duration_s - spec.reach_end_s))
 
+        clearance = spec.clearance
+        if clearance is not None:
+            sphere_distances = clearance.distances(ik.model)
+            allowed = clearance.allowed(sphere_distances.at(q))
         values = [self._knot_values(ik, q, q, spec, 0, 1.0)]
         Q = np.empty((len(knots), ik.model.nq))
         Q[0] = q
@@ -325,6 +335,8 @@ class ReachTracker:
             values.append(self._knot_values(ik, q_knot, q, spec, k, (k - knots[i - 1]) * DT_S))
             if violation is None:
                 violation = first_violation(criteria, values[-1], limits)
+                if clearance is not None:  # the arm too near a sphere, or held off one
+                    violation = clearance.at_knot(sphere_distances.at(q), allowed, t_k, violation)
                 if violation is not None and stop_at_violation:
                     break
         monitors = MonitorSeries.from_knots(values)

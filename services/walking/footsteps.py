@@ -36,7 +36,6 @@ __all__ = [
     "SIDES",
     "Footstep",
     "FootstepBounds",
-    "FootstepLimits",
     "FootstepSequence",
     "Side",
     "SolePose",
@@ -52,10 +51,6 @@ __all__ = [
     "validate_footsteps",
     "wrap_angle",
 ]
-
-FootstepLimits = FootstepBounds
-"""Former name of :class:`services.model.ground.FootstepBounds` (the same class), kept while callers
-outside the algorithm packages move to the one name."""
 
 
 # ----------------------------------------------------------------------------------------------- generators

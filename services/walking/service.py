@@ -23,6 +23,7 @@ the service's, ran out: ``details.stage``, ``knots_done``, ``knots``).
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -34,10 +35,10 @@ from services import budget
 from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
+from services.collision.obstacles import obstacle_from_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.model.ground import mid_feet
-from services.navigation.service import obstacle_from_msg
 from services.walking.footsteps import (
     SIDES,
     Footstep,
@@ -59,8 +60,9 @@ from services.walking.goals import (
 from services.walking.pattern import PatternOptions
 from services.walking.sweep import check_legs_clear
 from services.walking.timing import WalkTiming
+from services.walking.two_stage import COM_LOWERINGS_M
 from services.walking.upper_body import GazeTarget, HandTarget
-from services.walking.wholebody import WholeBodyOptions, WholeBodyResult, plan_walk
+from services.walking.wholebody import WholeBodyOptions, WholeBodyPlanner, WholeBodyResult, plan_walk
 
 DT_S = 0.005
 
@@ -71,14 +73,14 @@ class WalkingConfig:
 
     Attributes:
         knot_stride: samples between two IK knots of the whole-body stage (1: IK at every 5 ms).
-        iterations_per_knot: Gauss-Newton steps of the IK hierarchy per knot.
+        iterations_per_knot: Gauss-Newton steps of the IK hierarchy per knot (``WholeBodyOptions``).
         preload: robot models loaded at start-up (others are loaded on their first request).
         time_budget_s: wall-clock budget of a request that gives none [s] (at most
             ``services.bus.limits.MAX_BUDGET_S``); past it the reply is ``timeout``.
     """
 
     knot_stride: int = 8
-    iterations_per_knot: int = 1
+    iterations_per_knot: int = 2
     preload: tuple[str, ...] = ("hrp2_like",)
     time_budget_s: float = MAX_BUDGET_S
 
@@ -87,6 +89,9 @@ class WalkingConfig:
         WholeBodyOptions(
             knot_stride=self.knot_stride, iterations_per_knot=self.iterations_per_knot
         ).validate()
+
+
+log = logging.getLogger("humanoid.walking")
 
 
 def _pose(value: Any, name: str) -> SolePose:
@@ -188,24 +193,56 @@ def plan_reply(request: msg.PlanRequest, config: WalkingConfig | None = None) ->
     if request.gaze is not None:
         point = tuple(float(v) for v in request.gaze.point_m)
         gaze = GazeTarget(point, request.gaze.frame, request.gaze.blend_s)  # type: ignore[arg-type]
-    result = plan_walk(robot, footsteps, q_start, timing, options, wb_options, hands=hands, gaze=gaze)
+    result = _walk_within_joint_speeds(robot, footsteps, q_start, timing, options, wb_options, hands, gaze)
     _check_result(result, request)
     return _reply(robot, result, footsteps)
 
 
+def _walk_within_joint_speeds(
+    robot: Any,
+    footsteps: FootstepSequence,
+    q_start: np.ndarray,
+    timing: WalkTiming,
+    options: PatternOptions,
+    wb_options: WholeBodyOptions,
+    hands: list[HandTarget],
+    gaze: GazeTarget | None,
+) -> WholeBodyResult:
+    """``plan_walk``; where a joint would be faster than its limit (a leg stretched near its straight
+    knee, ``COM_LOWERINGS_M``) the same walk with the CoM lowered, each lowering in turn, unless the
+    request fixes the CoM height. InfeasibleError: the last lowering's, ``com_lowerings_tried_m``."""
+    lowerings = COM_LOWERINGS_M if options.com_height_m is None else (0.0,)
+    planner = WholeBodyPlanner(robot, wb_options)
+    for i, lowering in enumerate(lowerings):
+        try:
+            return plan_walk(
+                robot,
+                footsteps,
+                q_start,
+                timing,
+                options,
+                planner=planner,
+                hands=hands,
+                gaze=gaze,
+                com_lowering_m=lowering,
+            )
+        except InfeasibleError as exc:
+            if "joint" in exc.details and i + 1 < len(lowerings):
+                log.info("%s: planned again with the CoM lowered by %.2f m", exc.message, lowerings[i + 1])
+                continue
+            if i == 0:
+                raise
+            raise InfeasibleError(
+                f"{exc.message} (with the CoM lowered by up to {lowering:.2f} m)",
+                {**exc.details, "com_lowerings_tried_m": list(lowerings)},
+            ) from exc
+    raise AssertionError("unreachable: the last lowering returns or raises")
+
+
 def _floor_boxes(obstacles: list[Any]) -> list[MapBox]:
-    """The map's boxes of a request as floor rectangles (cylinders as their bounding squares)."""
-    out = []
-    for i, o in enumerate(obstacles):
-        if len(o.center) != 3:
-            raise InvalidRequestError(f"obstacles[{i}].center must be [x, y, z] [m], got {o.center!r}")
-        if o.kind == "box":
-            if len(o.size) != 3:
-                raise InvalidRequestError(f"obstacles[{i}].size must be [sx, sy, sz] [m], got {o.size!r}")
-        elif o.kind != "cylinder":
-            raise InvalidRequestError(f"obstacles[{i}].kind must be 'box' or 'cylinder', got {o.kind!r}")
-        out.append(MapBox(o.name, o.footprint))
-    return out
+    """The map's boxes of a request as floor rectangles (cylinders as their bounding squares), each
+    message read and checked by :func:`~services.collision.obstacle_from_msg`."""
+    return [MapBox(o.name, obstacle_from_msg(o, i).footprint) for i, o in enumerate(obstacles)]
 
 
 def goal_steps(
@@ -295,7 +332,7 @@ def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) ->
     robot = load_robot(request.model)
     if not (math.isfinite(request.leg_clearance_m) and request.leg_clearance_m >= 0.0):
         raise InvalidRequestError(f"leg_clearance_m must be >= 0 m, got {request.leg_clearance_m}")
-    boxes = [obstacle_from_msg(o) for o in request.obstacles if o.kind == "box"]
+    boxes = [obstacle_from_msg(o, i) for i, o in enumerate(request.obstacles) if o.kind == "box"]
     q, sequence = goal_steps(request, robot)
     try:
         return _goal_walk(request, robot, q, sequence, boxes, config)

@@ -5,8 +5,9 @@ its sole: a foot lifting from the ground brings its knee and thigh forward, and 
 transfer moves the hips over the support foot. A walk that starts beside a box (after a reach into
 it) can bring a leg into the box without any footprint entering it (fetch seed 37: stepping back
 from the box, the right thigh, 3 cm from it, touched it as its foot lifted). The whole-body motion
-the walking planner made is checked here with navigation's 3D checker (the robot's collision shapes
-against the boxes, :class:`services.navigation.collision3d.MotionChecker`): one concept, one place.
+the walking planner made is checked here with the 3D checker navigation's stage 2 uses (the robot's
+collision shapes against the boxes, :class:`services.collision.motion.MotionChecker`, in the shared
+package below both): one concept, one place.
 Pure: no bus here.
 """
 
@@ -18,12 +19,12 @@ from typing import Any
 import numpy as np
 
 from services.bus.schemas.walking import REASON_BLOCKED
+from services.collision.motion import MotionChecker
+from services.collision.obstacles import Obstacle, Scene
 from services.errors import InfeasibleError
-from services.navigation.collision3d import MotionChecker
-from services.navigation.geometry import Obstacle, Scene
 
 LEGS = "legs"
-"""The part group of :mod:`services.navigation.collision3d` checked here."""
+"""The part group of :mod:`services.collision.motion` checked here."""
 
 
 def check_legs_clear(

@@ -193,10 +193,17 @@ class WalkAdjustment:
         )
 
 
+#: CoM lowerings [m] tried, in order, when a walk's whole-body motion has a joint faster than its
+#: limit. The usual cause is a leg stretched near its straight knee: a front leg at heel strike while
+#: the CoM is still over the rear foot (seed 6 of the fetch: after a reach the robot stood 3.2 cm
+#: higher than half-sitting, knee 0.25 rad on a 0.21 m diagonal step), where the IK flips the knee or
+#: swings a free arm to hold the CoM height (LARM_JOINT0 at 4.8-11.5 rad/s).
+COM_LOWERINGS_M = (0.0, 0.02, 0.04, 0.06)
+
 #: Tried in order by :func:`executable_walk`: the CoM lowered by 0-6 cm first (the usual cause is a
 #: stretched knee), then the same with 1.5x longer supports.
 WALK_ADJUSTMENTS = tuple(
-    WalkAdjustment(lowering, slowdown) for slowdown in (1.0, 1.5) for lowering in (0.0, 0.02, 0.04, 0.06)
+    WalkAdjustment(lowering, slowdown) for slowdown in (1.0, 1.5) for lowering in COM_LOWERINGS_M
 )
 
 

@@ -62,7 +62,12 @@ class WholeBodyOptions:
     Attributes:
         knot_stride: samples between two IK knots (1: IK at every 5 ms sample).
         iterations_per_knot: Gauss-Newton steps of the hierarchy per knot; with caller levels at least
-            ``min_iterations_with_extra_levels``.
+            ``min_iterations_with_extra_levels``. Two: with one, a robot standing 2.5-3.5 cm higher
+            than half-sitting (after a reach) walking 0.2 m steps had a free arm ringing from knot to
+            knot at 84-110 rad/s (the CoM level uses the arms where a stretched leg cannot hold the
+            CoM height; the fetch's "LARM_JOINT0 would move at 4.8-11.5 rad/s" refusals); with two
+            only the stretched knee is left (4.7-5.4 rad/s, which a lowered CoM removes: walking/plan
+            and navigation/goto do that, ``COM_LOWERINGS_M``), for ~25 % more IK time.
         min_iterations_with_extra_levels: Gauss-Newton steps per knot when the caller adds levels.
             An upper-body task can be near-singular (an arm stretched out) or conflict with the CoM;
             with a single step per knot the constant-velocity prediction then rings from knot to
@@ -76,7 +81,7 @@ class WholeBodyOptions:
     """
 
     knot_stride: int = 8
-    iterations_per_knot: int = 1
+    iterations_per_knot: int = 2
     min_iterations_with_extra_levels: int = 2
     zmp_margin_m: float = 0.010
     max_corrections: int = 2
@@ -486,16 +491,18 @@ def plan_walk(
     planner: WholeBodyPlanner | None = None,
     hands: Sequence[HandTarget] = (),
     gaze: GazeTarget | None = None,
+    com_lowering_m: float = 0.0,
 ) -> WholeBodyResult:
     """Footsteps -> whole-body walk in one call: the pattern (footsteps validated against the robot's
     bounds, CoM starting at the CoM of ``q_start``, the ground at the height of its soles, step height
-    from the robot's parameters unless ``options`` says otherwise), then :meth:`WholeBodyPlanner.solve`.
+    from the robot's parameters unless ``options`` says otherwise; ``com_lowering_m`` [m] as in
+    :func:`services.walking.two_stage.robot_pattern`), then :meth:`WholeBodyPlanner.solve`.
     Pass ``planner`` to reuse one.
 
     ``hands`` and ``gaze`` add the upper-body tasks of :mod:`services.walking.upper_body` below
     ``extra_levels``; their largest errors over the trajectory are in ``result.task_errors``."""
     q_start = robot.check_q(q_start)
-    pattern = robot_pattern(robot, footsteps, q_start, timing, options)
+    pattern = robot_pattern(robot, footsteps, q_start, timing, options, com_lowering_m=com_lowering_m)
     planner = planner or WholeBodyPlanner(robot, wholebody_options)
     if not hands and gaze is None:
         return planner.solve(pattern, q_start, extra_levels=extra_levels, update_extra=update_extra)

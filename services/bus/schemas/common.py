@@ -6,6 +6,7 @@ from typing import Any
 
 import msgspec
 
+from services.bus.limits import Point3, Size
 from services.bus.spec import TopicSpec
 
 
@@ -66,3 +67,13 @@ class Footstep(msgspec.Struct, kw_only=True, frozen=True):
     x: float
     y: float
     yaw: float
+
+
+class Sphere(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    """A sphere above the ground that a reaching arm keeps out of, its gripper included (a ball beside the
+    one to grasp): centre [x, y, z], radius [m], world. ``hand_obstacles`` of footsteps/plan (the final
+    posture) and of reaching/reach (the whole motion): paper 000's eqs. 12-13 on the arm's capsules
+    (``services.ik.hand_obstacles``)."""
+
+    center: Point3
+    radius: Size

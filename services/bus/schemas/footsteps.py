@@ -40,7 +40,7 @@ from services.bus.limits import (
     StepCount,
     Tolerance,
 )
-from services.bus.schemas.common import Footstep
+from services.bus.schemas.common import Footstep, Sphere
 from services.bus.schemas.navigation import ObstacleMsg
 from services.bus.spec import EndpointSpec
 
@@ -72,6 +72,9 @@ class Task(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True
     q_rest: np.ndarray | None = None  # posture: (nq,) float64 rest configuration; None: half-sitting
     # orient: the hand's grasp frame at this world orientation [qx, qy, qz, qw] (log3 error [rad])
     orientation: Annotated[list[Coord], Meta(min_length=4, max_length=4)] | None = None
+    # orient: hold only the tilt of ``orientation`` (e.g. fingers down); the yaw about the vertical is the
+    # IK's (the gripper's rows against hand_obstacles turn the jaws clear of a neighbour: q_final's yaw)
+    free_yaw: bool = False
 
 
 class Disk(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
@@ -79,14 +82,6 @@ class Disk(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True
 
     x: Coord
     y: Coord
-    radius: Size
-
-
-class Sphere(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
-    """A sphere the reaching arm keeps out of (a ball beside the one to grasp): centre [x, y, z], radius
-    [m], world (``services.footsteps.arm_obstacles``: eqs. 12-13 on the arm's capsules)."""
-
-    center: Point3
     radius: Size
 
 
@@ -134,7 +129,8 @@ class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     # boxes on the floor (e.g. the supervisor's map, as for navigation/goto): each covered by disks of
     # its footprint rectangle (services.footsteps.geometry.disks_covering), obstacles like ``disks``
     boxes: Annotated[list[ObstacleMsg], Meta(max_length=MAX_OBSTACLES)] = []
-    # spheres above the ground that the reaching arm's capsules (hand, forearm, upper arm) keep out of
+    # spheres above the ground that the reaching arm's capsules (gripper, forearm, upper arm) keep out of
+    # in the final posture (the gripper not out of the one the hand's target lies in or above: the object)
     hand_obstacles: Annotated[list[Sphere], Meta(max_length=MAX_OBSTACLES)] = []
     front_foot: Name = "auto"  # foot of the last step, "left"/"right"; "auto": both solved, the one with
     #                           fewer steps kept (section 5.2: this is the choice of the start foot)

@@ -37,6 +37,9 @@ class LocateRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fi
     height_px: ImageSide = 480
     images: StereoImages | None = None  # None: the service renders the pair through sim/render
     method: Name = ""  # stereo estimator: "" (service default), "centroid", "bm", "sgbm" or "edges"
+    # also report every other learned object seen in the same images (``LocateReply.others``); False:
+    # only ``object`` (cheaper: a survey that asks for each object anyway)
+    others: bool = True
     # wall-clock budget [s] (<= 60); None: the service's time_budget_s. Past it: ``timeout`` naming the
     # stage reached (``details.stage``: the state, the render or the stereo localization).
     time_budget_s: Budget | None = None
@@ -58,6 +61,9 @@ REASON_NOT_IN_RIGHT_VIEW = "not_in_right_view"
 REASON_NO_DISPARITY = "no_disparity"
 REASON_STEREO_MISMATCH = "stereo_mismatch"
 REASON_AMBIGUOUS = "ambiguous"
+#: seen in the left image next to the robot's own arm and not matched in the right one: the arm hides it
+#: (move the arm out of the view and look again)
+REASON_HIDDEN_BY_OWN_BODY = "hidden_by_own_body"
 #: The reasons another viewpoint may fix (the supervisor then looks around).
 VIEWPOINT_REASONS = (
     REASON_NOT_IN_VIEW,
@@ -65,6 +71,7 @@ VIEWPOINT_REASONS = (
     REASON_NO_DISPARITY,
     REASON_STEREO_MISMATCH,
     REASON_AMBIGUOUS,
+    REASON_HIDDEN_BY_OWN_BODY,
 )
 
 
@@ -85,6 +92,19 @@ class FootprintMsg(msgspec.Struct, kw_only=True, frozen=True):
         """The footprint as the stack's rectangle (world [m, rad])."""
         centre = (float(self.center[0]), float(self.center[1]))
         return Rectangle(centre, (float(self.size[0]), float(self.size[1])), float(self.yaw))
+
+
+class SeenObject(msgspec.Struct, kw_only=True, frozen=True):
+    """Another learned object seen in the images of a ``locate`` (in passing: no footprint; ask for it
+    to get one). Fields as in :class:`LocateReply`."""
+
+    object: str
+    position: list[float]  # world [m]: a ball's centre, the middle of another object's silhouette
+    distance_m: float  # from the left camera [m]
+    size_m: list[float]  # (width, height) of its CamShift box at its depth [m]
+    confidence: float  # in [0, 1]
+    method: str  # stereo estimator used
+    box_left: PixelBox
 
 
 class LocateReply(msgspec.Struct, kw_only=True, frozen=True):
@@ -110,6 +130,9 @@ class LocateReply(msgspec.Struct, kw_only=True, frozen=True):
     rendered: bool  # the images came from sim/render (else from the request)
     sim_time_s: float  # sim time of the rendered images [s] (0 when the images came with the request)
     footprint: FootprintMsg | None = None  # non-spherical objects not cut by a side or top border
+    # the other learned objects seen in the same images (request ``others``), most confident first;
+    # one object per region: vision.localize.others_in_frame says how identities are kept apart
+    others: list[SeenObject] = []
 
 
 LOCATE = EndpointSpec(

@@ -14,8 +14,8 @@ from typing import Annotated
 import msgspec
 import numpy as np
 
-from services.bus.limits import Budget, Margin, Name, Point3, Quaternion
-from services.bus.schemas.common import Footstep
+from services.bus.limits import MAX_OBSTACLES, Budget, Margin, Name, Point3, Quaternion
+from services.bus.schemas.common import Footstep, Sphere
 from services.bus.spec import EndpointSpec
 
 #: The monitored criteria (paper 001 Fig. 4): the names of ``Attempt.violation`` and of
@@ -26,11 +26,17 @@ CRITERION_JOINT_SPEED = "joint_speed"  # an arm joint faster than its share of t
 CRITERION_JOINT_TORQUE = "joint_torque"  # a static torque above its share of the effort limit
 CRITERION_JOINT_LIMITS = "joint_limits"  # an arm joint at its limit
 CRITERION_MULTIBODY_ZMP = "multibody_zmp"  # the multibody ZMP leaves the support polygon (or has none)
+# the arm (gripper and wrist included) within the clearance of a ``hand_obstacles`` sphere, or held off it
+# while the hand falls behind its path
+CRITERION_HAND_OBSTACLE = "hand_obstacle"
 
 #: ``details["reason"]`` of ``reaching/reach``'s ``infeasible`` replies: why no motion was kept.
 REASON_STEPPING_NOT_ALLOWED = "stepping_not_allowed"  # a criterion failed and allow_stepping is false
 REASON_TOO_MANY_STEPS = "too_many_steps"  # reshaping the support polygon would need more than max_steps
 REASON_FAILED_AFTER_RESHAPING = "failed_after_reshaping"  # a criterion still fails after every reshaping
+# the hand's path passes within the clearance of a ``hand_obstacles`` sphere however it is planned
+# (``details``: ``sphere`` its index, ``link`` the capsule, ``distance_m``, ``clearance_m``, ``time_s``)
+REASON_HAND_OBSTACLE = "hand_obstacle"
 
 
 #: Bounds of a request's own timing (``hand_speed_m_s``, ``min_duration_s``, ``final_hold_s``).
@@ -79,6 +85,15 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     hand_speed_m_s: HandSpeed | None = None
     min_duration_s: ReachDuration | None = None
     final_hold_s: HoldTime | None = None
+    # Spheres (world) the arm keeps out of over the whole motion, the gripper and wrist included (a ball
+    # beside the one to grasp): paper 000's eqs. 12-13 on the arm's capsules, at least
+    # ``hand_clearance_m`` surface to surface. The gripper is not kept out of a sphere that ``target``
+    # lies in or straight above (the object it closes on); the forearm and upper arm are. A path
+    # closer than that is planned again (the hand first above the target, then down; the jaws half a
+    # turn round), else refused: ``infeasible``, ``details.reason`` ``hand_obstacle`` naming the sphere
+    # and the link. Empty: no such constraint (the motion as without the field).
+    hand_obstacles: Annotated[list[Sphere], msgspec.Meta(max_length=MAX_OBSTACLES)] = []
+    hand_clearance_m: Margin | None = None  # None: the service's (2 cm)
 
 
 class Monitors(msgspec.Struct, kw_only=True, frozen=True):
