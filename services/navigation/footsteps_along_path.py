@@ -40,6 +40,7 @@ from services.walking.footsteps import (
     validate_footsteps,
     wrap_angle,
 )
+from services.walking.goals import MAX_STRIDE_M
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,9 @@ class FootstepOptions:
     """Options of :func:`footsteps_along_path`.
 
     - ``feet_spacing_m`` [m]: lateral distance between the sole centres (0.19 m on HRP-2);
-    - ``max_step_m`` / ``max_back_step_m`` [m]: arc length advanced per step walking forward / backward;
+    - ``max_step_m`` / ``max_back_step_m`` [m]: arc length advanced per step walking forward / backward
+      (forward: walking's ``MAX_STRIDE_M``, 0.2 m: the bounds allow 0.22 m, HRP-2's knee with a held
+      object ahead not);
     - ``min_step_m`` [m]: below this, a step that still breaks the bounds makes the call infeasible;
     - ``max_turn_per_step_rad`` [rad]: path heading change per step (the bounds allow about
       (pi/4 + 0.1) / 2 on average);
@@ -56,7 +59,7 @@ class FootstepOptions:
     """
 
     feet_spacing_m: float = 0.19
-    max_step_m: float = 0.20
+    max_step_m: float = MAX_STRIDE_M
     max_back_step_m: float = 0.10
     min_step_m: float = 0.01
     max_turn_per_step_rad: float = 0.35

@@ -191,6 +191,10 @@ def _fewest_steps(*groups: list[Callable[[], FootstepSequence]]) -> FootstepSequ
 
 #: A walk to a pose farther than this [m] may turn toward it first (``walk_to_steps(face_the_way=True)``).
 FACE_THE_WAY_MIN_M = 0.4
+#: Longest forward step [m] of a walk there before turning (and navigation's ``max_step_m``): the bounds
+#: allow 0.22 m, but with the ball held ahead HRP-2's knee then needs 7.5 rad/s (limit 4; fetch seed 9,
+#: 0.214 m steps facing the way to the table).
+MAX_STRIDE_M = 0.20
 
 
 def _fractions(n: int) -> list[float]:
@@ -227,7 +231,7 @@ def _walk_then_turn(
         side = first or ("left" if gy > 0.02 else "right")
         walk = fit_to_bounds(
             lambda n, gx=gx, gy=gy, side=side: _along_line(soles, gx, gy, 0.0, side, n),
-            2,
+            max(2, math.ceil(abs(gx) / MAX_STRIDE_M) + 1),
             limits,
             "a straight walk, then a turn",
         )
