@@ -715,6 +715,8 @@ class _Monitor:
         queried here."""
         w = self.world
         q = w.pyrobot.read_q()  # from pybullet: (nq,) floats, finite while the physics is
+        if not math.isfinite(float(np.add.reduce(q))):  # a blown-up simulation: check_q's error, as before
+            w.robot.check_q(q)
         err = np.abs(q[w._body_iq] - q_cmd[w._body_iq])
         j = int(err.argmax())
         if err[j] > self.err_max:

@@ -230,7 +230,7 @@ class ManipulationActions:
         if point is not None:
             return np.asarray(point, dtype=float)
         sighting = self.memory.get(target)
-        radius = float(np.clip(max(sighting.size_m) / 2.0, 0.01, 0.06))
+        radius = sphere_radius(sighting)
         c, s = math.cos(yaw_rad), math.sin(yaw_rad)
         R_world_hand = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         offset = self.body.robot.held_object_offset(hand, radius)
@@ -459,9 +459,9 @@ class ManipulationActions:
         return np.asarray(self.memory.get(target).position_m, dtype=float)
 
     def _grasp_obstacles(self, target: str) -> list[tuple[np.ndarray, float]]:
-        """What the reaching arm (forearm, upper arm) keeps out of in footsteps/plan's final posture for a
-        grasp of ``target``: the object itself (its sighting: centre, half its largest seen size), the
-        balls seen within ``felt_radius_m`` of it (``scene_map.neighbours``) and
+        """What the reaching arm (upper arm, forearm, gripper) keeps out of in footsteps/plan's final
+        posture for a grasp of ``target``: the object itself (its sighting: centre, half its largest
+        seen size), the balls seen within ``felt_radius_m`` of it (``scene_map.neighbours``) and
         what the hand felt near it (memory's felt points within ``felt_radius_m``, spheres of
         ``felt_obstacle_radius_m``: a ball beside it that perception has no model of), as (centre [m]
         world, radius [m]). The footstep IK then chooses the stance and the arm's posture clear of them

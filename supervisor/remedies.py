@@ -51,20 +51,26 @@ class Remedies:
     _support: Callable[[str], list[str]]
 
     def relocalize(self, step: Step, report: ActionReport) -> None:
-        """Localize the step's object again (for a missed grasp: the hand and the stance made ready
-        first, :meth:`_ready_after_a_miss`, then the reached object, then reach again)."""
+        """Localize the step's object again (for a grasp: after a miss, ``not_grasped`` with nothing in
+        the hand, the hand and the stance made ready first, :meth:`_ready_after_a_miss`; then the
+        reached object, then reach again)."""
         if step.action == "grasp":
             if self.last_reach is None:
                 return
             hand, target = self.last_reach
-            self._ready_after_a_miss(hand, target)
+            missed = report.reason == "not_grasped" and hand not in self.body.held()
+            if missed:
+                self._ready_after_a_miss(hand, target)
             if parse_point(target, 3, "target") is None:
+                # after a miss the hand hangs beside the body, out of view; else (a collision, a
+                # refusal) it may still be at the object, hiding it: backed off it when it does
                 self.eyes.localize(
                     target,
                     turn=self._turn_rad,
                     progress=self.progress,
-                    # the hand closed on nothing there, on the object's support: lift it off both
-                    clear_view=lambda: self._back_off(hand, [target, *self._support(target)]),
+                    clear_view=None
+                    if missed
+                    else (lambda: self._back_off(hand, [target, *self._support(target)])),
                 )
             self.progress(f"reaching {target} again")
             self.do_reach(Step(step.line, "reach", (hand, target)))

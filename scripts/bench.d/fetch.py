@@ -160,7 +160,8 @@ class CpuWatch:
         out = {}
         for name, (pid, cpu_s) in self._now().items():
             pid0, cpu0_s = self._start.get(name, (pid, 0.0))
-            out[name] = round(cpu_s - (cpu0_s if pid0 == pid else 0.0), 2)
+            # (a process that ended since reads 0: never a negative figure)
+            out[name] = round(max(0.0, cpu_s - (cpu0_s if pid0 == pid else 0.0)), 2)
         return dict(sorted(out.items()))
 
 

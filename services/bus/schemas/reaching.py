@@ -89,9 +89,9 @@ class ReachRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     # beside the one to grasp): paper 000's eqs. 12-13 on the arm's capsules, at least
     # ``hand_clearance_m`` surface to surface. The gripper is not kept out of a sphere that ``target``
     # lies in or straight above (the object it closes on); the forearm and upper arm are. A path
-    # closer than that is planned again (the hand first above the target, then down; the jaws half a
-    # turn round), else refused: ``infeasible``, ``details.reason`` ``hand_obstacle`` naming the sphere
-    # and the link. Empty: no such constraint (the motion as without the field).
+    # closer than that is planned again (the hand first above the target, then down), else refused:
+    # ``infeasible``, ``details.reason`` ``hand_obstacle`` naming the sphere and the link. Empty: no
+    # such constraint (the motion as without the field).
     hand_obstacles: Annotated[list[Sphere], msgspec.Meta(max_length=MAX_OBSTACLES)] = []
     hand_clearance_m: Margin | None = None  # None: the service's (2 cm)
 
