@@ -51,8 +51,8 @@ def test_ray_entry_distance_containment_and_growth_against_sampling():
 
 
 def test_every_box_of_the_stack_is_this_rectangle():
+    from services.collision import BoxObstacle
     from services.model import ground
-    from services.navigation.geometry import BoxObstacle
     from supervisor.scene_map import BoxEstimate, distance_to_box, ray_entry
 
     assert ground.Rectangle is Rectangle

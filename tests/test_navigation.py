@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from services.collision import BoxObstacle, CarriedBar, CylinderObstacle, Scene
 from services.errors import InfeasibleError, InvalidRequestError, NotFoundError
 from services.model import load_robot
 from services.navigation.body_extents import with_arms_of
@@ -22,17 +23,10 @@ from services.navigation.demo_scenes import (
     walls,
 )
 from services.navigation.footsteps_along_path import footsteps_along_path
-from services.navigation.geometry import (
-    BoxObstacle,
-    CylinderObstacle,
-    FootprintChecker,
-    Pose2D,
-    Scene,
-    body_model,
-)
+from services.navigation.geometry import FootprintChecker, Pose2D, body_model
 from services.navigation.goals import ObjectGoal
 from services.navigation.path import PlannerConfig, SampledPath, escape_pose, plan_path, stage1_checker
-from services.navigation.upper_body import CarriedBar, sweep_carried_object
+from services.navigation.upper_body import sweep_carried_object
 from services.walking.footsteps import FootstepBounds, wrap_angle
 
 BODY = body_model("hrp2_like")

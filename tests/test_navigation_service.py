@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from services.bus.schemas import navigation as msg
+from services.collision import BoxObstacle, CylinderObstacle, Obstacle
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.navigation.demo_scenes import (
@@ -16,7 +17,6 @@ from services.navigation.demo_scenes import (
     bar_scenario_start,
     enclosed_goal_room,
 )
-from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle
 from services.navigation.service import goto_options
 
 pytestmark = pytest.mark.integration
@@ -122,7 +122,8 @@ def test_a_near_goal_beside_the_robot_is_walked_straight_and_planned_once() -> N
     walk (navigation keeps its path)."""
     import math
 
-    from services.navigation.geometry import Pose2D, Scene
+    from services.collision import Scene
+    from services.navigation.geometry import Pose2D
     from services.navigation.goto import plan_goto, start_soles
     from services.navigation.straight import StraightWalkOptions, straight_walk
 
@@ -148,7 +149,8 @@ def test_a_goto_from_a_start_overlapping_a_box_walks_out_first_in_the_same_motio
     stage-2 motion from the robot's configuration to the goal."""
     import math
 
-    from services.navigation.geometry import Pose2D, Scene
+    from services.collision import Scene
+    from services.navigation.geometry import Pose2D
     from services.navigation.goto import plan_goto
 
     q = np.array(ROBOT.q_half_sitting)

@@ -13,12 +13,12 @@ import pinocchio as pin
 import pybullet as p
 import pytest
 
+from services.collision import BoxObstacle, CarriedBar, MotionCheck, MotionChecker, Scene
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik.kinematics import compute_kinematics
 from services.model import load_robot
 from services.navigation.bar_pickup import plan_bar_pickup
 from services.navigation.carry import BarTrajectory, HandOnBarTask, grip_from_configuration
-from services.navigation.collision3d import MotionCheck, MotionChecker
 from services.navigation.demo_scenes import (
     BAR_BOX_TOP_M,
     bar_rotation_scenario,
@@ -26,7 +26,7 @@ from services.navigation.demo_scenes import (
     bar_scenario_start,
     enclosed_goal_room,
 )
-from services.navigation.geometry import BoxObstacle, Pose2D, Scene
+from services.navigation.geometry import Pose2D
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto
 from services.navigation.keyframes import next_windows
@@ -39,7 +39,6 @@ from services.navigation.reshaping import (
     reshaped_trajectory,
 )
 from services.navigation.stage2 import Stage2Options
-from services.navigation.upper_body import CarriedBar
 from services.walking.timing import WalkTiming
 
 ROBOT = load_robot("hrp2_like")

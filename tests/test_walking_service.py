@@ -306,7 +306,7 @@ def test_stepping_back_from_beside_a_box_keeps_the_legs_out_of_it():
     was 4 cm from the box. Stepping back led by the rear (right) foot, the weight went forward onto the
     left and the right thigh came forward as its foot lifted: it touched the box (every footprint
     clear of it). The planner checks the legs' swept volume (3D) and leads with the front foot."""
-    from services.navigation.service import obstacle_from_msg
+    from services.collision import obstacle_from_msg
     from services.walking.sweep import check_legs_clear
 
     robot = load_robot("hrp2_like")

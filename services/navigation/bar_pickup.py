@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from services.bus.schemas.navigation import REASON_BAR_OUT_OF_REACH
+from services.collision.carried import CarriedBar
 from services.errors import InfeasibleError, InvalidRequestError
 from services.ik import (
     ComPositionTask,
@@ -36,7 +37,6 @@ from services.ik import (
     run,
 )
 from services.navigation.carry import HandOnBarTask, bar_rotation
-from services.navigation.upper_body import CarriedBar
 from services.walking.zmp_reference import smoothstep5
 
 JOINT_MARGIN_RAD = 0.0

@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from services.navigation.geometry import BoxObstacle, CylinderObstacle, Obstacle, Pose2D, Scene
+from services.collision.obstacles import BoxObstacle, CylinderObstacle, Obstacle, Scene
+from services.navigation.geometry import Pose2D
 
 WALL_THICKNESS_M = 0.1
 WALL_HEIGHT_M = 1.0

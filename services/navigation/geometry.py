@@ -4,8 +4,8 @@ Stage 1 of the two-stage planner ("Two-stage Planning Method", section "Manipula
 `001_771c0ce3779b0683.txt`): "the motion planner computes a collision-free walking path for the lower part
 of the robot body approximated by a bounding box". This module holds:
 
-- obstacles: vertical-axis oriented boxes (yaw only) and vertical cylinders, in the world frame [m, rad]
-  (:mod:`services.collision.obstacles`, shared with walking; re-exported here);
+- the obstacles it checks (vertical-axis oriented boxes, yaw only, and vertical cylinders, in the world
+  frame [m, rad]) are :mod:`services.collision.obstacles`' (shared with walking);
 - :class:`BodyModel`: the per-robot bounding boxes (lower body footprint on the floor, upper body box);
 - :class:`FootprintChecker`: is the lower-body rectangle at (x, y, theta) free of the floor projections
   of the obstacles that reach into the lower body's height range? Exact separating-axis tests, behind a
@@ -24,10 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from services.collision.obstacles import BoxObstacle as BoxObstacle
-from services.collision.obstacles import CylinderObstacle as CylinderObstacle
-from services.collision.obstacles import Obstacle as Obstacle
-from services.collision.obstacles import Scene as Scene
+from services.collision.obstacles import BoxObstacle, Scene
 from services.errors import InvalidRequestError, NotFoundError
 from services.model.ground import Rectangle
 

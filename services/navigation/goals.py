@@ -16,8 +16,9 @@ import math
 from dataclasses import dataclass
 
 from services.bus.schemas.navigation import REASON_NO_FREE_APPROACH_POSE
+from services.collision.obstacles import BoxObstacle, Scene
 from services.errors import InfeasibleError, InvalidRequestError
-from services.navigation.geometry import BoxObstacle, FootprintChecker, Pose2D, Scene
+from services.navigation.geometry import FootprintChecker, Pose2D
 from services.navigation.reachability import check_reachable
 
 SIDES = ("-x", "+x", "-y", "+y")

@@ -23,17 +23,19 @@ import numpy as np
 
 from services import budget
 from services.bus.schemas import navigation as nav_msg
+from services.collision.carried import CarriedBar
+from services.collision.obstacles import Scene
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model.ground import FootstepBounds, sole_pose_of
 from services.navigation.body_extents import with_arms_of
 from services.navigation.carry import grip_from_configuration
 from services.navigation.footsteps_along_path import FootstepOptions, PathFootsteps, footsteps_along_path
-from services.navigation.geometry import Pose2D, Scene, body_model
+from services.navigation.geometry import Pose2D, body_model
 from services.navigation.goals import ObjectGoal
 from services.navigation.path import PlannerConfig, SampledPath, escape_pose, plan_path, stage1_checker
 from services.navigation.stage2 import Stage2Options, WholeBodyMotion, plan_motion
 from services.navigation.straight import StraightWalkOptions, straight_walk
-from services.navigation.upper_body import CarriedBar, SweepResult, sweep_carried_object
+from services.navigation.upper_body import SweepResult, sweep_carried_object
 from services.walking.footsteps import FootstepSequence, SolePose
 from services.walking.timing import WalkTiming, build_schedule
 from services.walking.two_stage import COM_LOWERINGS_M

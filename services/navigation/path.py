@@ -44,8 +44,9 @@ from services.bus.schemas.navigation import (
     REASON_NO_PATH_WITHIN_BUDGET,
     REASON_START_IN_COLLISION,
 )
+from services.collision.obstacles import Scene
 from services.errors import InfeasibleError, InternalError, InvalidRequestError
-from services.navigation.geometry import BodyModel, FootprintChecker, Pose2D, Scene
+from services.navigation.geometry import BodyModel, FootprintChecker, Pose2D
 from services.navigation.goals import ObjectGoal, resolve_goal
 from services.navigation.reachability import check_reachable
 

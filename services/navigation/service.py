@@ -26,8 +26,7 @@ from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import navigation as msg
 from services.bus.service import Service, handles, run_service
 from services.collision.carried import CarriedBar
-from services.collision.obstacles import Scene
-from services.collision.obstacles import obstacle_from_msg as obstacle_from_msg
+from services.collision.obstacles import Scene, obstacle_from_msg
 from services.errors import InvalidRequestError
 from services.model import load_robot
 from services.model.options import add_model_argument, with_model

@@ -17,10 +17,11 @@ from typing import Any
 
 import numpy as np
 
+from services.collision.obstacles import Scene
 from services.errors import InfeasibleError
 from services.model.ground import FootstepBounds, SolePose
 from services.navigation.footsteps_along_path import PathFootsteps
-from services.navigation.geometry import Pose2D, Scene
+from services.navigation.geometry import Pose2D
 from services.navigation.path import SampledPath
 from services.walking.goals import MapBox, check_clear, walk_to_steps
 

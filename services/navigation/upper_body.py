@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 
-from services.collision.carried import CarriedBar as CarriedBar
+from services.collision.carried import CarriedBar
 from services.collision.obstacles import Scene, obstacle_geometry
 from services.errors import InvalidRequestError
 from services.navigation.geometry import BodyModel
