@@ -31,6 +31,7 @@ from matplotlib.axes import Axes
 from matplotlib.colors import Normalize
 from matplotlib.patches import Circle, Polygon
 
+from services.collision import BoxObstacle, CarriedBar, Scene
 from services.model import load_robot
 from services.navigation.body_extents import with_arms_of
 from services.navigation.demo_scenes import (
@@ -42,13 +43,13 @@ from services.navigation.demo_scenes import (
     demo_room,
 )
 from services.navigation.footsteps_along_path import FootstepOptions, footsteps_along_path
-from services.navigation.geometry import BodyModel, BoxObstacle, Scene, body_model
+from services.navigation.geometry import BodyModel, body_model
 from services.navigation.goals import ObjectGoal
 from services.navigation.goto import GotoOptions, GotoResult, plan_goto
 from services.navigation.path import PlannerConfig, SampledPath, plan_path
 from services.navigation.reshaping import ReshapeOptions
 from services.navigation.stage2 import Stage2Options
-from services.navigation.upper_body import CarriedBar, sweep_carried_object
+from services.navigation.upper_body import sweep_carried_object
 
 REPO = Path(__file__).resolve().parents[1]
 

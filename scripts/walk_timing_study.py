@@ -38,9 +38,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from services.collision import Scene  # noqa: E402
 from services.errors import HumanoidError  # noqa: E402
 from services.model.ground import sole_pose_at  # noqa: E402
-from services.navigation.geometry import Pose2D, Scene  # noqa: E402
+from services.navigation.geometry import Pose2D  # noqa: E402
 from services.navigation.goto import GotoOptions, plan_goto, start_pose  # noqa: E402
 from services.navigation.stage2 import Stage2Options  # noqa: E402
 from services.reaching import ReachRequest, plan_reach  # noqa: E402

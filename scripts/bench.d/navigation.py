@@ -44,6 +44,7 @@ from pathlib import Path
 
 from ompl import geometric as og
 
+from services.collision import CarriedBar, Scene
 from services.errors import HumanoidError
 from services.model import load_robot
 from services.navigation.demo_scenes import (
@@ -54,12 +55,12 @@ from services.navigation.demo_scenes import (
     random_clutter,
 )
 from services.navigation.footsteps_along_path import footsteps_along_path
-from services.navigation.geometry import BodyModel, FootprintChecker, Pose2D, Scene, body_model
+from services.navigation.geometry import BodyModel, FootprintChecker, Pose2D, body_model
 from services.navigation.goto import GotoOptions, plan_goto
 from services.navigation.path import PlannerConfig, densify, make_state_space, plan_path, set_se2_state
 from services.navigation.reshaping import ReshapeOptions, SamplingOptions
 from services.navigation.stage2 import Stage2Options
-from services.navigation.upper_body import CarriedBar, sweep_carried_object
+from services.navigation.upper_body import sweep_carried_object
 
 REPO = Path(__file__).resolve().parents[2]
 OUT = REPO / "bench" / "out" / "navigation.json"
