@@ -26,6 +26,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,7 +36,7 @@ from services import budget
 from services.bus.limits import MAX_BUDGET_S, check_budget
 from services.bus.schemas import walking as msg
 from services.bus.service import Service, handles, run_service
-from services.collision.obstacles import obstacle_from_msg
+from services.collision.obstacles import BoxObstacle, Obstacle, obstacle_from_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from services.model import load_robot
 from services.model.ground import mid_feet
@@ -239,18 +240,22 @@ def _walk_within_joint_speeds(
     raise AssertionError("unreachable: the last lowering returns or raises")
 
 
-def _floor_boxes(obstacles: list[Any]) -> list[MapBox]:
-    """The map's boxes of a request as floor rectangles (cylinders as their bounding squares), each
-    message read and checked by :func:`~services.collision.obstacle_from_msg`."""
-    return [MapBox(o.name, obstacle_from_msg(o, i).footprint) for i, o in enumerate(obstacles)]
+def obstacles_of(request: msg.GoalRequest) -> list[Obstacle]:
+    """The obstacles of a ``walking/goal`` request (world frame), each message read and checked once by
+    :func:`~services.collision.obstacle_from_msg` (an error names ``obstacles[i].field``)."""
+    return [obstacle_from_msg(o, i) for i, o in enumerate(request.obstacles)]
 
 
 def goal_steps(
-    request: msg.GoalRequest, robot: Any, lead: str | None = None
+    request: msg.GoalRequest,
+    robot: Any,
+    lead: str | None = None,
+    obstacles: Sequence[Obstacle] | None = None,
 ) -> tuple[np.ndarray, FootstepSequence]:
-    """(q_start, the footsteps) of a ``walking/goal`` request, checked against its obstacles; ``lead``:
-    the foot that steps first in a walk to a pose or a step back (None: the planner's choice,
-    :func:`~services.walking.goals.walk_to_steps`).
+    """(q_start, the footsteps) of a ``walking/goal`` request, checked against its obstacles (their
+    floor rectangles, a cylinder's its bounding square); ``lead``: the foot that steps first in a walk
+    to a pose or a step back (None: the planner's choice, :func:`~services.walking.goals.walk_to_steps`);
+    ``obstacles``: the request's, already read by :func:`obstacles_of` (None: read here).
 
     Raises:
         InvalidRequestError: unknown kind or frame, a pose not [x, y, yaw], negative distances, a
@@ -272,7 +277,9 @@ def goal_steps(
     q = robot.check_q(request.q_start)
     soles = soles_on(robot, q)
     limits = FootstepBounds.from_robot(robot)
-    boxes = _floor_boxes(request.obstacles)
+    if obstacles is None:
+        obstacles = obstacles_of(request)
+    boxes = [MapBox(o.name, o.footprint) for o in obstacles]
     turn_room = None
     back = None  # kind "turn" with back_m: the step back, checked as a walk of its own
     try:
@@ -332,8 +339,9 @@ def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) ->
     robot = load_robot(request.model)
     if not (math.isfinite(request.leg_clearance_m) and request.leg_clearance_m >= 0.0):
         raise InvalidRequestError(f"leg_clearance_m must be >= 0 m, got {request.leg_clearance_m}")
-    boxes = [obstacle_from_msg(o, i) for i, o in enumerate(request.obstacles) if o.kind == "box"]
-    q, sequence = goal_steps(request, robot)
+    obstacles = obstacles_of(request)  # read once: the footsteps' check and the legs' sweep use them
+    boxes = [o for o in obstacles if isinstance(o, BoxObstacle)]
+    q, sequence = goal_steps(request, robot, obstacles=obstacles)
     try:
         return _goal_walk(request, robot, q, sequence, boxes, config)
     except InfeasibleError as exc:
@@ -342,7 +350,7 @@ def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) ->
             raise
         other = other_side(sequence.steps[0].side)
         try:
-            q, sequence = goal_steps(request, robot, other)
+            q, sequence = goal_steps(request, robot, other, obstacles)
             return _goal_walk(request, robot, q, sequence, boxes, config)
         except InfeasibleError:
             raise exc from None
@@ -353,7 +361,7 @@ def _goal_walk(
     robot: Any,
     q: np.ndarray,
     sequence: FootstepSequence,
-    boxes: list[Any],
+    boxes: list[BoxObstacle],
     config: WalkingConfig | None,
 ) -> msg.PlanReply:
     """:func:`plan_reply` of a goal's footsteps with its timing; its legs checked against ``boxes``."""
