@@ -125,7 +125,7 @@ class Planners:
             double_support_s=self.config.walk_double_support_s,
         )
         reply = self.bus.call(walk_msg.GOAL, request, self.config.plan_timeout_s)
-        goal = list(request.pose) if request.kind == "pose" else [request.angle_rad]
+        goal = {"pose": list(request.pose), "turn": [request.angle_rad]}.get(request.kind, [])
         return Plan(
             q=np.asarray(reply.q, dtype=float),
             dt_s=float(reply.dt_s),
@@ -140,6 +140,11 @@ class Planners:
         return self.walk_goal(
             walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="pose", pose=[forward_m, left_m, yaw_rad])
         )
+
+    def square(self) -> Plan:
+        """Square the stance: the rear foot stepped beside the front one (``walking/goal`` ``kind:
+        square``, one step checked against the map); ``invalid_request`` when it is square already."""
+        return self.walk_goal(walk_msg.GoalRequest(q_start=self.body.plan_q(), kind="square"))
 
     def goto_object(self, name: str, distance_m: float) -> Plan:
         """Stand ``distance_m`` in front of ``name``'s face (as the map estimates it), facing it."""

@@ -92,10 +92,10 @@ class Remedies:
         straight up off the object and its support (``back_off_m`` x 1.5), then down beside the body
         where it hangs in the half-sitting posture (out of the cameras' view of the object: with the
         hand at the carry point instead, the ball was not found from the next stance, and seen 4.4
-        cm off from the one before), the chest upright, and ``walking/goal`` re-squares the stance
-        (the feet side by side at the mid-feet pose, ``[0, 0, 0]``, stepped in place; checked
-        against the map) so that the retry plans from a flat stance. A part a planner refuses is
-        reported and skipped."""
+        cm off from the one before), the chest upright, and ``walking/goal`` squares the stance
+        (``kind: square``: the rear foot stepped beside the front one, checked against the map; no
+        step when the stance is square already) so that the retry plans from a square stance. A part
+        a planner refuses is reported and skipped."""
         object_target = parse_point(target, 3, "target") is None
         allowed = [target, *self._support(target)] if object_target else []
         robot = self.body.robot
@@ -110,9 +110,9 @@ class Remedies:
             self.progress(f"the {hand} hand stays where it is ({exc.message})")
         self.body.straighten()
         try:
-            plan = self.planners.walk(0.0, 0.0, 0.0)
-        except (InfeasibleError, InvalidRequestError) as exc:
-            self.progress(f"the stance stays as it is: no walk squares it ({exc.message})")
+            plan = self.planners.square()
+        except (InfeasibleError, InvalidRequestError) as exc:  # invalid_request: square already
+            self.progress(f"the stance stays as it is ({exc.message})")
             return
         self.progress(f"square the stance: {plan.describe()}")
         self.body.execute(plan.q, what="square the stance", progress=self.progress)

@@ -16,7 +16,7 @@ import pytest
 from services.bus.schemas import sim as sim_msg
 from services.bus.schemas.supervisor import EVENTS
 from services.bus.session import TypedSubscriber
-from services.errors import UnavailableError
+from services.errors import InvalidRequestError, UnavailableError
 from supervisor.core import Supervisor
 from supervisor.script import parse_script
 
@@ -197,6 +197,9 @@ def test_walk_relative_to_the_robot_and_back(sup) -> None:
     x2, y2, _ = report.reports[1].details["pose"]
     back = math.cos(yaw1) * (x2 - x1) + math.sin(yaw1) * (y2 - y1)
     assert back == pytest.approx(-0.3, abs=0.05)
+    # The feet side by side at the end: squaring that stance (the missed grasp's remedy) takes no step.
+    with pytest.raises(InvalidRequestError, match="already square"):
+        sup.actions.planners.square()
 
 
 def test_the_robot_facts_come_from_the_services_and_match_the_model(sup) -> None:
