@@ -30,6 +30,13 @@ class SupervisorConfig:
         goto_distance_m: ``goto OBJECT`` stands this far from the object's face by default;
         clearance_m: before turning or walking away, the robot steps back until the objects seen are
             this far from its mid-feet point; max_step_back_m: by at most this much at once;
+            room_margin_m: that far and this much more; straight_back_deg: a way out within this
+            many [deg] of straight back is taken as straight back (before a turn: the step back and
+            the turn are then one walk of ``walking/goal``); min_turn_deg: a turn asked smaller than
+            this [deg] is not made;
+        goto_farther_m: when navigation finds no free place to stand at the distance asked from an
+            object (its map box is a rough estimate), it is asked again this much farther [m], each
+            in turn (reaching steps the rest of the way);
         far_m, near_m: an object farther than far_m is first approached to near_m and localized again
             (near_face_m from a free face of it when there is no walk to the pose near_m short of it,
             and not at all when there is none to a face either);
@@ -141,6 +148,10 @@ class SupervisorConfig:
     goto_distance_m: float = 0.4
     clearance_m: float = 0.6
     max_step_back_m: float = 0.45
+    room_margin_m: float = 0.05
+    straight_back_deg: float = 15.0
+    min_turn_deg: float = 2.0
+    goto_farther_m: tuple[float, ...] = (0.15, 0.3)
     far_m: float = 2.2
     near_m: float = 1.8
     near_face_m: float = 1.0
@@ -228,6 +239,10 @@ class SupervisorConfig:
                 raise InvalidRequestError(
                     f"supervisor config: {name} must be in {bounds} (reaching's bounds), got {value}"
                 )
+        if not all(extra >= 0.0 for extra in self.goto_farther_m):
+            raise InvalidRequestError(
+                f"supervisor config: goto_farther_m must be >= 0 m, got {list(self.goto_farther_m)}"
+            )
         if len(self.carry_m) != 3:
             raise InvalidRequestError("supervisor config: carry_m must be [forward, lateral, height] m")
 

@@ -8,14 +8,12 @@ decides which to ask for and in which order.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
 from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
 from supervisor.body import Body, Progress
-from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory
 from supervisor.perceive import Eyes
@@ -41,22 +39,15 @@ def away_from(box: BoxEstimate, x_m: float, y_m: float, yaw_rad: float) -> tuple
     return forward, left
 
 
-# The way out of :meth:`LocomotionActions._room_needed` counts as straight back when its forward component
-# is below minus this (cos 15 deg): the step back and the turn are then one walk of ``walking/goal``.
-_STRAIGHT_BACK = math.cos(math.radians(15.0))
-
-
 class LocomotionActions:
     """The locomotion actions (a part of :class:`supervisor.actions.Actions`)."""
 
-    bus: ServiceCaller
     body: Body
     memory: Memory
     eyes: Eyes
     planners: Planners
     config: SupervisorConfig
     progress: Progress
-    _survey: Callable[[set[str]], None]
 
     def do_goto(self, step: Step) -> ActionReport:
         """Walk in front of an object (``distance`` from its face, facing it) or to a pose 'x,y,yaw_deg'."""
@@ -92,31 +83,35 @@ class LocomotionActions:
 
     def _goto_object(self, target: str, distance: float) -> Plan:
         """navigation/goto in front of ``target``; when no place to stand is free at ``distance`` (the
-        map's box is a rough estimate), a little farther (reaching steps the rest of the way)."""
-        for extra in (0.0, 0.15, 0.3):
+        map's box is a rough estimate), ``goto_farther_m`` farther, each in turn (reaching steps the
+        rest of the way)."""
+        *first, last = (distance, *(distance + extra for extra in self.config.goto_farther_m))
+        for at in first:
             try:
-                return self.planners.goto_object(target, distance + extra)
+                return self.planners.goto_object(target, at)
             except InfeasibleError as exc:
-                if exc.details.get("reason") != nav_msg.REASON_NO_FREE_APPROACH_POSE or extra >= 0.3:
+                if exc.details.get("reason") != nav_msg.REASON_NO_FREE_APPROACH_POSE:
                     raise
-                self.progress(f"no place to stand {distance + extra:.2f} m from {target}: trying farther")
-        raise AssertionError("unreachable")
+                self.progress(f"no place to stand {at:.2f} m from {target}: trying farther")
+        return self.planners.goto_object(target, last)
 
-    def _make_room(self, what: str) -> None:
+    def _make_room(self, what: str, room: tuple[float, str, float, float] | None = None) -> None:
         """Step away when an object seen is closer than ``clearance_m`` to the robot: turning on the spot
         would sweep the arms into it, and a car-like path needs room to turn at its start (a start
         inside an obstacle's margin is navigation's to leave: it computes the way out). Away from the
         object's map box (:func:`away_from`: straight back when it is ahead; a table or chair beside
         the robot, the step goes sideways too: straight back the hand beside the chair touched it,
-        fetch seed 18), else, when walking refuses that, straight back."""
-        room = self._room_needed()
+        fetch seed 18), else, when walking refuses that, straight back. ``room``: what
+        :meth:`_room_needed` said from the robot's stance now (None: asked here)."""
+        if room is None:
+            room = self._room_needed()
         if room is None:
             return
         back, name, forward, left = room
         try:
             plan = self.planners.walk(back * forward, back * left, 0.0)
         except InfeasibleError as exc:
-            if forward < -_STRAIGHT_BACK:  # that was the step straight back already
+            if self._straight_back(forward):  # that was the step straight back already
                 self.progress(f"{what}: no step back from {name}: {exc.message}")
                 return
             self.progress(f"{what}: no step away from {name}: {exc.message}; straight back")
@@ -133,8 +128,8 @@ class LocomotionActions:
     def _room_needed(self) -> tuple[float, str, float, float] | None:
         """How far [m] to step, from which object, and in which unit direction (forward, left) of the
         robot's frame (:func:`away_from` its map box), when an object seen is nearer than
-        ``clearance_m`` to the robot's mid-feet point (enough to reach ``clearance_m`` + 5 cm, at most
-        ``max_step_back_m``); None when none is."""
+        ``clearance_m`` to the robot's mid-feet point (enough to reach ``clearance_m`` +
+        ``room_margin_m``, at most ``max_step_back_m``); None when none is."""
         x, y, yaw = self.body.base_xy_yaw()
         near = [(distance_to_box(box, x, y), box.name, box) for box in boxes(self.memory)]
         if not near:
@@ -142,8 +137,14 @@ class LocomotionActions:
         distance, name, box = min(near, key=lambda item: item[0])
         if distance >= self.config.clearance_m:
             return None
-        back = min(self.config.clearance_m - distance + 0.05, self.config.max_step_back_m)
+        c = self.config
+        back = min(c.clearance_m - distance + c.room_margin_m, c.max_step_back_m)
         return (back, name, *away_from(box, x, y, yaw))
+
+    def _straight_back(self, forward: float) -> bool:
+        """Whether a way out whose forward component (of a unit direction, :func:`away_from`) is
+        ``forward`` is straight back, within ``straight_back_deg``."""
+        return forward < -math.cos(math.radians(self.config.straight_back_deg))
 
     def _approach(self, name: str) -> None:
         """Far objects are seen roughly (a table 3 m away: its silhouette is a thin top on thin legs):
@@ -225,11 +226,11 @@ class LocomotionActions:
 
     def _turn_rad(self, angle_rad: float, what: str) -> int:
         """Turn on the spot (walking/plan of a turn-in-place footstep sequence); the steps taken."""
-        if abs(angle_rad) < math.radians(2.0):
+        if abs(angle_rad) < math.radians(self.config.min_turn_deg):
             return 0
         self.body.straighten()
         room = self._room_needed()
-        if room is not None and room[2] < -_STRAIGHT_BACK:
+        if room is not None and self._straight_back(room[2]):
             # Stepping back for room and the turn: one walk of the walking planner (one start, one stop),
             # checked against the map where each part is (the turn's room where it starts). Only when the
             # way out is straight back (an object beside the robot: :meth:`_make_room` steps sideways).
@@ -243,7 +244,7 @@ class LocomotionActions:
                 self.body.execute(plan.q, what=what, progress=self.progress)
                 return plan.n_steps
         if room is not None:
-            self._make_room(f"room to {what}")
+            self._make_room(f"room to {what}", room)
         plan = self.planners.turn(angle_rad)
         self.progress(f"{what}: {plan.describe()}")
         self.body.execute(plan.q, what=what, progress=self.progress)
