@@ -51,14 +51,13 @@ class LastSteps:
 @dataclass(frozen=True)
 class Plan:
     """A whole-body trajectory to execute: ``q`` (N, nq) every ``dt_s``; ``n_steps`` footsteps taken;
-    ``goal`` what the planner aimed at; ``planner`` who planned it; ``plan_s`` its planning time [s]."""
+    ``goal`` what the planner aimed at; ``planner`` who planned it."""
 
     q: np.ndarray = field(repr=False)
     dt_s: float
     n_steps: int
     planner: str
     goal: list[float] = field(default_factory=list)
-    plan_s: float = 0.0
 
     @property
     def duration_s(self) -> float:
@@ -113,10 +112,9 @@ class Planners:
             n_steps=len(reply.step_sides),
             planner=f"navigation/goto, {how}",
             goal=[float(v) for v in reply.goal],
-            plan_s=float(reply.timings_s.get("total_s", 0.0)),
         )
 
-    def walk_goal(self, request: walk_msg.GoalRequest, *, planner: str = "walking/goal") -> Plan:
+    def walk_goal(self, request: walk_msg.GoalRequest) -> Plan:
         """``walking/goal`` of ``request`` with the map's boxes as its obstacles, as a :class:`Plan`."""
         request = msgspec.structs.replace(
             request,
@@ -130,7 +128,7 @@ class Planners:
             q=np.asarray(reply.q, dtype=float),
             dt_s=float(reply.dt_s),
             n_steps=len(reply.steps),
-            planner=planner,
+            planner="walking/goal",
             goal=goal,
         )
 
@@ -241,7 +239,6 @@ class Planners:
             n_steps=len(walked.steps),
             planner="footsteps/plan + walking/plan",
             goal=[float(v) for v in target_m],
-            plan_s=float(reply.solve_time_s),
         )
         return LastSteps(plan, found, q_final, hand_quat)
 
@@ -291,7 +288,6 @@ class Planners:
             n_steps=len(reply.footsteps),
             planner="reaching/reach",
             goal=[float(v) for v in target_m],
-            plan_s=float(reply.planning_time_s),
         )
 
     def step_back(self, distance_m: float) -> Plan:
