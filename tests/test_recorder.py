@@ -33,8 +33,10 @@ REPO = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.integration
 
 
-def _start_recorder(harness, path, *args):
-    return harness.spawn_service("services.bus.recorder", "--output", str(path), *args, name="record")
+def _start_recorder(harness, path, *args, **kwargs):
+    return harness.spawn_service(
+        "services.bus.recorder", "--output", str(path), *args, name="record", **kwargs
+    )
 
 
 def _collect(session, key_expr):
@@ -209,3 +211,26 @@ def test_state_every_thins_out_the_200_hz_state_topics_only(bus_harness, tmp_pat
     clocks = [decode(m.data, Clock).sim_time_s for m in messages if m.key.endswith("/sim/clock")]
     assert clocks == [pytest.approx(0.005 * i) for i in range(0, 40, 4)]
     assert [decode(m.data, Ping).seq for m in messages if m.key.endswith("/diag/ping")] == list(range(40))
+
+
+def test_status_says_what_is_written_so_the_recorder_is_stopped_after_it(bus_harness, tmp_path):
+    """``record/status`` counts the messages written, per key: stopped once it counts them, the
+    recorder has every message in its log, also when it runs behind (at the lowest CPU priority here;
+    a SIGTERM right after a message may come before the message reaches the recorder)."""
+    from services.bus.schemas.record import STATUS, StatusRequest
+
+    path = tmp_path / "status.mcap"
+    h = bus_harness
+    recorder = _start_recorder(h, path, preexec_fn=lambda: os.nice(19))
+    pub = TypedPublisher(h.session, h.bus.robot, PING, track_matching=True)
+    assert _wait_for(lambda: pub.matching)  # the recorder's subscription has reached this session
+    ping = keys.key(h.bus.robot, "diag", "ping")
+    for seq in range(50):
+        pub.put(Ping(seq=seq, text=f"ping {seq}"))
+    assert _wait_for(lambda: h.client.call(STATUS, StatusRequest(), 10.0).per_key.get(ping) == 50, 60.0)
+    status = h.client.call(STATUS, StatusRequest(), 10.0)
+    assert status.output == str(path) and status.recorded >= 50
+    assert h.stop(recorder) == 0
+    pub.undeclare()
+    pings = [decode(m.data, Ping).seq for m in LogReader(path).messages() if m.key == ping]
+    assert pings == list(range(50))

@@ -8,6 +8,11 @@ The log layout (one Foxglove-decodable copy of each message, Foxglove's own view
 Threads: zenoh pushes samples into a FIFO channel (no GIL on its side); one writer thread takes
 them in order and writes. Chunks close by size: a SIGKILL loses at most the open chunk
 (``chunk_size_bytes`` of messages); every closed chunk reads back (``humanoid log-info``).
+
+SIGTERM writes what the recorder has received and closes the log; a message still on its way to the
+recorder then (published milliseconds before, the recorder's process not yet scheduled to read it)
+is not in the log. ``record/status`` (:data:`~services.bus.schemas.record.STATUS`) says what is
+written, per key: a client that must have a message in the log asks it before stopping the recorder.
 """
 
 from __future__ import annotations
@@ -25,7 +30,8 @@ import zenoh
 
 from services.bus.config import from_mapping
 from services.bus.mcaplog import LogWriter
-from services.bus.service import Service, run_service
+from services.bus.schemas.record import STATUS, StatusReply, StatusRequest
+from services.bus.service import Service, handles, run_service
 from services.bus.session import request_id_from
 from services.errors import InvalidRequestError
 
@@ -128,8 +134,8 @@ class RecorderService(Service):
             },
         )
         self._lock = threading.Lock()
-        self._done = threading.Event()
         self.recorded = 0
+        self._per_key: dict[str, int] = {}  # messages written per key
         self._subscriber = self.session.declare_subscriber(
             cfg.key_expr, zenoh.handlers.FifoChannel(cfg.queue_capacity)
         )
@@ -148,25 +154,30 @@ class RecorderService(Service):
                 return
             if sample.kind != zenoh.SampleKind.PUT:
                 continue
-            if every > 1:
-                key = str(sample.key_expr)
-                if key.endswith(STATE_TOPICS):
-                    seen[key] = seen.get(key, -1) + 1
-                    if seen[key] % every:
-                        continue
+            key = str(sample.key_expr)
+            if every > 1 and key.endswith(STATE_TOPICS):
+                seen[key] = seen.get(key, -1) + 1
+                if seen[key] % every:
+                    continue
             sequence = request_id_from(sample.attachment) or 0
             data = sample.payload.to_bytes()
             with self._lock:
                 if self.writer.closed:
                     return
                 try:
-                    self.writer.write(str(sample.key_expr), data, time.time_ns(), sequence & 0xFFFF_FFFF)
+                    self.writer.write(key, data, time.time_ns(), sequence & 0xFFFF_FFFF)
                     self.recorded += 1
+                    self._per_key[key] = self._per_key.get(key, 0) + 1
                 except Exception:  # a full disk must not stop the service from answering
-                    self.log.exception("could not record a message on %s", sample.key_expr)
+                    self.log.exception("could not record a message on %s", key)
+
+    @handles(STATUS)
+    def status(self, _request: StatusRequest) -> StatusReply:
+        """What is written so far (see the module doc)."""
+        with self._lock:
+            return StatusReply(output=self.config.output, recorded=self.recorded, per_key=dict(self._per_key))
 
     def stop(self) -> None:
-        self._done.set()
         with contextlib.suppress(zenoh.ZError):
             self._subscriber.undeclare()
         self._writer_thread.join(timeout=0.5)
