@@ -167,15 +167,27 @@ def test_a_service_warning_reaches_the_log_panel(stack):
 
 
 def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log_path):
-    """Runs after the other tests of the module (pytest keeps file order): the recorder saw them."""
+    """Runs after the other tests of the module (pytest keeps file order): the recorder saw them.
+
+    The warning of the test above reached this test's viewer through viz; it may still be on its way
+    to the recorder (stopped right then, under load, the recorder had not read it yet): the recorder
+    is stopped once ``record/status`` counts it written."""
     import json
 
     from mcap.reader import make_reader
 
+    from services.bus import keys
     from services.bus.foxglove import schema_problems
+    from services.bus.schemas.record import STATUS, StatusRequest
 
     h = stack[0]
     recorder = next(p for p in h.procs if "services.bus.recorder" in " ".join(map(str, p.args)))
+    warning = keys.key(h.bus.robot, "diag", "log")
+    deadline = time.monotonic() + 30.0  # a hang guard: the assertions below say what is missing
+    while time.monotonic() < deadline:
+        if h.client.call(STATUS, StatusRequest(), 10.0).per_key.get(warning, 0) > 0:
+            break
+        time.sleep(0.05)
     assert h.stop(recorder) == 0
     topics: dict[str, int] = {}
     robot = h.bus.robot
