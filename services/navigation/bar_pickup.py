@@ -240,11 +240,26 @@ def _bar_line(robot: object, q_start: np.ndarray, bar_axis_world: np.ndarray) ->
     return -axis if axis @ T_base.rotation[:, 1] < 0.0 else axis
 
 
-def _check_spacing(bar: CarriedBar, hand_spacing_m: float) -> None:
+def _grasp_inputs(
+    robot: object,
+    q_start: np.ndarray,
+    bar_centre_world_m: np.ndarray,
+    bar_axis_world: np.ndarray,
+    bar: CarriedBar | None,
+    hand_spacing_m: float,
+) -> tuple[CarriedBar, np.ndarray, np.ndarray, np.ndarray, HierarchicalSolver]:
+    """The checked inputs of a grasp of the bar: (the bar, q_start, the bar's unit axis pointing to the
+    robot's left, its centre [m] world, a solver for the robot); InvalidRequestError for a bad q_start
+    or a hand spacing that does not fit the bar."""
+    bar = bar or CarriedBar()
+    q_start = robot.check_q(q_start)  # type: ignore[attr-defined]
     if not 0.1 <= hand_spacing_m <= bar.length_m - 0.1:
         raise InvalidRequestError(
             f"hand_spacing_m={hand_spacing_m} m must be within 0.1 m and the bar's length minus 0.1 m"
         )
+    axis = _bar_line(robot, q_start, bar_axis_world)
+    centre = np.asarray(bar_centre_world_m, dtype=float)
+    return bar, q_start, axis, centre, HierarchicalSolver(robot.model)  # type: ignore[attr-defined]
 
 
 def _out_of_reach(centre: np.ndarray, errors: list[float]) -> InfeasibleError:
@@ -267,12 +282,9 @@ def bar_grasp_configuration(
 ) -> np.ndarray:
     """The configuration (nq) of :func:`plan_bar_pickup`'s grasp, without the motion to it: both hands on
     the bar (against the fixed fingers), the soles and CoM as at ``q_start``."""
-    bar = bar or CarriedBar()
-    q_start = robot.check_q(q_start)  # type: ignore[attr-defined]
-    _check_spacing(bar, hand_spacing_m)
-    axis = _bar_line(robot, q_start, bar_axis_world)
-    centre = np.asarray(bar_centre_world_m, dtype=float)
-    solver = HierarchicalSolver(robot.model)  # type: ignore[attr-defined]
+    bar, q_start, axis, centre, solver = _grasp_inputs(
+        robot, q_start, bar_centre_world_m, bar_axis_world, bar, hand_spacing_m
+    )
     errors: list[float] = []
     for posture in _postures(
         robot, q_start, centre, axis, bar, hand_spacing_m, 0.08, 0.0, tolerance_m, solver, errors
@@ -301,12 +313,9 @@ def plan_bar_pickup(
     InfeasibleError when no approach pitch puts both hands on the bar within ``tolerance_m`` (pose error,
     [m] and [rad] combined); InvalidRequestError for a spacing that does not fit the bar.
     """
-    bar = bar or CarriedBar()
-    q_start = robot.check_q(q_start)  # type: ignore[attr-defined]
-    _check_spacing(bar, hand_spacing_m)
-    axis = _bar_line(robot, q_start, bar_axis_world)
-    centre = np.asarray(bar_centre_world_m, dtype=float)
-    solver = HierarchicalSolver(robot.model)  # type: ignore[attr-defined]
+    bar, q_start, axis, centre, solver = _grasp_inputs(
+        robot, q_start, bar_centre_world_m, bar_axis_world, bar, hand_spacing_m
+    )
     data = robot.new_data()  # type: ignore[attr-defined]
     frames = {side: getattr(robot.frames, f"{side}_grasp") for side in ("left", "right")}  # type: ignore[attr-defined]
     current = {side: robot.frame_pose(q_start, frames[side], data) for side in ("left", "right")}  # type: ignore[attr-defined]
