@@ -512,7 +512,7 @@ class WalkingService(Service):
         self.log.info(
             "%s goal %s: %d steps, %.2f s of walk planned in %.2f s",
             request.kind,
-            request.pose if request.kind == "pose" else f"{request.angle_rad:.3f} rad",
+            {"pose": request.pose, "turn": f"{request.angle_rad:.3f} rad"}.get(request.kind, "the stance"),
             len(reply.steps),
             reply.figures.duration_s,
             time.perf_counter() - started,
