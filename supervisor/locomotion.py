@@ -13,11 +13,8 @@ import numpy as np
 
 from services.bus.schemas import navigation as nav_msg
 from services.errors import InfeasibleError, InvalidRequestError
-from supervisor.body import Body, Progress
-from supervisor.config import SupervisorConfig
-from supervisor.memory import Memory
-from supervisor.perceive import Eyes
-from supervisor.planners import Plan, Planners
+from supervisor.parts import ActionParts
+from supervisor.planners import Plan
 from supervisor.report import ActionReport
 from supervisor.scene_map import BoxEstimate, box_estimate, boxes, distance_to_box, is_obstacle
 from supervisor.script import Step, parse_point
@@ -39,15 +36,8 @@ def away_from(box: BoxEstimate, x_m: float, y_m: float, yaw_rad: float) -> tuple
     return forward, left
 
 
-class LocomotionActions:
+class LocomotionActions(ActionParts):
     """The locomotion actions (a part of :class:`supervisor.actions.Actions`)."""
-
-    body: Body
-    memory: Memory
-    eyes: Eyes
-    planners: Planners
-    config: SupervisorConfig
-    progress: Progress
 
     def do_goto(self, step: Step) -> ActionReport:
         """Walk in front of an object (``distance`` from its face, facing it) or to a pose 'x,y,yaw_deg'."""

@@ -9,26 +9,14 @@ from __future__ import annotations
 import math
 
 from services.errors import NotFoundError
-from supervisor.body import Body, Progress
-from supervisor.calls import ServiceCaller
-from supervisor.config import SupervisorConfig
-from supervisor.memory import Memory, Sighting
-from supervisor.perceive import Eyes
-from supervisor.planners import Planners
+from supervisor.memory import Sighting
+from supervisor.parts import ActionParts
 from supervisor.report import ActionReport
 from supervisor.script import Step
 
 
-class LookingActions:
+class LookingActions(ActionParts):
     """The perception actions (a part of :class:`supervisor.actions.Actions`)."""
-
-    bus: ServiceCaller
-    body: Body
-    memory: Memory
-    eyes: Eyes
-    planners: Planners
-    config: SupervisorConfig
-    progress: Progress
 
     def do_detect(self, step: Step) -> ActionReport:
         """Is the object in view now (no motion)? not_found otherwise."""

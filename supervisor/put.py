@@ -23,11 +23,9 @@ from services.errors import (
     NotGraspedError,
     WorldOutcomeError,
 )
-from supervisor.body import Body, Executed, Progress
-from supervisor.config import SupervisorConfig
-from supervisor.memory import Memory
-from supervisor.perceive import Eyes
-from supervisor.planners import LastSteps, Plan, Planners
+from supervisor.body import Executed
+from supervisor.parts import ActionParts
+from supervisor.planners import LastSteps, Plan
 from supervisor.report import ActionReport
 from supervisor.scene_map import box_estimate, ray_entry
 from supervisor.script import Step
@@ -57,16 +55,10 @@ def arm_only(collisions: Sequence[sim_msg.Contact], obj: str) -> bool:
     return bool(collisions) and all(c.robot_link != f"held:{obj}" for c in collisions)
 
 
-class PutActions:
+class PutActions(ActionParts):
     """The put action (a part of :class:`supervisor.actions.Actions`; the hand motions it shares with the
     grasp are :class:`supervisor.manipulation.ManipulationActions`')."""
 
-    body: Body
-    memory: Memory
-    eyes: Eyes
-    planners: Planners
-    config: SupervisorConfig
-    progress: Progress
     do_look_at: Callable[[Step], ActionReport]
     _back_off: Callable[[str, list[str]], None]
     _move_hand: Callable[..., int]

@@ -12,13 +12,8 @@ import numpy as np
 
 from services.bus.schemas import sim as sim_msg
 from services.errors import FellError, InfeasibleError, InvalidRequestError, UnavailableError
-from supervisor.body import Body, Progress
-from supervisor.calls import ServiceCaller
-from supervisor.config import SupervisorConfig
 from supervisor.health import HealthMonitor
-from supervisor.memory import Memory
-from supervisor.perceive import Eyes
-from supervisor.planners import Planners
+from supervisor.parts import ActionParts
 from supervisor.report import ActionReport
 from supervisor.scene_map import boxes, distance_to_box, is_obstacle
 from supervisor.script import Step, parse_point
@@ -30,16 +25,9 @@ def _arm_link(link: str) -> bool:
     return link.startswith("held:") or any(part in upper for part in ("ARM", "HAND", "GRIPPER", "WRIST"))
 
 
-class Remedies:
+class Remedies(ActionParts):
     """The remedies (a part of :class:`supervisor.actions.Actions`)."""
 
-    bus: ServiceCaller
-    body: Body
-    memory: Memory
-    eyes: Eyes
-    planners: Planners
-    config: SupervisorConfig
-    progress: Progress
     health: HealthMonitor
     stop: threading.Event
     last_reach: tuple[str, str] | None
