@@ -130,7 +130,12 @@ class SupervisorConfig:
             reaching does not step (seed 6: 8 steps into the box). Of that hand and the hand turned
             half a turn round (the jaws' line is the same), the first stance from whose final
             posture reaching carries the object and walking steps back jaws_step_back_m [m] is kept
-            (dry runs; none: as without it). felt_obstacle_radius_m: the felt
+            (dry runs; none: as without it). jaws_free_yaw: before those two, the yaw is left to
+            footsteps/plan (an orient task with free_yaw, the hand on the object: the gripper's rows
+            against the spheres turn the jaws clear of them), its stance kept under the same checks
+            and when its final posture has the fingers within jaws_tilt_deg [deg] of down; the yaw
+            then comes from that posture. jaws_lag_m also bounds the hand's lag in the fingers-down
+            motion from a stance planned without the jaws. felt_obstacle_radius_m: the felt
             points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
             that the arm (forearm, upper arm) keeps out of, with the object itself.
         grasp_clearance_m: the hand comes down onto an object with its centre this far [m] from
@@ -194,6 +199,8 @@ class SupervisorConfig:
     relocalized_jump_m: float = 0.05
     jaws_lag_m: float = 0.001
     jaws_step_back_m: float = 0.15
+    jaws_free_yaw: bool = True
+    jaws_tilt_deg: float = 10.0
     felt_obstacle_radius_m: float = 0.03
     grasp_clearance_m: float = 0.01
     recentre_fraction: float = 0.4

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -81,6 +82,26 @@ def jaws_clear_of(
     return math.remainder(heading_rad + best, math.tau)
 
 
+def grasp_point(
+    centre_m: np.ndarray, R_world_hand: np.ndarray, held_offset_m: np.ndarray, clearance_m: float
+) -> np.ndarray:
+    """Where the grasp frame goes [m] (world) so that an object centred at ``centre_m`` [m] (world) ends
+    where a held one is (``held_offset_m`` [m], grasp frame: against the fixed finger), but
+    ``clearance_m`` [m] off that finger toward the jaws' middle (never past it), with the grasp frame
+    turned by ``R_world_hand`` (3, 3): the orientation the hand has when it comes down (fetch seed 46:
+    lowered against the fixed finger, the ball seen 1.5 mm smaller than it is was rolled 2.2 cm away)."""
+    offset = np.array(held_offset_m, dtype=float)
+    offset[1] = math.copysign(max(0.0, abs(offset[1]) - clearance_m), offset[1])
+    return np.asarray(centre_m, dtype=float) - np.asarray(R_world_hand, dtype=float) @ offset
+
+
+def yaw_of(R_world_hand: np.ndarray) -> float:
+    """The yaw [rad] (world, about the vertical) of a grasp frame turned by ``R_world_hand`` (3, 3): the
+    direction of its x axis on the ground (fingers down: the jaws' line is its y axis)."""
+    R = np.asarray(R_world_hand, dtype=float)
+    return math.atan2(R[1, 0], R[0, 0])
+
+
 class ManipulationActions:
     """The manipulation actions (a part of :class:`supervisor.actions.Actions`)."""
 
@@ -112,6 +133,7 @@ class ManipulationActions:
         upright: bool = False,
         orientation: list[float] | None = None,
         lag_m: float | None = None,
+        beside: list[tuple[np.ndarray, float]] | None = None,
     ) -> int:
         """Plan (reaching/reach) and execute a motion of the ``hand`` grasp frame to ``point``; the steps
         taken. ``upright``: the grasp frame upright along ``yaw_rad`` (fingers down), position only when
@@ -119,12 +141,21 @@ class ManipulationActions:
         that world quaternion [qx, qy, qz, qw] (as the hand is turned now: footsteps/plan's final
         posture, or fingers down), position only when reaching refuses it; else position only.
         ``lag_m``: with ``orientation``, the hand's lag behind its reference reaching accepts [m].
-        Reaching's default timing (the guarded motions near objects; :meth:`_arm_motion` for the
-        unguarded ones)."""
+        ``beside``: (centre [m] world, radius [m]) spheres the whole arm keeps clear of in the motions
+        with an orientation (:meth:`_reach_clear`); never in a position-only one (reaching would turn
+        the hand clear of them, and the grasp point is for the hand as it was asked for: seeds 6 and
+        12 closed on nothing). Reaching's default timing (the guarded motions near objects;
+        :meth:`_arm_motion` for the unguarded ones)."""
         if orientation is not None and not (upright and self.config.upright_hand):
             try:
-                plan = self.planners.reach(
-                    hand, point, orientation=orientation, allow_stepping=stepping, ee_error_threshold_m=lag_m
+                plan = self._reach_clear(
+                    hand,
+                    point,
+                    what,
+                    beside,
+                    orientation=orientation,
+                    allow_stepping=stepping,
+                    ee_error_threshold_m=lag_m,
                 )
             except InfeasibleError as exc:
                 self.progress(f"{what}: keeping the hand's orientation refused ({exc.message})")
@@ -132,7 +163,7 @@ class ManipulationActions:
                 return self._play(plan, what + " (keeping the hand's orientation)", allowed)
         if upright and self.config.upright_hand and yaw_rad is not None:
             try:
-                plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=stepping)
+                plan = self._reach_clear(hand, point, what, beside, yaw_rad=yaw_rad, allow_stepping=stepping)
             except InfeasibleError as exc:
                 steps = self._turn_hand_on_the_way(hand, point, what, allowed, yaw_rad, exc)
                 if steps is not None:
@@ -141,6 +172,28 @@ class ManipulationActions:
                 return self._play(plan, what, allowed)
         plan = self.planners.reach(hand, point, yaw_rad=None, allow_stepping=stepping)
         return self._play(plan, what, allowed)
+
+    def _reach_clear(
+        self,
+        hand: str,
+        point: np.ndarray,
+        what: str,
+        beside: list[tuple[np.ndarray, float]] | None,
+        **request: Any,
+    ) -> Plan:
+        """``Planners.reach`` of ``hand`` to ``point`` with its ``request`` fields (an orientation: the
+        hand's turn is the supervisor's, which the grasp point is for), the whole arm, gripper
+        included, kept clear of the spheres ``beside`` (reaching's ``hand_obstacles``: the balls seen
+        beside the object and the points felt near it; paper 000 eqs. 12-13); refused so (``infeasible``
+        for them or for a criterion the rows made fail), planned as without them (the stance and the
+        jaws' yaw were chosen clear of them already; the hand may then brush one)."""
+        if not beside:
+            return self.planners.reach(hand, point, **request)
+        try:
+            return self.planners.reach(hand, point, hand_obstacles=beside, **request)
+        except InfeasibleError as exc:
+            self.progress(f"{what}: clear of what is beside it refused ({exc.message}); as without it")
+        return self.planners.reach(hand, point, **request)
 
     def _arm_motion(
         self, hand: str, point: np.ndarray, what: str, *, allowed: list[str], motion: str
@@ -222,23 +275,26 @@ class ManipulationActions:
         point[2] = height_m
         self._arm_motion(hand, point, what, allowed=allowed, motion="raise")
 
-    def _grasp_point(self, hand: str, target: str, yaw_rad: float) -> np.ndarray:
-        """Where the grasp frame goes for ``target`` with the hand turned by ``yaw_rad`` [rad] (world):
-        its centre (perception), moved so that the object ends near the fixed finger
-        (``Robot.held_object_offset``), ``grasp_clearance_m`` off it."""
+    def _grasp_point(
+        self, hand: str, target: str, yaw_rad: float, R_world_hand: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Where the grasp frame goes for ``target`` with the hand turned by ``yaw_rad`` [rad] (world;
+        fingers down), or by ``R_world_hand`` (3, 3) when given (as it is turned now: the point follows
+        the orientation actually executed): its centre (perception), moved so that the object ends
+        near the fixed finger (``Robot.held_object_offset``), ``grasp_clearance_m`` off it
+        (:func:`grasp_point`)."""
         point = parse_point(target, 3, "reach target")
         if point is not None:
             return np.asarray(point, dtype=float)
         sighting = self.memory.get(target)
-        radius = sphere_radius(sighting)
-        c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-        R_world_hand = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        offset = self.body.robot.held_object_offset(hand, radius)
-        # ... but lowered ``grasp_clearance_m`` off the fixed finger (toward the jaws' middle, never past
-        # it): lowered against it, the finger came down on the side of the ball (seen 1.5 mm smaller
-        # than it is) and rolled it 2.2 cm away, and the hand closed on nothing (fetch seed 46)
-        offset[1] = math.copysign(max(0.0, abs(offset[1]) - self.config.grasp_clearance_m), offset[1])
-        return sighting.position_m - R_world_hand @ offset
+        offset = self.body.robot.held_object_offset(hand, sphere_radius(sighting))
+        R = Rotation.from_euler("z", yaw_rad).as_matrix() if R_world_hand is None else R_world_hand
+        return grasp_point(sighting.position_m, R, offset, self.config.grasp_clearance_m)
+
+    def _hand_rotation(self, hand: str) -> np.ndarray:
+        """The ``hand`` grasp frame's world orientation now (3, 3)."""
+        robot = self.body.robot
+        return robot.frame_pose(self.body.q(), robot.grasp_frame(hand)).rotation
 
     def do_reach(self, step: Step) -> ActionReport:
         """Reach a hand to an object or 'x,y,z' from above (stepping when out of reach), gripper open.
@@ -258,7 +314,6 @@ class ManipulationActions:
         yaw = self._heading()
         point = self._grasp_point(hand, target, yaw)
         allowed = [target, *self._support(target)] if parse_point(target, 3, "reach target") is None else []
-        keep_out = self._grasp_obstacles(target)
         # Something felt near it (a ball perception has no model of): fingers down, the jaws' yaw clear
         # of it (it can be beside the wrist: fetch seed 37). That hand is a task of the footstep IK
         # (paper 000 §4: the tasks decide where the feet go), the hand on the object, so that the
@@ -268,6 +323,8 @@ class ManipulationActions:
         if near and turns and parse_point(target, 3, "reach target") is None:
             self._where_it_was_aimed(target)
             point = self._grasp_point(hand, target, self._heading())
+        keep_out = self._grasp_obstacles(target)
+        beside = self._beside(target)  # what the arm keeps clear of in the motions with an orientation
         centre = self._centre(target, point)
         jaws = jaws_clear_of(centre, near, self._heading(), turns) if near and turns else None
         jaws_quat = None
@@ -316,16 +373,17 @@ class ManipulationActions:
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
         # past it onto a neighbour the map does not show.
         final = self._final_hand(decided, target, "grasp", planned=jaws_quat is not None)
-        # The jaws' posture: its stance was planned for it, the hand's lag on the way is no reason to
-        # refuse it (reaching's 4e-5 m is the paper's trigger for stepping; 0.2 mm refused it on seed 37)
-        lag = self.config.jaws_lag_m if jaws_quat is not None else None
+        # The jaws' hand (fingers down, its yaw clear of the neighbours) does not step: the hand's lag on
+        # the way is no reason to refuse it (reaching's 4e-5 m is the paper's trigger for stepping; 0.2
+        # mm refused it on seed 37, 0.06 mm on seed 6 from the stance planned without it)
+        lag = self.config.jaws_lag_m if jaws is not None else None
         # ... and the whole final posture planned with it (reaching executes it: paper 000 §7)
         posture = decided.q_final if decided is not None and final is not None else None
         steps = self._as_planned(
-            hand, above, f"reach above {target}", [], final, target, lag_m=lag, posture=posture
+            hand, above, f"reach above {target}", [], final, target, lag_m=lag, posture=posture, beside=beside
         )
         if steps is None and jaws is not None:
-            steps = self._fingers_down(hand, above, f"reach above {target}", jaws)
+            steps = self._fingers_down(hand, above, f"reach above {target}", jaws, beside, lag_m=lag)
         if steps is None:
             # From the stance planned for the jaws, no reaching steps (fetch seed 6: 8 steps into the box)
             steps = self._move_hand(
@@ -345,7 +403,13 @@ class ManipulationActions:
         yaw = jaws if jaws_kept else self._heading()  # the steps may have turned it
         if parse_point(target, 3, "reach target") is None:
             self.memory.aimed[target] = self.memory.get(target)
-        point = self._grasp_point(hand, target, yaw)
+        R_now = None
+        if keep is not None:
+            # The lowering keeps the orientation the reach above executed, and the point is for the hand
+            # turned so (not as it was asked for: within 0.1 rad of it, ``_hand_at``).
+            R_now = self._hand_rotation(hand)
+            keep = Rotation.from_matrix(R_now).as_quat().tolist()
+        point = self._grasp_point(hand, target, yaw, R_world_hand=R_now)
         self._move_hand(  # straight down, the hand turned as it is when it was reached above
             hand,
             point,
@@ -354,6 +418,7 @@ class ManipulationActions:
             stepping=False,
             orientation=keep,
             lag_m=lag,
+            beside=beside,
         )
         self.last_reach = (hand, target)
         return ActionReport(
@@ -385,8 +450,35 @@ class ManipulationActions:
         sideways and the wrist turned, and the carry after the grasp was refused there
         (manipulability 5.4e-5, then a wrist joint at its limit); the hand at 134 deg was carried,
         but from that posture (the waist rolled 22 deg) no walk could start (the step back before
-        the turn: an arm joint at ~100 rad/s)."""
+        the turn: an arm joint at ~100 rad/s).
+
+        First (``jaws_free_yaw``) the yaw is left to the footstep IK, with the hand on the object (its
+        fingers down within ``jaws_tilt_deg``), then the two fixed yaws."""
         felt = ", ".join(f"{math.degrees(math.atan2(f[1] - centre[1], f[0] - centre[0])):.0f}" for f in near)
+
+        def check(planned: LastSteps) -> str | None:
+            return self._what_follows_refused(hand, planned.q_final)
+
+        if self.config.jaws_free_yaw:
+            # The yaw the footstep IK chooses (reach8's free_yaw: only the fingers-down tilt is a task, the
+            # gripper's rows against the spheres turn the jaws clear of them), planned with the hand on
+            # the object: 12 cm above it the fingers are far from the neighbours and the rows do not act.
+            point = self._grasp_point(hand, target, jaws)
+            decided = self._last_steps(
+                hand,
+                point,
+                point,
+                f"step up to {target}, the jaws' yaw free (beside it at {felt} deg)",
+                hand_obstacles=keep_out,
+                orientation=Rotation.from_euler("z", jaws).as_quat().tolist(),
+                step_region_scale=self.config.jaws_step_region_scale,
+                free_yaw=True,
+                check=lambda planned: self._fingers_not_down(hand, planned) or check(planned),
+            )
+            if decided is not None:
+                chosen = yaw_of(Rotation.from_quat(decided.hand_quat).as_matrix())
+                self.progress(f"step up to {target}: the jaws at {math.degrees(chosen):.0f} deg")
+                return decided, chosen
         for yaw in (jaws, math.remainder(jaws + math.pi, math.tau)):
             quat = Rotation.from_euler("z", yaw).as_quat().tolist()
             point = self._grasp_point(hand, target, yaw)
@@ -400,11 +492,21 @@ class ManipulationActions:
                 hand_obstacles=keep_out,
                 orientation=quat,
                 step_region_scale=self.config.jaws_step_region_scale,
-                check=lambda planned: self._what_follows_refused(hand, planned.q_final),
+                check=check,
             )
             if decided is not None:
                 return decided, yaw
         return None, jaws
+
+    def _fingers_not_down(self, hand: str, planned: LastSteps) -> str | None:
+        """Why footsteps/plan's final posture ``planned`` does not have the ``hand``'s fingers down (its
+        grasp frame's z axis more than ``jaws_tilt_deg`` off the vertical: the orientation is a task
+        below the reach), or None."""
+        z = Rotation.from_quat(planned.hand_quat).as_matrix()[:, 2]
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(z[2])))))
+        if tilt <= self.config.jaws_tilt_deg:
+            return None
+        return f"the fingers {tilt:.0f} deg off down"
 
     def _what_follows_refused(self, hand: str, q_final: np.ndarray) -> str | None:
         """Why what follows a grasp from footsteps/plan's final posture ``q_final`` cannot be planned, or
@@ -475,17 +577,36 @@ class ManipulationActions:
         r_felt = self.config.felt_obstacle_radius_m
         return spheres + [(f, r_felt) for f in self._felt_near(sighting.position_m)]
 
+    def _beside(self, target: str) -> list[tuple[np.ndarray, float]]:
+        """The spheres (centre [m] world, radius [m]) beside ``target`` a hand reaching it keeps clear
+        of: the balls seen within ``felt_radius_m`` of it (``scene_map.neighbours``: perception reports
+        every object a look sees, so they are known before a touch) and the points felt near it
+        (spheres of ``felt_obstacle_radius_m``: a ball perception has no model of); none for a point."""
+        return self._grasp_obstacles(target)[1:]
+
     def _felt_near(self, point: np.ndarray) -> list[np.ndarray]:
         """Memory's felt points within ``felt_radius_m`` of ``point`` (horizontally) [m]."""
         radius = self.config.felt_radius_m
         return [f for f in self.memory.felt if float(np.linalg.norm(f[:2] - point[:2])) < radius]
 
-    def _fingers_down(self, hand: str, point: np.ndarray, what: str, yaw_rad: float) -> int | None:
+    def _fingers_down(
+        self,
+        hand: str,
+        point: np.ndarray,
+        what: str,
+        yaw_rad: float,
+        beside: list[tuple[np.ndarray, float]] | None = None,
+        lag_m: float | None = None,
+    ) -> int | None:
         """The ``hand`` above ``point`` fingers down, turned by ``yaw_rad`` (its jaws clear of what it
-        felt: :func:`jaws_clear_of`), without stepping (in two motions when one is refused); the steps
-        taken (0), or None when reaching refuses it (the caller reaches as usual)."""
+        felt: :func:`jaws_clear_of`), the arm clear of the spheres ``beside`` (:meth:`_reach_clear`),
+        the hand's lag behind its reference up to ``lag_m`` [m] (None: reaching's default), without
+        stepping (in two motions when one is refused); the steps taken (0), or None when reaching
+        refuses it (the caller reaches as usual)."""
         try:
-            plan = self.planners.reach(hand, point, yaw_rad=yaw_rad, allow_stepping=False)
+            plan = self._reach_clear(
+                hand, point, what, beside, yaw_rad=yaw_rad, allow_stepping=False, ee_error_threshold_m=lag_m
+            )
         except InfeasibleError as exc:
             return self._turn_hand_on_the_way(hand, point, what, [], yaw_rad, exc)
         return self._play(plan, f"{what} (fingers down, the jaws clear of what the hand felt)", [])
@@ -563,6 +684,7 @@ class ManipulationActions:
         target: str,
         lag_m: float | None = None,
         posture: np.ndarray | None = None,
+        beside: list[tuple[np.ndarray, float]] | None = None,
     ) -> int | None:
         """The ``hand`` to ``point`` turned as in footsteps/plan's final posture (``quat``), from the
         stance footsteps/plan decided: without stepping (paper 000 §7: the footstep planner decided
@@ -573,13 +695,16 @@ class ManipulationActions:
         [m] (None: its default). ``posture``: footsteps/plan's whole final posture (nq,), which reaching
         then goes to with the hand (its joints, CoM and hand path; its gaze replaces reaching's) rather
         than to one its own IK finds (without it the planned hand was refused: the multibody ZMP 374-1609 mm
-        out of the support polygon; with it the motion ends in the posture the footstep IK checked)."""
+        out of the support polygon; with it the motion ends in the posture the footstep IK checked).
+        ``beside``: spheres the arm keeps clear of (:meth:`_reach_clear`)."""
         if quat is None:
             return None
         try:
-            plan = self.planners.reach(
+            plan = self._reach_clear(
                 hand,
                 point,
+                what,
+                beside,
                 orientation=quat,
                 allow_stepping=False,
                 ee_error_threshold_m=lag_m,
@@ -612,6 +737,7 @@ class ManipulationActions:
         orientation: list[float] | None = None,
         step_region_scale: float | None = None,
         check: Callable[[LastSteps], str | None] | None = None,
+        free_yaw: bool = False,
     ) -> LastSteps | None:
         """The last steps of the approach, planned by footsteps/plan for the hand at ``target_m`` (turned
         to the world ``orientation`` [qx, qy, qz, qw] if given) and the gaze on ``gaze_m`` (paper 000
@@ -628,7 +754,7 @@ class ManipulationActions:
         self.body.straighten()
         try:
             decided = self.planners.last_steps(
-                hand, target_m, gaze_m, hand_obstacles, orientation, step_region_scale
+                hand, target_m, gaze_m, hand_obstacles, orientation, step_region_scale, free_yaw=free_yaw
             )
         except (InfeasibleError, RequestTimeoutError) as exc:  # none found, or none within its budget
             self.progress(f"{what}: footsteps/plan found no steps ({exc.message}); reaching will step")

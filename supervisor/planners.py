@@ -35,6 +35,11 @@ from supervisor.memory import Memory
 from supervisor.scene_map import obstacles
 
 
+def spheres(pairs: list[tuple[np.ndarray, float]] | None) -> list[Sphere]:
+    """(centre [m] world, radius [m]) pairs as the planners' ``hand_obstacles`` spheres."""
+    return [Sphere(center=[float(v) for v in centre], radius=float(radius)) for centre, radius in pairs or []]
+
+
 @dataclass(frozen=True)
 class LastSteps:
     """What ``footsteps/plan`` decided for the end of an approach: the walk of its footsteps (None: no
@@ -170,12 +175,14 @@ class Planners:
         hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
         orientation: list[float] | None = None,
         step_region_scale: float | None = None,
+        free_yaw: bool = False,
     ) -> LastSteps:
         """``footsteps/plan`` for the last steps before the ``hand`` reaches ``target_m`` [m] (tasks, by
         priority: the hand at the target, the gaze on ``gaze_m``, the rest posture; the map's boxes, which
         no footprint may enter; ``hand_obstacles``, (centre [m] world, radius [m]) spheres the arm keeps
         out of; ``orientation``, the hand's world orientation [qx, qy, qz, qw] as a task below the
-        reach;
+        reach (with ``free_yaw`` only its tilt, e.g. fingers down: the planner turns the jaws clear of
+        ``hand_obstacles``, and ``LastSteps.hand_quat`` has the yaw it chose);
         ``step_region_scale``, footsteps/plan's option (None: its default); paper 000 §7), then
         ``walking/plan`` of its footsteps. Returns the
         walk (None when no step is needed), what the planner found and its final posture with the
@@ -186,7 +193,7 @@ class Planners:
         orient = (
             []
             if orientation is None
-            else [fs_msg.Task(kind="orient", orientation=orientation, hand=hand)]
+            else [fs_msg.Task(kind="orient", orientation=orientation, hand=hand, free_yaw=free_yaw)]
         )
         options = None if step_region_scale is None else fs_msg.Options(step_region_scale=step_region_scale)
         request = fs_msg.PlanRequest(
@@ -199,10 +206,7 @@ class Planners:
             model=self.body.robot.name,
             q_start=q,
             boxes=obstacles(self.memory),  # the footstep service covers each box by disks (paper 000 §4.1)
-            hand_obstacles=[
-                Sphere(center=[float(v) for v in centre], radius=float(radius))
-                for centre, radius in hand_obstacles or []
-            ],
+            hand_obstacles=spheres(hand_obstacles),
             max_steps=c.last_steps_max,
             time_budget_s=c.last_steps_budget_s,
             options=options,
@@ -256,6 +260,7 @@ class Planners:
         q_start: np.ndarray | None = None,
         posture: np.ndarray | None = None,
         timing: dict[str, float] | None = None,
+        hand_obstacles: list[tuple[np.ndarray, float]] | None = None,
     ) -> Plan:
         """``reaching/reach``: the ``hand`` grasp frame to ``target_m`` [m], from above: the grasp frame
         upright (fingers down, jaws closing sideways) turned by ``yaw_rad`` (None: position only), or
@@ -264,9 +269,10 @@ class Planners:
         configuration to plan from, standing (None: the robot's now); ``posture``: the whole-body posture
         (nq,) the motion goes to with the hand (footsteps/plan's final posture), None: reaching's own;
         ``timing``: the request's timing fields (``SupervisorConfig.arm_timing``; None or empty:
-        reaching's default). (reaching/reach's ``hand_obstacles`` are not passed: with the balls seen
-        beside the target in the reach above it and the lowering, fetch seeds 6 and 12 closed the hand
-        on nothing; see the README's known limits.)"""
+        reaching's default); ``hand_obstacles``: (centre [m] world, radius [m]) spheres the whole arm,
+        gripper and wrist included, keeps its clearance from over the motion (a ball beside the one to
+        grasp; the gripper not from the one the target lies in or above; reaching refuses a motion
+        that cannot: ``infeasible``, ``details.reason`` ``hand_obstacle``)."""
         if orientation is None and yaw_rad is not None:
             orientation = [0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)]
         q = self.body.plan_q() if q_start is None else q_start
@@ -279,6 +285,7 @@ class Planners:
             allow_stepping=allow_stepping,
             ee_error_threshold_m=ee_error_threshold_m,
             posture=None if posture is None else np.ascontiguousarray(posture, dtype=float),
+            hand_obstacles=spheres(hand_obstacles),
             **(timing or {}),
         )
         reply = self.bus.call(reach_msg.REACH, request, self.config.plan_timeout_s)

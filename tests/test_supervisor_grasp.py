@@ -8,6 +8,7 @@ came down on the ball's side, rolled it away and closed on nothing)."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -72,7 +73,6 @@ def test_without_an_earlier_lowering_the_sighting_is_kept(actions):
     assert np.allclose(actions.memory.get("orange_ball").position_m, latest)
 
 
-
 @pytest.mark.parametrize("yaw_deg", [-14.0, 0.0, 120.0])
 def test_the_ball_goes_down_between_the_jaws_clear_of_the_fixed_finger(yaw_deg):
     """Fetch seed 46: the ball (radius 0.05 m) seen 0.097 m wide, aimed against the fixed finger, had
@@ -99,3 +99,58 @@ def test_the_ball_goes_down_between_the_jaws_clear_of_the_fixed_finger(yaw_deg):
     assert fixed_y - (in_hand[1] + radius) == pytest.approx(clearance - 0.0015, abs=1e-6)
     assert (in_hand[1] - radius) - (-fixed_y) > clearance  # the moving finger, open, farther still
     assert abs(in_hand[0]) < 1e-9 and abs(in_hand[2]) < 1e-9
+
+
+def _hand_actions() -> ManipulationActions:
+    """Manipulation actions on the sim's real ``robot_info`` reply of hrp2_like (no bus)."""
+    from services.model.robot_model import load_robot
+    from sim.robot_info import robot_info_reply
+    from supervisor.body import Body
+
+    actions = ManipulationActions()
+    actions.config = SupervisorConfig()
+    actions.memory = Memory()
+    actions.body = Body(bus=None)
+    actions.body.robot._info = robot_info_reply(load_robot("hrp2_like"))
+    return actions
+
+
+@pytest.mark.parametrize(("yaw_deg", "tilt_deg"), [(-32.0, 0.0), (57.0, 8.0), (148.0, -6.0)])
+def test_the_grasp_point_follows_the_hand_as_it_is_turned(yaw_deg, tilt_deg):
+    """The lowering keeps the orientation the reach above executed (the wrist turned clear of a
+    neighbour, slightly tilted): the ball then lies where a held one would, ``grasp_clearance_m`` off
+    the fixed finger, in the grasp frame turned so, not in the one the supervisor asked for."""
+    from scipy.spatial.transform import Rotation
+
+    from supervisor.manipulation import yaw_of
+
+    actions = _hand_actions()
+    actions.memory.remember(_ball(AIMED, 0.97))
+    R = Rotation.from_euler("ZX", [yaw_deg, tilt_deg], degrees=True).as_matrix()
+    point = actions._grasp_point("right", "orange_ball", 0.0, R_world_hand=R)
+    in_hand = R.T @ (AIMED - point)
+    held = actions.body.robot.held_object_offset("right", 0.04)  # the ball seen 0.08 m wide
+    assert in_hand[1] == pytest.approx(held[1] - actions.config.grasp_clearance_m, abs=1e-9)
+    assert abs(in_hand[0]) < 1e-9 and abs(in_hand[2]) < 1e-9
+    assert math.degrees(yaw_of(R)) == pytest.approx(yaw_deg, abs=1e-6)
+    # the hand turned by its yaw only: as ``_grasp_point`` for that yaw
+    upright = Rotation.from_euler("z", yaw_deg, degrees=True).as_matrix()
+    by_yaw = actions._grasp_point("right", "orange_ball", math.radians(yaw_deg))
+    assert np.allclose(actions._grasp_point("right", "orange_ball", 0.0, R_world_hand=upright), by_yaw)
+
+
+@pytest.mark.parametrize(("tilt_deg", "refused"), [(4.0, False), (25.0, True)])
+def test_a_free_yaw_posture_is_kept_with_the_fingers_down_only(tilt_deg, refused):
+    """footsteps/plan's orientation task is below the reach: with the yaw free its final posture may
+    leave the fingers off down; the stance is then not taken (``jaws_tilt_deg``)."""
+    from scipy.spatial.transform import Rotation
+
+    from supervisor.planners import LastSteps
+
+    actions = _hand_actions()
+    quat = Rotation.from_euler("zy", [-20.0, tilt_deg], degrees=True).as_quat().tolist()
+    planned = LastSteps(None, "footsteps/plan", np.zeros(3), quat)
+    reason = actions._fingers_not_down("right", planned)
+    assert (reason is not None) == refused
+    if refused:
+        assert "25 deg off down" in reason
