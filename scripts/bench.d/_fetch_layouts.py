@@ -43,8 +43,8 @@ class Layout:
     """One arrangement of the ball_fetch room and what to do in it.
 
     ``objects``: per object name, keys of its scene entry replaced (``None`` as a value removes the
-    key); ``ball``, ``support``: what to take and what it rests on; ``surface``: where to put it;
-    ``turn_deg``: the turn after the grasp (positive = left)."""
+    key); ``ball``, ``support``: what to take and what it rests on ("": the floor); ``surface``: where
+    to put it; ``turn_deg``: the turn after the grasp (positive = left)."""
 
     name: str
     what: str
@@ -74,9 +74,12 @@ class Layout:
         return f"layout_{self.name}"
 
     def script(self) -> str:
-        return SCRIPT.format(
+        """The fetch script; without a ``support`` (a ball on the floor: the supervisor walks to what a
+        ball is on, or reaches the ball itself) the first two lines are left out."""
+        text = SCRIPT.format(
             support=self.support, ball=self.ball, surface=self.surface, turn_deg=self.turn_deg
         )
+        return text if self.support else "\n".join(text.splitlines()[2:]) + "\n"
 
 
 LAYOUTS: tuple[Layout, ...] = (
@@ -157,7 +160,7 @@ LAYOUTS: tuple[Layout, ...] = (
         "ball_on_floor",
         "the orange ball on the floor 4.3 m away (below any reach from standing)",
         {"orange_ball": {"on_top_of": None, "xy": [4.3, -0.7]}},
-        support="orange_ball",
+        support="",
     ),
 )
 
