@@ -215,7 +215,7 @@ class _Runtime:
         key = keys.key(robot, spec.service, spec.name)
 
         def serve_one(query: zenoh.Query) -> None:
-            self._serve_one(spec, handler, query, mirrors, stats)
+            self._serve_one(spec, handler, query, mirrors, stats, key)
 
         if not blocking:
             self._channels.append(svc.session.declare_queryable(key, serve_one))
@@ -242,12 +242,15 @@ class _Runtime:
         query: zenoh.Query,
         mirrors: tuple[_Mirror, _Mirror, _Mirror],
         stats: _EndpointStats,
+        key: str,
     ) -> None:
         raw = query.payload.to_bytes() if query.payload is not None else b""
         ok, frame = self._handle(spec, handler, raw)
         try:
             if ok:
-                query.reply(query.key_expr, frame)
+                # the endpoint's own key, not the query's: a query may name it with wildcards
+                # (``hrp/*/sim/state``), and zenoh refuses a reply on a key with wildcards
+                query.reply(key, frame)
             else:
                 query.reply_err(frame)
         except zenoh.ZError as exc:
