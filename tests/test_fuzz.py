@@ -507,3 +507,35 @@ def test_a_stranger_who_does_not_know_the_robot_name_queries_with_a_wildcard(str
             assert answer.kind == "ok", f"hrp/*/{path}: {answer}"
             bad = stranger_client.call(session, f"hrp/*/{path}", b"[", 30.0)
             assert bad.code == "invalid_request", f"hrp/*/{path}: {bad}"
+
+
+def test_a_flooded_endpoint_refuses_at_once_and_its_service_serves_its_other_endpoints(stranger):
+    """More requests than an endpoint's queue holds: the extra ones get ``unavailable`` (busy) at once, and
+    the service's other endpoints answer meanwhile. (A full zenoh channel held zenoh's delivery to the
+    whole service: the echo came only once the flood had drained below the queue's size.)"""
+    session, robot, procs, _requests = stranger
+    if "diag" not in procs:
+        pytest.skip("no diag here")
+    slow = json.dumps({"count": 100_000, "width": 8, "height": 8, "time_budget_s": 0.1}).encode()
+    extra = 24
+    flood = 64 + 1 + extra  # the queue (QUEUE_CAPACITY), the one being served, and more
+    done = []
+
+    def one(_i):
+        answer = stranger_client.call(session, f"hrp/{robot}/diag/stream", slow, REPLY_TIMEOUT_S)
+        done.append(answer.code)
+        return answer
+
+    with ThreadPoolExecutor(max_workers=flood) as pool:
+        answers = pool.map(one, range(flood))
+        time.sleep(0.3)
+        echo = stranger_client.call(session, f"hrp/{robot}/diag/echo", b'{"text": "still here"}', 30.0)
+        served_before_echo = sum(code != "unavailable" for code in list(done))
+        answers = list(answers)
+    assert echo.kind == "ok" and echo.body["text"] == "still here", echo
+    # ordering, not timing: the echo came before the flood drained below the queue's size
+    assert served_before_echo < extra, f"diag/echo answered only after {served_before_echo} streams"
+    codes = [a.code for a in answers]
+    busy = [a for a in answers if a.code == "unavailable"]
+    assert busy and set(codes) <= {"timeout", "unavailable"}, codes
+    assert all(a.error["details"]["reason"] == "busy" and "busy" in a.message for a in busy), busy[0]

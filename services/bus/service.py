@@ -15,11 +15,13 @@
 
 What the base does for every service:
 
-* each endpoint and each subscription gets a zenoh FIFO channel and one worker thread that takes
-  the queries (samples) from it in order and runs the handler. zenoh's own threads only push into
-  the channel (no Python, no GIL), so a slow handler never stalls the network; the endpoints of a
-  service run concurrently, each endpoint serves one request at a time. A handler declared
-  ``blocking=False`` (microseconds, never waits) runs in zenoh's callback instead: no hand-off;
+* each endpoint gets a bounded queue (:data:`QUEUE_CAPACITY` requests) and one worker thread that
+  takes the queries from it in order and runs the handler; zenoh's callback only puts the query in
+  the queue, and a query that finds it full is refused at once (``unavailable``, reason ``busy``),
+  so a slow or flooded endpoint never stalls zenoh's delivery to the service's other endpoints. Each
+  subscription gets a zenoh FIFO channel and a worker. The endpoints of a service run concurrently,
+  each endpoint serves one request at a time. A handler declared ``blocking=False`` (microseconds,
+  never waits) runs in zenoh's callback instead: no hand-off;
 * a payload that does not decode, or does not match the request type, gets an ``invalid_request``
   error reply naming the field and the expected type; an exception in a handler gets ``internal``;
   a :class:`~services.errors.HumanoidError` gets its own code. The service keeps serving;
@@ -37,6 +39,7 @@ import contextlib
 import dataclasses
 import logging
 import os
+import queue
 import signal
 import sys
 import threading
@@ -67,6 +70,8 @@ from services.errors import HumanoidError, InternalError
 HEARTBEAT_PERIOD_S = 0.5
 #: Queries (or samples) waiting for a busy handler; when full, zenoh holds further ones back.
 QUEUE_CAPACITY = 64
+#: ``details["reason"]`` of the ``unavailable`` reply to a request that finds its endpoint's queue full.
+REASON_BUSY = "busy"
 #: A stopping service exits after this long even if a handler is still running [s].
 EXIT_DEADLINE_S = 0.9
 
@@ -186,6 +191,7 @@ class _Runtime:
         self.stats: dict[str, _EndpointStats] = {}
         self._ids = RequestIds()
         self._channels: list[Any] = []  # queryables and subscribers: undeclared first at shutdown
+        self._queues: list[queue.Queue[Any]] = []  # requests waiting for an endpoint's worker
         self._declared: list[Any] = []
         self._threads: list[threading.Thread] = []
 
@@ -220,20 +226,38 @@ class _Runtime:
         if not blocking:
             self._channels.append(svc.session.declare_queryable(key, serve_one))
             return
-        queryable = svc.session.declare_queryable(key, zenoh.handlers.FifoChannel(QUEUE_CAPACITY))
-        self._channels.append(queryable)
-        # recv() on the handler, not the queryable: undeclare() must not wait for a blocked recv().
-        channel = queryable.handler
+        # A bounded queue filled from zenoh's callback, never blocking it: a zenoh FIFO channel that is
+        # full holds zenoh's delivery thread, and with it every other endpoint of the service (90 queued
+        # diag/stream requests held a diag/echo for 10.6 s). A request finding the queue full is
+        # refused at once, ``unavailable`` with ``details.reason`` "busy".
+        pending: queue.Queue[zenoh.Query | None] = queue.Queue(QUEUE_CAPACITY)
+        self._queues.append(pending)
+
+        def enqueue(query: zenoh.Query) -> None:  # zenoh's callback thread: microseconds
+            try:
+                pending.put_nowait(query)
+            except queue.Full:
+                self._refuse_busy(spec, query, stats)
+
+        self._channels.append(svc.session.declare_queryable(key, enqueue))
 
         def work() -> None:
-            while True:
-                try:
-                    query = channel.recv()  # blocks without the GIL; ZError once undeclared
-                except zenoh.ZError:
-                    return
+            while (query := pending.get()) is not None:  # None: the service stops
                 serve_one(query)
 
         self._start_worker(spec.path, work)
+
+    def _refuse_busy(self, spec: EndpointSpec, query: zenoh.Query, stats: _EndpointStats) -> None:
+        frame = error_frame(
+            "unavailable",
+            f"{spec.path} is busy: {QUEUE_CAPACITY} requests are waiting for it; try again later",
+            {"reason": REASON_BUSY, "waiting": QUEUE_CAPACITY},
+        )
+        with contextlib.suppress(zenoh.ZError):
+            query.reply_err(frame)
+        with contextlib.suppress(zenoh.ZError):
+            query.drop()
+        stats.failed += 1
 
     def _serve_one(
         self,
@@ -361,6 +385,12 @@ class _Runtime:
         for declared in ([token] if token is not None else []) + self._channels:
             with contextlib.suppress(zenoh.ZError):
                 declared.undeclare()
+        for pending in self._queues:  # the workers stop after the request they serve
+            with contextlib.suppress(queue.Empty):
+                while True:
+                    pending.get_nowait()  # dropped: zenoh ends that query without a reply
+            with contextlib.suppress(queue.Full):
+                pending.put_nowait(None)
 
     def shutdown(self, deadline: float) -> None:
         """Wait for the workers (until ``deadline``, monotonic) and undeclare the publishers."""
