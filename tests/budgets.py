@@ -60,13 +60,24 @@ def expensive(service: str, q: np.ndarray, budget_s: float, q_seated: np.ndarray
     """The cases of ``service`` with a ``budget_s`` [s] budget; ``q`` is the robot standing in the sim's
     scene, ``q_seated`` (contacts only) the robot on the chair (:func:`seated_q`)."""
     if service == "walking":  # 3 m: about 30 steps, 35 s of walk, seconds of planning
+        x0, y0 = float(q[0]), float(q[1])  # the mid-feet point is under the base in half-sitting
+        steps = [
+            walking.Step(pose=[x0 + 0.15 * (i + 1), y0 + (-0.095 if i % 2 == 0 else 0.095), 0.0])
+            for i in range(40)
+        ]
         return [
             Case(
                 "walking/goal 3 m",
                 walking.GOAL,
                 walking.GoalRequest(q_start=q, pose=[3.0, 0.0, 0.0], time_budget_s=budget_s),
                 walking.GoalRequest(q_start=q, kind="turn", angle_rad=0.2),
-            )
+            ),
+            Case(  # the same kind of walk given as footsteps (40 steps, 6 m)
+                "walking/plan 40 steps",
+                walking.PLAN,
+                walking.PlanRequest(q_start=q, steps=steps, time_budget_s=budget_s),
+                walking.PlanRequest(q_start=q, steps=steps[:2]),
+            ),
         ]
     if service == "navigation":  # the whole goto (path and stage 2) of an 8 m walk
         return [

@@ -182,6 +182,13 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
     "walking/goal": [
         {"q_start": "$q", "pose": [0.3, 0.1, 0.2]},
         {"q_start": "$q", "kind": "turn", "angle_rad": 0.5, "obstacles": []},
+        {  # the supervisor's step back and turn beside the box it took the ball from
+            "q_start": "$q",
+            "kind": "turn",
+            "angle_rad": -2.0,
+            "back_m": 0.2,
+            "obstacles": [{"name": "box", "center": [0.7, 0.0, 0.35], "size": [0.5, 0.6, 0.7], "yaw": 0.3}],
+        },
     ],
     "footsteps/plan": [
         {
@@ -190,6 +197,16 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
             "time_budget_s": 2.0,
         },
         {"q_start": "$q", "tasks": [{"kind": "gaze", "target": [2.0, 0.0, 0.5]}], "max_steps": 4},
+        {  # the grasp's last steps: fingers down, the jaws' yaw free, a neighbouring ball kept clear
+            "q_start": "$q",
+            "tasks": [
+                {"kind": "reach", "target": [0.8, -0.2, 0.85], "hand": "right"},
+                {"kind": "orient", "orientation": [0.0, 0.7071, 0.0, 0.7071], "free_yaw": True},
+                {"kind": "posture"},
+            ],
+            "hand_obstacles": [{"center": [0.85, -0.05, 0.8], "radius": 0.05}],
+            "time_budget_s": 2.0,
+        },
     ],
     "navigation/goto": [
         {"q_start": "$q", "goal_pose": [1.0, 0.5, 0.3], "time_budget_s": 1.0},
@@ -202,8 +219,22 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
     "reaching/reach": [
         {"hand": "right", "target": [0.35, -0.2, 0.8], "q_start": "$q"},
         {"hand": "left", "target": [0.6, 0.3, 0.4], "q_start": "$q", "allow_stepping": True},
+        {  # a timed reach keeping the arm clear of a ball beside the target, with a final posture
+            "hand": "right",
+            "target": [0.45, -0.2, 0.85],
+            "q_start": "$q",
+            "orientation": [0.0, 0.7071, 0.0, 0.7071],
+            "hand_obstacles": [{"center": [0.5, -0.08, 0.8], "radius": 0.05}],
+            "hand_speed_m_s": 0.3,
+            "posture": "$q",
+            "time_budget_s": 2.0,
+        },
     ],
-    "sim/execute": [{"q": "$traj"}, {"q": "$traj", "dt_s": 0.01, "hold_s": 0.1}],
+    "sim/execute": [
+        {"q": "$traj"},
+        {"q": "$traj", "dt_s": 0.01, "hold_s": 0.1},
+        {"q": "$traj", "allowed_contacts": ["orange_ball"], "effort_scale": {"RARM_JOINT0": 0.5}},
+    ],
     "sim/kinematics": [{"q": "$q", "place_at": [0.5, 0.2, 0.3]}, {"q": "$traj"}],
     "sim/render": [{"camera": "wide", "width_px": 160, "height_px": 120, "depth": True}],
     "sim/snapshot": [{"viewpoint": "top", "width_px": 160, "height_px": 120}],
@@ -212,6 +243,7 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
     "perception/locate": [
         {"object": "orange_ball"},
         {"object": "green_box", "camera": "narrow", "width_px": 320, "height_px": 240},
+        {"object": "orange_ball", "others": False, "method": "edges", "width_px": 320, "height_px": 240},
     ],
     "perception/look_around": [{"camera": "wide"}, {"model": "hrp2_like", "camera": "narrow"}],
     "contacts/plan": [
@@ -241,6 +273,8 @@ EXAMPLES: dict[str, list[dict[str, Any]]] = {
         }
     ],
     "diag/stream": [{"count": 3, "width": 64, "height": 48}],
+    "diag/echo": [{"text": "hi", "blob": [1, 2, 3]}],
+    "diag/echo_worker": [{"text": "hi", "blob": [[0.5, 1.5]]}],
     "diag/raise": [{"code": "bug", "message": "x"}, {"code": "infeasible", "message": "x"}],
 }
 

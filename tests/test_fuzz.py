@@ -12,12 +12,16 @@ expensive request of each planner with a tiny budget gets ``timeout`` within the
 from __future__ import annotations
 
 import contextlib
+import json
+import struct
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import budgets
 import msgspec
 import numpy as np
 import pytest
+import stranger as stranger_client
 from budgets import seated_q
 from fuzzing import ASKED_FOR_INTERNAL, payloads, reference_q, send
 from hypothesis import HealthCheck, Phase, given, settings
@@ -172,3 +176,366 @@ def test_every_payload_gets_a_typed_answer(stack, spec):
     assert seen, "no payload was sent"
     dead = {name: p.returncode for name, p in procs.items() if p.poll() is not None}
     assert not dead, f"services died during the fuzzing: {dead}"
+
+
+# ------------------------------------------------------------------------------ a stranger's client
+# The requests below were written from the READMEs only (the endpoint tables of sim/README.md,
+# services/*/README.md, services/bus/README.md), sent by tests/stranger.py (raw zenoh, no code of the
+# stack). A well-formed request must never be refused as invalid; a malformed one must get
+# ``invalid_request`` saying what is wrong; nothing may go unanswered or end in ``internal``.
+
+#: The chair scene's start contacts, as services/contacts/README.md names the spots and surfaces.
+STRANGER_SEATED = [
+    ["left_sole", "floor"],
+    ["right_sole", "floor"],
+    ["left_thigh", "chair.seat"],
+    ["right_thigh", "chair.seat"],
+]
+#: Endpoints whose documented request costs seconds of planning: not re-sent after the malformed ones.
+STRANGER_EXPENSIVE = {
+    "navigation/goto",
+    "footsteps/plan",
+    "reaching/reach",
+    "contacts/plan",
+    "contacts/transition",
+    "perception/locate",
+    "walking/goal",
+}
+#: The typed answers a well-formed request may get besides ok (a plan may be infeasible or cut).
+STRANGER_TYPED = {"ok", "infeasible", "timeout", "not_found"}
+
+
+@pytest.fixture(scope="module")
+def stranger(stack):
+    """The stranger's session, and the documented requests of every endpoint (built over the bus)."""
+    harness, procs, _q = stack
+    session = stranger_client.open_session(harness.hub)
+    robot = harness.bus.robot
+    stranger_client.wait_alive(session, robot, set(procs))
+
+    def ask(path: str, doc: dict, timeout_s: float = 60.0, arrays: dict | None = None):
+        return stranger_client.call(
+            session, f"hrp/{robot}/{path}", stranger_client.frame(doc, arrays), timeout_s
+        )
+
+    requests: dict[str, tuple[dict, dict | None]] = {}
+    if "sim" in procs:
+        seated = ask("sim/reset", {"scene": "chair_egress"})
+        assert seated.kind == "ok", seated
+        q_seated = [float(v) for v in seated.body["q"]]
+        reset = ask("sim/reset", {"scene": "ball_fetch"})
+        assert reset.kind == "ok", reset
+        q = [float(v) for v in reset.body["q"]]
+        info = ask("sim/robot_info", {})
+        assert info.kind == "ok" and info.body["nq"] == len(q), info
+        frame_name = next(iter(info.body["frames"].values()))
+        trajectory = np.repeat(np.array([q]), 40, axis=0)  # 0.2 s standing, as raw float64 bytes
+        requests.update(
+            {
+                "sim/state": ({}, None),
+                "sim/robot_info": ({}, None),
+                "sim/ground_truth": ({}, None),
+                "sim/reset": ({"scene": "ball_fetch"}, None),
+                "sim/render": ({"camera": "wide", "width_px": 160, "height_px": 120, "depth": True}, None),
+                "sim/snapshot": ({"viewpoint": "top", "width_px": 160, "height_px": 120}, None),
+                "sim/gripper": ({"side": "right", "action": "open"}, None),
+                "sim/kinematics": ({"q": q, "frames": [frame_name]}, None),
+                "sim/execute": ({"hold_s": 0.1}, {"q": trajectory}),
+                "navigation/goto": ({"q_start": q, "goal_pose": [0.5, 0.0, 0.0]}, None),
+                "walking/plan": (
+                    {"steps": [{"pose": [0.2, -0.095, 0.0]}, {"pose": [0.2, 0.095, 0.0]}]},
+                    None,
+                ),
+                "walking/goal": ({"q_start": q, "kind": "turn", "angle_rad": 0.3}, None),
+                "footsteps/plan": (
+                    {
+                        "q_start": q,
+                        "tasks": [{"kind": "reach", "target": [0.9, -0.2, 0.8]}, {"kind": "posture"}],
+                        "time_budget_s": 20.0,
+                    },
+                    None,
+                ),
+                "reaching/reach": ({"hand": "right", "target": [0.35, -0.2, 0.8], "q_start": q}, None),
+                "contacts/plan": (
+                    {
+                        "scene": "chair_egress",
+                        "q_start": q_seated,
+                        "start_contacts": STRANGER_SEATED,
+                        "final_contacts": STRANGER_SEATED,
+                        "goal_axis": "x",
+                        "goal_value_m": -1.0,
+                        "pairs": [],
+                        "interpolate": False,
+                        "time_budget_s": 30.0,
+                    },
+                    None,
+                ),
+            }
+        )
+        if "contacts" in procs:  # a transition from the plan's own start set (its contacts' x, y, theta)
+            plan = ask("contacts/plan", requests["contacts/plan"][0])
+            assert plan.kind == "ok", plan
+            start_set = plan.body["sets"][0]
+            requests["contacts/transition"] = (
+                {
+                    "scene": "chair_egress",
+                    "q_measured": q_seated,
+                    "from_set": start_set,
+                    "witness": q_seated,
+                    "to_set": [c for c in start_set if c["spot"] != "right_thigh"],
+                    "n_interpolation": 2,
+                    "time_budget_s": 30.0,
+                },
+                None,
+            )
+    requests.update(
+        {
+            "perception/models": ({}, None),
+            "perception/look_around": ({}, None),
+            "perception/locate": ({"object": "green_box", "width_px": 320, "height_px": 240}, None),
+            "diag/echo": ({"text": "hello"}, None),
+            "diag/echo_worker": ({"text": "hello"}, {"blob": np.arange(5, dtype=np.uint8)}),
+            "diag/raise": ({"code": "infeasible", "message": "asked for"}, None),
+            "diag/stream": ({"count": 2, "width": 32, "height": 24}, None),
+        }
+    )
+    try:
+        yield session, robot, procs, requests
+    finally:
+        session.close()
+
+
+def _first_float_path(doc) -> tuple:
+    """The path to the first float in ``doc`` (keys and indices), or () when it has none."""
+    if isinstance(doc, float):
+        return ((),)
+    items = doc.items() if isinstance(doc, dict) else enumerate(doc) if isinstance(doc, list) else ()
+    for key, value in items:
+        found = _first_float_path(value)
+        if found:
+            return ((key, *found[0]),)
+    return ()
+
+
+def _with(doc, path: tuple, value):
+    if not path:
+        return value
+    copy = dict(doc) if isinstance(doc, dict) else list(doc)
+    copy[path[0]] = _with(doc[path[0]], path[1:], value)
+    return copy
+
+
+def _malformed(doc: dict) -> list[tuple[str, bytes, str]]:
+    """``(what, payload, a word the error message must contain)`` for the documented request ``doc``."""
+    out = [
+        ("not JSON", b'{"', "malformed"),
+        ("a JSON array, not an object", b"[1, 2]", "object"),
+        ("an unknown field", json.dumps({**doc, "colour_of_the_sky": "blue"}).encode(), "colour_of_the_sky"),
+        ("invalid UTF-8", b'{"\xff\xfe": 1}', "UTF-8"),
+        ("a truncated binary frame", b"HRPB" + struct.pack("<I", 1000) + b"{}", "truncated"),
+    ]
+    if doc:
+        name = next(iter(doc))
+        out.append(("a wrong type", json.dumps({**doc, name: {"nested": [1]}}).encode(), f"$.{name}"))
+        if name != "text":  # diag/echo's text is echoed back whatever its size (within the 64 MB frame)
+            out.append(("a huge string", json.dumps({**doc, name: "x" * 2_000_000}).encode(), f"$.{name}"))
+    found = _first_float_path(doc)
+    if found:
+        path = found[0]
+        for literal in ("NaN", "Infinity", "-Infinity", "1e999"):
+            raw = json.dumps(_with(doc, path, 0.123456789)).replace("0.123456789", literal, 1).encode()
+            out.append(
+                (f"{literal} in $.{path[0]}", raw, "non-finite" if literal != "1e999" else "out of range")
+            )
+    for name in ("q", "q_start", "q_measured"):
+        if name in doc:  # a huge array, as a JSON list and as raw bytes with a lying shape
+            out.append((f"a huge $.{name}", json.dumps({**doc, name: [0.0] * 1_000_000}).encode(), name))
+            head = json.dumps({**doc, name: {"__nd__": [0, 8_000_000], "dtype": "<f8", "shape": [1000]}})
+            raw = b"HRPB" + struct.pack("<I", len(head)) + head.encode() + bytes(8_000_000)
+            out.append((f"a binary $.{name} whose shape lies", raw, "shape"))
+    return out
+
+
+STRANGER_PATHS = sorted(endpoints())
+
+
+@pytest.mark.parametrize("path", STRANGER_PATHS)
+def test_a_stranger_forms_each_request_from_the_docs_and_malformed_ones_are_named(stranger, path):
+    session, robot, procs, requests = stranger
+    service = path.split("/")[0]
+    if service not in procs or path not in requests:
+        pytest.skip(f"no {service} here")
+    doc, arrays = requests[path]
+    key = f"hrp/{robot}/{path}"
+    expected_ok = "infeasible" if path == "diag/raise" else "ok"
+
+    def documented() -> stranger_client.Answer:
+        return stranger_client.call(session, key, stranger_client.frame(doc, arrays), REPLY_TIMEOUT_S)
+
+    answer = documented()
+    assert answer.code != "invalid_request", f"the docs did not let a stranger call {path}: {answer}"
+    assert answer.code in STRANGER_TYPED | {expected_ok}, f"{path}: {answer}"
+    if path != "diag/raise":
+        assert answer.code == "ok" or path in STRANGER_EXPENSIVE, f"{path}: {answer}"
+    # zenoh's encoding and attachment are not read (the README): a JSON request labelled as CBOR, with
+    # an attachment, is the same request; a CBOR body is refused saying what the endpoints read
+    if path not in STRANGER_EXPENSIVE and arrays is None:
+        relabelled = stranger_client.call(
+            session,
+            key,
+            json.dumps(doc).encode(),
+            REPLY_TIMEOUT_S,
+            encoding="application/cbor",
+            attachment=b"\x00\x01junk",
+        )
+        assert relabelled.code == expected_ok, f"{path} with another encoding label: {relabelled}"
+    cbor_body = b"\xa1dtext\x62hi"  # {"text": "hi"} in CBOR
+    cbor = stranger_client.call(session, key, cbor_body, REPLY_TIMEOUT_S, encoding="application/cbor")
+    assert cbor.code == "invalid_request" and "JSON" in cbor.message, f"{path}, CBOR: {cbor}"
+    for what, raw, word in _malformed(doc):
+        bad = stranger_client.call(session, key, raw, REPLY_TIMEOUT_S, attachment=b"\xff" * 3)
+        assert bad.code == "invalid_request", f"{path}, {what}: {bad}"
+        assert word.lower() in bad.message.lower(), f"{path}, {what}: the message does not say it: {bad}"
+        assert len(bad.raw) < 4096, f"{path}, {what}: a {len(bad.raw)}-byte error reply echoes the payload"
+    empty = stranger_client.call(session, key, b"", REPLY_TIMEOUT_S)  # as {} (the README)
+    assert empty.kind == "error" or empty.kind == "ok", f"{path}, empty payload: {empty}"
+    if empty.code == "invalid_request":
+        assert "missing required field" in empty.message, f"{path}, empty payload: {empty}"
+    else:
+        assert empty.code in STRANGER_TYPED | {expected_ok}, f"{path}, empty payload: {empty}"
+    if path not in STRANGER_EXPENSIVE:  # and it serves on
+        assert documented().code == expected_ok, f"{path} after the malformed requests"
+    dead = {name: p.returncode for name, p in procs.items() if p.poll() is not None}
+    assert not dead, f"services died: {dead}"
+
+
+def test_a_stranger_calls_at_once_and_every_call_is_answered(stranger):
+    """Concurrent calls from many threads of one session, good and bad, to several services at once."""
+    session, robot, _procs, requests = stranger
+    cases = [
+        (p, *requests[p])
+        for p in (
+            "sim/state",
+            "diag/echo",
+            "perception/models",
+            "walking/plan",
+            "sim/robot_info",
+            "diag/echo_worker",
+        )
+        if p in requests
+    ]
+    assert cases
+    jobs = []
+    for i in range(48):
+        path, doc, arrays = cases[i % len(cases)]
+        good = (i // len(cases)) % 3 != 0  # each endpoint gets good and bad requests
+        raw = stranger_client.frame(doc, arrays) if good else b'{"bad": ' + b"1" * (i + 1)
+        jobs.append((path, raw, "ok" if good else "invalid_request"))
+
+    def one(job):
+        path, raw, want = job
+        return path, want, stranger_client.call(session, f"hrp/{robot}/{path}", raw, REPLY_TIMEOUT_S)
+
+    with ThreadPoolExecutor(max_workers=16) as pool:
+        results = list(pool.map(one, jobs))
+    wrong = [(path, want, str(got)) for path, want, got in results if got.code != want]
+    assert not wrong, f"{len(wrong)} of {len(results)} concurrent calls answered otherwise: {wrong[:5]}"
+
+
+def test_a_stranger_asking_the_impossible_gets_infeasible_with_what_was_reached(stranger):
+    """Goals no plan meets, formed from the READMEs: a typed ``infeasible`` (or ``timeout``) naming what
+    was reached, within the request's budget (loosely: the machine is shared), never a hang."""
+    session, robot, procs, requests = stranger
+    if "sim" not in procs:
+        pytest.skip("no sim here")
+    q = requests["navigation/goto"][0]["q_start"]
+    budget_s = 5.0
+    goals = {
+        "footsteps/plan": {
+            "q_start": q,
+            "tasks": [{"kind": "reach", "target": [1.0, -0.2, 3.0]}],
+            "time_budget_s": budget_s,
+        },
+        "reaching/reach": {
+            "hand": "right",
+            "target": [0.6, -0.2, 1.9],
+            "q_start": q,
+            "allow_stepping": False,
+            "time_budget_s": budget_s,
+        },
+        "navigation/goto": {
+            "q_start": q,
+            "goal_pose": [2.0, 0.0, 0.0],
+            "total_budget_s": budget_s,
+            "obstacles": [
+                {"name": "wall", "kind": "box", "center": [2.0, 0.0, 0.5], "size": [0.6, 0.6, 1.0]}
+            ],
+        },
+        "walking/goal": {
+            "q_start": q,
+            "pose": [1.0, 0.0, 0.0],
+            "time_budget_s": budget_s,
+            "obstacles": [
+                {"name": "wall", "kind": "box", "center": [0.6, 0.0, 0.5], "size": [0.2, 2.0, 1.0]}
+            ],
+        },
+    }
+    for path, doc in goals.items():
+        if path.split("/")[0] not in procs:
+            continue
+        started = time.monotonic()
+        answer = stranger_client.call(
+            session, f"hrp/{robot}/{path}", json.dumps(doc).encode(), REPLY_TIMEOUT_S
+        )
+        took = time.monotonic() - started
+        assert answer.code in ("infeasible", "timeout"), f"{path}: {answer}"
+        assert answer.message and answer.error.get("details"), (
+            f"{path}: no details of what was reached: {answer}"
+        )
+        assert took <= budget_s + LOOSE_MARGIN_S, f"{path}: answered after {took:.1f} s: {answer}"
+
+
+def test_a_stranger_who_does_not_know_the_robot_name_queries_with_a_wildcard(stranger):
+    """``hrp/*/<service>/<endpoint>`` reaches the endpoint and gets its answer (the reply goes out on the
+    endpoint's own key: zenoh refuses a reply on a key with wildcards, and the query went unanswered)."""
+    session, _robot, procs, requests = stranger
+    for path in ("sim/state", "diag/echo", "perception/models"):
+        if path.split("/")[0] in procs:
+            answer = stranger_client.call(
+                session, f"hrp/*/{path}", stranger_client.frame(requests[path][0]), 30.0
+            )
+            assert answer.kind == "ok", f"hrp/*/{path}: {answer}"
+            bad = stranger_client.call(session, f"hrp/*/{path}", b"[", 30.0)
+            assert bad.code == "invalid_request", f"hrp/*/{path}: {bad}"
+
+
+def test_a_flooded_endpoint_refuses_at_once_and_its_service_serves_its_other_endpoints(stranger):
+    """More requests than an endpoint's queue holds: the extra ones get ``unavailable`` (busy) at once, and
+    the service's other endpoints answer meanwhile. (A full zenoh channel held zenoh's delivery to the
+    whole service: the echo came only once the flood had drained below the queue's size.)"""
+    session, robot, procs, _requests = stranger
+    if "diag" not in procs:
+        pytest.skip("no diag here")
+    slow = json.dumps({"count": 100_000, "width": 8, "height": 8, "time_budget_s": 0.1}).encode()
+    extra = 24
+    flood = 64 + 1 + extra  # the queue (QUEUE_CAPACITY), the one being served, and more
+    done = []
+
+    def one(_i):
+        answer = stranger_client.call(session, f"hrp/{robot}/diag/stream", slow, REPLY_TIMEOUT_S)
+        done.append(answer.code)
+        return answer
+
+    with ThreadPoolExecutor(max_workers=flood) as pool:
+        answers = pool.map(one, range(flood))
+        time.sleep(0.3)
+        echo = stranger_client.call(session, f"hrp/{robot}/diag/echo", b'{"text": "still here"}', 30.0)
+        served_before_echo = sum(code != "unavailable" for code in list(done))
+        answers = list(answers)
+    assert echo.kind == "ok" and echo.body["text"] == "still here", echo
+    # ordering, not timing: the echo came before the flood drained below the queue's size
+    assert served_before_echo < extra, f"diag/echo answered only after {served_before_echo} streams"
+    codes = [a.code for a in answers]
+    busy = [a for a in answers if a.code == "unavailable"]
+    assert busy and set(codes) <= {"timeout", "unavailable"}, codes
+    assert all(a.error["details"]["reason"] == "busy" and "busy" in a.message for a in busy), busy[0]

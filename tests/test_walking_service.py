@@ -81,7 +81,7 @@ def test_step_beyond_the_bounds_is_infeasible_and_named():
         ({"first_side": "middle"}, "first_side must be one of"),
         ({"steps": [{"pose": [0.2, -0.095]}]}, r"length >= 3 - at `\$\.steps\[0\]\.pose`"),
         ({"model": "nao"}, "unknown robot 'nao'"),
-        ({"q_start": [0.0] * 5}, r"q must have shape \(37,\)"),
+        ({"q_start": [0.0] * 5}, r"q_start must have shape \(37,\)"),
         ({"left_start": [0.0, 0.3, 0.0]}, "give both left_start and right_start"),
         ({"hands": [{"side": "middle"}]}, "side must be one of"),
         ({"gaze": {"point_m": [-3.0, 0.0, 1.0]}}, "behind the robot's head"),

@@ -37,12 +37,19 @@ odd ones) so that the machine's load hits both alike. Adds ``baseline`` (the bas
 the JSON.
 Neither stack has a subscriber on ``hrp/**`` (timings compare only under the same subscriber conditions).
 
-Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--baseline DIR]
+Layouts outside the seeded family (``--layouts NAME,...|all``, ``scripts/bench.d/_fetch_layouts.py``):
+the box turned or elsewhere, the balls closer together or at the box's edge, another ball to take, the
+table turned or on the other side, the ball on the floor or on the table to be put on the box. Each is a
+scene file written to ``LOG_DIR/scenes`` (the sim loads it by name: ``sim: scene_dirs``) and its own
+script; a run is judged on that layout's ball and surface; runs carry ``layout`` instead of a seed.
+
+Usage: scripts/bench fetch [--n N] [--seed0 S] [--log-dir DIR] [--baseline DIR] [--layouts NAMES]
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import platform
@@ -172,9 +179,14 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--log-dir", default="bench/out/fetch-logs", help="services' output")
     parser.add_argument("--out", default=str(OUT), help="JSON output file")
     parser.add_argument("--baseline", default="", help="another checkout to run side by side (its .venv)")
+    parser.add_argument(
+        "--layouts", default="", help="layouts outside the seeded family, comma-separated or 'all' (no seeds)"
+    )
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)  # seeds on stdin
     args = parser.parse_args(argv)
     if args.baseline:
+        if args.layouts:
+            parser.error("--layouts runs this tree only (the baseline may not have them)")
         return side_by_side(args, Path(args.baseline).resolve())
 
     from services.bus.config import BusConfig
@@ -183,6 +195,7 @@ def main(argv: list[str]) -> int:
     from supervisor.core import Supervisor
     from supervisor.evaluate import ball_on_table
     from supervisor.fetch import fetch, running_stack
+    from supervisor.script import parse_script
 
     bus = BusConfig().with_hub_port(_free_port())
     runs = []
@@ -191,11 +204,17 @@ def main(argv: list[str]) -> int:
     record = None if args.worker else str(Path(args.out).with_suffix(".mcap"))
     # Imported only when recording: a side-by-side worker runs this file in an older tree too.
     stack_options: dict[str, Any] = {}
+    layouts = _layouts_module().by_name(args.layouts) if args.layouts else []
     if record:
         from supervisor.evaluate import record_config
 
         Path(args.log_dir).mkdir(parents=True, exist_ok=True)
-        stack_options = {"record": record, "config_path": record_config(Path(args.log_dir) / "record.yaml")}
+        config_path = record_config(Path(args.log_dir) / "record.yaml")
+        if layouts:  # the layouts' scene files, loaded by name by the sim
+            scenes = _layouts_module().write_scenes(layouts, Path(args.log_dir).resolve() / "scenes")
+            with open(config_path, "a") as config:
+                config.write(f"sim:\n  scene_dirs: [{json.dumps(str(scenes))}]\n")
+        stack_options = {"record": record, "config_path": config_path}
     with (
         running_stack(bus, log_dir=args.log_dir, **stack_options) as launcher,
         Supervisor.connect(bus) as sup,
@@ -206,7 +225,8 @@ def main(argv: list[str]) -> int:
         watch = CallWatch(sup)
         cpu = CpuWatch(launcher)
         seeds = _stdin_seeds() if args.worker else range(args.seed0, args.seed0 + args.n)
-        for seed in seeds:
+        cases = [(layout.name, layout) for layout in layouts] or [(seed, None) for seed in seeds]
+        for seed, layout in cases:
             watch.reset()
             cpu.reset()
             start_ns = time.time_ns()
@@ -214,16 +234,21 @@ def main(argv: list[str]) -> int:
             with open(Path(args.log_dir) / f"transcript_{seed}.txt", "w") as transcript:
                 sup.out = transcript
                 try:
-                    summary, _report = fetch(sup, seed=seed)
+                    if layout is None:
+                        summary, _report = fetch(sup, seed=seed)
+                    else:
+                        steps = parse_script(layout.script())
+                        summary, _report = fetch(sup, scene=layout.scene_name, steps=steps)
                 finally:
                     sup.out = None
             windows.append((start_ns, time.time_ns()))
             cpu_s = cpu.read()
             transcript_text = (Path(args.log_dir) / f"transcript_{seed}.txt").read_text()
             gt = sup.bus.call(sim_msg.GROUND_TRUTH, sim_msg.GroundTruthRequest(), 10.0)
-            on_table, why = ball_on_table(gt)
+            judged = {} if layout is None else {"ball": layout.ball, "table": layout.surface}
+            on_table, why = ball_on_table(gt, **judged)
             run = {
-                "seed": seed,
+                "layout" if layout is not None else "seed": seed,
                 "ok": summary.ok and on_table,
                 "script_ok": summary.ok,
                 "on_table": on_table,
@@ -239,7 +264,8 @@ def main(argv: list[str]) -> int:
             }
             runs.append(run)
             print(
-                f"seed {seed:3d}  {'ok  ' if run['ok'] else 'FAIL'}  wall {run['wall_s']:6.1f} s  "
+                f"{'layout' if layout else 'seed'} {seed!s:>3}  {'ok  ' if run['ok'] else 'FAIL'}  "
+                f"wall {run['wall_s']:6.1f} s  "
                 f"sim {run['sim_s']:6.1f} s  retries {run['retries']}  think {run['think_s']} s  "
                 f"footsteps/plan x{run['footsteps_plan_calls']}  cpu {sum(cpu_s.values()):.1f} s  "
                 f"{run['failure']}",
@@ -274,6 +300,19 @@ def main(argv: list[str]) -> int:
     )
     print_table(result)
     return write(result, Path(args.out))
+
+
+def _layouts_module() -> Any:
+    """``_fetch_layouts.py`` beside this file (bench.d is not a package)."""
+    path = Path(__file__).with_name("_fetch_layouts.py")
+    spec = importlib.util.spec_from_file_location("bench_fetch_layouts", path)
+    assert spec is not None and spec.loader is not None
+    module = sys.modules.get(spec.name)
+    if module is None:
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module  # dataclasses look their module up by name
+        spec.loader.exec_module(module)
+    return module
 
 
 def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:

@@ -308,21 +308,17 @@ def describe_fields(type_: Any) -> str:
     """``name (type, default ...)`` for each field of a message type."""
     import msgspec
 
+    from services.bus.interfaces import type_text
+
     parts = []
     for f in msgspec.structs.fields(type_):
-        kind = _type_text(f.type)
+        kind = type_text(f.type)
         if f.required:
             parts.append(f"{f.name} ({kind}, required)")
         else:
             default = f.default if f.default is not msgspec.NODEFAULT else f.default_factory()
             parts.append(f"{f.name} ({kind}, default {json.dumps(default, default=str)})")
     return ", ".join(parts) or "none"
-
-
-def _type_text(t: Any) -> str:
-    text = getattr(t, "__name__", None) if not hasattr(t, "__args__") else None
-    text = text or str(t).replace("typing.", "")
-    return text.replace("numpy.ndarray", "array").replace("NoneType", "None").replace("ndarray", "array")
 
 
 def cmd_call(args: argparse.Namespace) -> int:

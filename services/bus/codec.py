@@ -238,7 +238,9 @@ def decode(
     except msgspec.ValidationError as exc:
         raise InvalidRequestError(f"invalid {_type_name(type_)}: {exc}") from None
     except msgspec.DecodeError as exc:
-        raise InvalidRequestError(f"malformed payload for {_type_name(type_)}: {exc}") from None
+        raise InvalidRequestError(
+            f"malformed payload for {_type_name(type_)}: {exc}{_non_json_number(buf, exc)}"
+        ) from None
     except UnicodeDecodeError as exc:
         raise InvalidRequestError(
             f"malformed payload for {_type_name(type_)}: a string is not valid UTF-8 ({exc.reason})"
@@ -264,10 +266,34 @@ def _near_invalid_utf8(buf: bytes | bytearray | memoryview) -> str:
     try:
         raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        before = raw[max(0, exc.start - 4096) : exc.start]
-        keys_before = re.findall(rb'"([A-Za-z_][A-Za-z0-9_]{0,63})"\s*:', before)
-        after = f', after field "{keys_before[-1].decode()}"' if keys_before else ""
-        return f" (byte {exc.start}{after})"
+        return f" (byte {exc.start}{_after_field(raw, exc.start)})"
+    return ""
+
+
+def _after_field(raw: bytes, at: int) -> str:
+    """``', after field "key"'``: the last object key before byte ``at`` of a JSON text, or ""."""
+    keys_before = re.findall(rb'"([A-Za-z_][A-Za-z0-9_]{0,63})"\s*:', raw[max(0, at - 4096) : at])
+    return f', after field "{keys_before[-1].decode()}"' if keys_before else ""
+
+
+_DECODE_AT = re.compile(r"\(byte (\d+)\)")
+_NON_JSON_NUMBERS = (b"NaN", b"Infinity", b"-Infinity", b"+Infinity", b"inf", b"-inf", b"nan")
+
+
+def _non_json_number(buf: bytes | bytearray | memoryview, exc: msgspec.DecodeError) -> str:
+    """When the JSON text breaks at a ``NaN`` or ``Infinity`` literal (what Python's ``json.dumps``
+    writes for non-finite floats): say so and where, for the error message; else ""."""
+    match = _DECODE_AT.search(str(exc))
+    if match is None:
+        return ""
+    at = int(match.group(1))
+    raw = bytes(buf[: at + 16]) if buf[:1] != b"H" else bytes(split(buf)[0][: at + 16])
+    for start in (at - 1, at):  # msgspec points at the literal's first letter, after any sign
+        if start >= 0 and raw[start:].startswith(_NON_JSON_NUMBERS):
+            return (
+                f"; a non-finite number (NaN or Infinity) at byte {start}{_after_field(raw, start)}: "
+                "not a JSON number, and requests take finite numbers only"
+            )
     return ""
 
 

@@ -15,11 +15,13 @@
 
 What the base does for every service:
 
-* each endpoint and each subscription gets a zenoh FIFO channel and one worker thread that takes
-  the queries (samples) from it in order and runs the handler. zenoh's own threads only push into
-  the channel (no Python, no GIL), so a slow handler never stalls the network; the endpoints of a
-  service run concurrently, each endpoint serves one request at a time. A handler declared
-  ``blocking=False`` (microseconds, never waits) runs in zenoh's callback instead: no hand-off;
+* each endpoint gets a bounded queue (:data:`QUEUE_CAPACITY` requests) and one worker thread that
+  takes the queries from it in order and runs the handler; zenoh's callback only puts the query in
+  the queue, and a query that finds it full is refused at once (``unavailable``, reason ``busy``),
+  so a slow or flooded endpoint never stalls zenoh's delivery to the service's other endpoints. Each
+  subscription gets a zenoh FIFO channel and a worker. The endpoints of a service run concurrently,
+  each endpoint serves one request at a time. A handler declared ``blocking=False`` (microseconds,
+  never waits) runs in zenoh's callback instead: no hand-off;
 * a payload that does not decode, or does not match the request type, gets an ``invalid_request``
   error reply naming the field and the expected type; an exception in a handler gets ``internal``;
   a :class:`~services.errors.HumanoidError` gets its own code. The service keeps serving;
@@ -37,6 +39,7 @@ import contextlib
 import dataclasses
 import logging
 import os
+import queue
 import signal
 import sys
 import threading
@@ -67,6 +70,8 @@ from services.errors import HumanoidError, InternalError
 HEARTBEAT_PERIOD_S = 0.5
 #: Queries (or samples) waiting for a busy handler; when full, zenoh holds further ones back.
 QUEUE_CAPACITY = 64
+#: ``details["reason"]`` of the ``unavailable`` reply to a request that finds its endpoint's queue full.
+REASON_BUSY = "busy"
 #: A stopping service exits after this long even if a handler is still running [s].
 EXIT_DEADLINE_S = 0.9
 
@@ -186,6 +191,7 @@ class _Runtime:
         self.stats: dict[str, _EndpointStats] = {}
         self._ids = RequestIds()
         self._channels: list[Any] = []  # queryables and subscribers: undeclared first at shutdown
+        self._queues: list[queue.SimpleQueue[Any]] = []  # requests waiting for an endpoint's worker
         self._declared: list[Any] = []
         self._threads: list[threading.Thread] = []
 
@@ -215,25 +221,53 @@ class _Runtime:
         key = keys.key(robot, spec.service, spec.name)
 
         def serve_one(query: zenoh.Query) -> None:
-            self._serve_one(spec, handler, query, mirrors, stats)
+            self._serve_one(spec, handler, query, mirrors, stats, key)
 
         if not blocking:
             self._channels.append(svc.session.declare_queryable(key, serve_one))
             return
-        queryable = svc.session.declare_queryable(key, zenoh.handlers.FifoChannel(QUEUE_CAPACITY))
-        self._channels.append(queryable)
-        # recv() on the handler, not the queryable: undeclare() must not wait for a blocked recv().
-        channel = queryable.handler
+        # A bounded queue filled from zenoh's callback, never blocking it: a zenoh FIFO channel that is
+        # full holds zenoh's delivery thread, and with it every other endpoint of the service (90 queued
+        # diag/stream requests held a diag/echo for 10.6 s). A request finding the queue full is
+        # refused at once, ``unavailable`` with ``details.reason`` "busy".
+        # queue.SimpleQueue (C, no lock of its own in Python) and a depth count: a queue.Queue's
+        # Condition cost the hand-off ~60 us per request (scripts/bench bus, the worker thread row)
+        pending: queue.SimpleQueue[zenoh.Query | None] = queue.SimpleQueue()
+        depth = [0]  # requests in ``pending`` (zenoh may call back from several threads: under ``lock``)
+        lock = threading.Lock()
+        self._queues.append(pending)
+
+        def enqueue(query: zenoh.Query) -> None:  # zenoh's callback thread: microseconds
+            with lock:
+                full = depth[0] >= QUEUE_CAPACITY
+                if not full:
+                    depth[0] += 1
+            if full:
+                self._refuse_busy(spec, query, stats)
+            else:
+                pending.put(query)
+
+        self._channels.append(svc.session.declare_queryable(key, enqueue))
 
         def work() -> None:
-            while True:
-                try:
-                    query = channel.recv()  # blocks without the GIL; ZError once undeclared
-                except zenoh.ZError:
-                    return
+            while (query := pending.get()) is not None:  # None: the service stops
+                with lock:
+                    depth[0] -= 1
                 serve_one(query)
 
         self._start_worker(spec.path, work)
+
+    def _refuse_busy(self, spec: EndpointSpec, query: zenoh.Query, stats: _EndpointStats) -> None:
+        frame = error_frame(
+            "unavailable",
+            f"{spec.path} is busy: {QUEUE_CAPACITY} requests are waiting for it; try again later",
+            {"reason": REASON_BUSY, "waiting": QUEUE_CAPACITY},
+        )
+        with contextlib.suppress(zenoh.ZError):
+            query.reply_err(frame)
+        with contextlib.suppress(zenoh.ZError):
+            query.drop()
+        stats.failed += 1
 
     def _serve_one(
         self,
@@ -242,12 +276,15 @@ class _Runtime:
         query: zenoh.Query,
         mirrors: tuple[_Mirror, _Mirror, _Mirror],
         stats: _EndpointStats,
+        key: str,
     ) -> None:
         raw = query.payload.to_bytes() if query.payload is not None else b""
         ok, frame = self._handle(spec, handler, raw)
         try:
             if ok:
-                query.reply(query.key_expr, frame)
+                # the endpoint's own key, not the query's: a query may name it with wildcards
+                # (``hrp/*/sim/state``), and zenoh refuses a reply on a key with wildcards
+                query.reply(key, frame)
             else:
                 query.reply_err(frame)
         except zenoh.ZError as exc:
@@ -358,6 +395,11 @@ class _Runtime:
         for declared in ([token] if token is not None else []) + self._channels:
             with contextlib.suppress(zenoh.ZError):
                 declared.undeclare()
+        for pending in self._queues:  # the workers stop after the request they serve
+            with contextlib.suppress(queue.Empty):
+                while True:
+                    pending.get_nowait()  # dropped: zenoh ends that query without a reply
+            pending.put(None)
 
     def shutdown(self, deadline: float) -> None:
         """Wait for the workers (until ``deadline``, monotonic) and undeclare the publishers."""

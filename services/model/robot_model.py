@@ -223,13 +223,14 @@ class RobotModel:
         return pin.neutral(self.model)
 
     # ------------------------------------------------------------------------------------- kinematics
-    def check_q(self, q: np.ndarray) -> np.ndarray:
-        """``q`` as a float array of shape (nq,), else InvalidRequestError."""
+    def check_q(self, q: np.ndarray, field: str = "q") -> np.ndarray:
+        """``q`` as a float array of shape (nq,), else InvalidRequestError naming ``field`` (the request's
+        field it came from, e.g. ``q_start``)."""
         q = np.asarray(q, dtype=float)
         if q.shape != (self.nq,):
-            raise InvalidRequestError(f"{self.name}: q must have shape ({self.nq},), got {q.shape}")
+            raise InvalidRequestError(f"{self.name}: {field} must have shape ({self.nq},), got {q.shape}")
         if not np.all(np.isfinite(q)):
-            raise InvalidRequestError(f"{self.name}: q contains non-finite values")
+            raise InvalidRequestError(f"{self.name}: {field} contains non-finite values")
         return q
 
     def forward(self, q: np.ndarray, data: pin.Data | None = None) -> pin.Data:

@@ -229,7 +229,7 @@ class NavigationService(Service):
                 {"field": "max_iterations"},
             )
         robot = self.robot
-        q_start = robot.check_q(np.asarray(request.q_start, dtype=float))
+        q_start = robot.check_q(np.asarray(request.q_start, dtype=float), "q_start")
         goal = goal_from_request(request)
         scene = scene_from_request(request, start_pose(robot, q_start))
         check_floor(scene)

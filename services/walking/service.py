@@ -114,7 +114,7 @@ def start_of(request: msg.PlanRequest, robot: Any) -> tuple[np.ndarray, SolePose
         left = _pose(request.left_start, "left_start")
         right = _pose(request.right_start, "right_start")
     if request.q_start is not None:
-        q = robot.check_q(request.q_start)
+        q = robot.check_q(request.q_start, "q_start")
     elif left is not None and right is not None:
         yaw = right.yaw_rad + 0.5 * math.remainder(left.yaw_rad - right.yaw_rad, 2.0 * math.pi)
         q = robot.half_sitting_at(0.5 * (left.x_m + right.x_m), 0.5 * (left.y_m + right.y_m), yaw)
@@ -274,7 +274,7 @@ def goal_steps(
         value = getattr(request, name)
         if not (math.isfinite(value) and value >= 0.0):
             raise InvalidRequestError(f"{name} must be >= 0 m, got {value}")
-    q = robot.check_q(request.q_start)
+    q = robot.check_q(request.q_start, "q_start")
     soles = soles_on(robot, q)
     limits = FootstepBounds.from_robot(robot)
     if obstacles is None:

@@ -8,7 +8,7 @@ import msgspec
 import numpy as np
 from msgspec import Meta
 
-from services.bus.limits import Budget, ImageSide
+from services.bus.limits import Budget, ImageSide, Name
 from services.bus.spec import EndpointSpec, TopicSpec
 
 
@@ -33,7 +33,7 @@ class RaiseRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fie
     handler (which the service reports as ``internal`` and survives).
     """
 
-    code: str
+    code: Name  # at most 128 characters (a known code is a short word)
     message: str
 
 
