@@ -122,6 +122,20 @@ def test_a_short_wrong_run_at_either_end_of_the_rows_is_dropped_and_a_slanted_en
     assert _consistent(np.full(12, 40.0)).all() and not _consistent(np.zeros(5)).any()  # fewer rows
 
 
+def test_outline_points_above_the_top_are_not_the_objects():
+    """A few edges paired with another contour triangulate nearer the camera, hence higher: fetch seed
+    40's 4 points 0.3 m above the table's top, 0.47 m in front of it, stretched it to 1.46 m. Points
+    more than ``ABOVE_TOP_M`` above the top are left out of the rectangle (too few to be the top)."""
+    rng = np.random.default_rng(3)
+    t = rng.uniform(-0.5, 0.5, 200)
+    xy = np.vstack([np.column_stack([t, np.full(200, 0.3)]), np.column_stack([t, np.full(200, -0.3)])])
+    table = np.column_stack([xy, np.full(len(xy), 0.72)])
+    stray = np.array([[0.97, 0.1, 1.05]] * 4)
+    fp = footprint(np.vstack([table, stray]), np.array([0.0, 0.0, 0.7]))
+    assert fp is not None and fp.size_m[0] == pytest.approx(1.0, abs=0.02)
+    assert fp.center_m == pytest.approx((0.0, 0.0), abs=0.02) and fp.top_z_m == pytest.approx(0.72, abs=0.01)
+
+
 def test_edges_next_to_another_objects_pixels_are_left_out():
     """A table half behind a chair (fetch seeds 13, 21, 23): on the rows where the chair's pixels touch
     the table's silhouette, its edge is the chair's contour, at the chair's disparity: those edges give
