@@ -67,8 +67,11 @@ class Eyes:
             footprint=reply.footprint,
         )
         self._last_box = (reply.box_left.u_px, reply.box_left.v_px)
+        kept = self.memory.remember(sighting)  # (with the better-supported footprint)
+        # then what was seen in passing: its bookkeeping (a bus call for the models' shapes) failing
+        # cannot lose the sighting asked for
         self._remember_in_passing(reply, sighting.camera_m)
-        return self.memory.remember(sighting)  # (with the better-supported footprint)
+        return kept
 
     def _remember_in_passing(self, reply: perception_msg.LocateReply, camera_m: np.ndarray) -> None:
         """The balls (models of shape "sphere") seen in the images of ``reply`` besides the object

@@ -49,7 +49,7 @@ def test_models_lists_the_learned_objects(bus):
 
 
 def test_locate_the_ball_from_the_robot_configuration(bus, state, truth):
-    reply = locate(bus, object="orange_ball", model=state.model, q=state.q)
+    reply = locate(bus, object="orange_ball", model=state.model, q=state.q, others=True)
     error_m = np.linalg.norm(np.subtract(reply.position, truth["orange_ball"].position))
     assert error_m < 0.03  # 3.4 m away
     assert reply.rendered and reply.camera == "wide" and reply.method == "centroid"
@@ -62,7 +62,7 @@ def test_locate_the_ball_from_the_robot_configuration(bus, state, truth):
     for name in ("blue_ball", "purple_ball"):
         assert np.linalg.norm(np.subtract(others[name].position, truth[name].position)) < 0.05
         assert 0.0 < others[name].confidence <= 1.0 and 0.07 < others[name].size_m[0] < 0.13
-    assert locate(bus, object="orange_ball", model=state.model, q=state.q, others=False).others == []
+    assert locate(bus, object="orange_ball", model=state.model, q=state.q).others == []  # the default
 
 
 def test_locate_without_q_uses_the_robots_current_state(bus, state, truth):

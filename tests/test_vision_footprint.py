@@ -107,6 +107,35 @@ def test_a_run_of_rows_occluded_in_one_image_is_dropped_and_border_edges_never_k
     assert keep[3:30].all() and keep[40:].all()
 
 
+def test_a_short_wrong_run_at_either_end_of_the_rows_is_dropped_and_a_slanted_end_kept():
+    """Fetch seed 40's put: the table running out of the image's bottom, its near leg's edge paired with
+    the other leg's on the last rows (342 px where the rows above had 70). The end rows are judged by
+    the rows before them (padded with their own value, the last row was always kept)."""
+    slanted = 50.0 + np.round(np.linspace(0.0, 48.0, 240))  # a table top's side edge: whole pixels
+    assert _consistent(slanted).all()  # both ends of a slanted edge are kept
+    for run in (1, 4, 10):
+        disparity = np.concatenate([np.round(np.linspace(98.0, 70.0, 170)), [0.0, 0.0], np.full(run, 342.0)])
+        keep = _consistent(disparity)
+        assert keep[:170].all() and not keep[170:].any()
+        flipped = _consistent(disparity[::-1])  # the same at the first rows
+        assert flipped[-170:].all() and not flipped[:-170].any()
+    assert _consistent(np.full(12, 40.0)).all() and not _consistent(np.zeros(5)).any()  # fewer rows
+
+
+def test_outline_points_above_the_top_are_not_the_objects():
+    """A few edges paired with another contour triangulate nearer the camera, hence higher: fetch seed
+    40's 4 points 0.3 m above the table's top, 0.47 m in front of it, stretched it to 1.46 m. Points
+    more than ``ABOVE_TOP_M`` above the top are left out of the rectangle (too few to be the top)."""
+    rng = np.random.default_rng(3)
+    t = rng.uniform(-0.5, 0.5, 200)
+    xy = np.vstack([np.column_stack([t, np.full(200, 0.3)]), np.column_stack([t, np.full(200, -0.3)])])
+    table = np.column_stack([xy, np.full(len(xy), 0.72)])
+    stray = np.array([[0.97, 0.1, 1.05]] * 4)
+    fp = footprint(np.vstack([table, stray]), np.array([0.0, 0.0, 0.7]))
+    assert fp is not None and fp.size_m[0] == pytest.approx(1.0, abs=0.02)
+    assert fp.center_m == pytest.approx((0.0, 0.0), abs=0.02) and fp.top_z_m == pytest.approx(0.72, abs=0.01)
+
+
 def test_edges_next_to_another_objects_pixels_are_left_out():
     """A table half behind a chair (fetch seeds 13, 21, 23): on the rows where the chair's pixels touch
     the table's silhouette, its edge is the chair's contour, at the chair's disparity: those edges give
@@ -288,6 +317,44 @@ def test_the_table_behind_the_robots_own_hand_is_mapped_where_it_is(models):
     assert abs(fp.size_m[0] - 1.0) < 0.06 and abs(fp.size_m[1] - 0.6) < 0.05
     assert abs(fp.top_z_m - table.top_z_m) < 0.05  # the gripper's contour put it at 1.08 m
     assert fp.n_hidden > seen.footprint.n_hidden  # the edges it left out (the ball's already), reported
+
+
+#: The robot's configuration at the put's look at the table in fetch seed 40 (session 10's main): 1.08 m
+#: from the table's short side, its near right leg behind the ball and the gripper in the left image.
+_PUT_LOOK_Q_SEED40 = [
+    3.1959, -2.2061, 0.6389, 0.0043, 0.0011, 0.9732, -0.2299, 0.0, -0.0001, 0.0248, 0.6522, 0.2447, 0.1521,
+    -0.0048, -0.5148, 0.0001, 0.0011, -0.0, -0.0984, 0.1403, 0.3522, -1.194, 0.1055, -0.6076, 0.0301, 0.002,
+    0.0194, -0.5209, 0.9335, -0.4035, -0.0194, 0.0019, 0.0194, -0.5265, 0.9434, -0.4078, -0.0195,
+]  # fmt: skip
+
+
+def test_a_table_running_out_of_the_image_bottom_behind_the_hand_is_mapped_its_size(models):
+    """Fetch seed 40's put look (the put then lowered the ball onto nothing): the table runs out of the
+    image's bottom; below the hand the left image shows a bit of the near right leg the right image
+    does not (the gripper hides it there), so on the bottom rows the silhouettes' right edges are two
+    different legs. Those rows were kept (:func:`vision.footprint._consistent` at the end of the rows)
+    and the table was mapped 1.46 m long, 0.21 m toward the robot."""
+    from services.perception.own_body import OwnBody
+    from sim.world import World
+
+    with World(ROBOT, "ball_fetch", seed=40) as w:
+        robot = w.robot
+        q = robot.check_q(np.asarray(_PUT_LOOK_Q_SEED40, dtype=float))
+        w.pyrobot.reset(q)
+        w.set_object_pose(
+            "orange_ball",
+            robot.frame_pose(q, robot.frames.right_grasp).act(robot.held_object_offset("right", 0.05)),
+        )
+        left, right = (cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in w.render("wide", 640, 480))
+        stereo = head_stereo(robot, q, "wide", 640, 480)
+        table = w.layout.object("yellow_table")
+        found = locate_object(models, "yellow_table", stereo, left, right, own_body=OwnBody(robot), q=q)
+    assert found.position_camera[2] > 1.0  # near, but a footprint is made
+    fp = found.footprint
+    assert fp is not None
+    assert np.linalg.norm(np.subtract(fp.center_m, table.position[:2])) < 0.05
+    assert abs(fp.size_m[0] - 1.0) < 0.06 and abs(fp.size_m[1] - 0.6) < 0.05
+    assert abs(fp.top_z_m - table.top_z_m) < 0.05
 
 
 def test_a_table_cut_by_the_side_border_in_both_images_is_matched_by_its_edges(models):
