@@ -212,7 +212,7 @@ def cmd_console(args: argparse.Namespace) -> int:
         refused = False
         for text in args.explain:
             understanding = listener.hear(text)
-            refused = understanding.refused
+            refused = refused or understanding.refused  # any line not understood (not only the last)
             print(understanding.explain())
         return 1 if refused else 0
     from supervisor.core import Supervisor
