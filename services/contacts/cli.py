@@ -195,6 +195,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
                 "nodes_generated": s.nodes_generated,
                 "nodes_expanded": s.nodes_expanded,
                 "plan_s": s.plan_s,
+                "slope_k": problem.slope_k,
             }
             print(
                 "plan written to",
