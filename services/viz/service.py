@@ -36,6 +36,7 @@ import zenoh
 
 from services.bus import keys
 from services.bus.config import from_mapping
+from services.bus.schemas import sim as sim_msg
 from services.bus.service import Service, run_service
 from services.errors import InvalidRequestError
 from services.viz import common as c
@@ -209,7 +210,7 @@ class VizService(Service):
         return channel
 
     def _poll_world(self) -> None:
-        key = keys.key(self.bus.robot, "sim", "ground_truth")
+        key = keys.key(self.bus.robot, sim_msg.GROUND_TRUTH.service, sim_msg.GROUND_TRUTH.name)
         period = self.config.world_poll_s
         while not self._done.wait(period):
             if not self._listener.watched(c.WORLD_OBJECTS):
