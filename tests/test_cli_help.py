@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import shutil
 import subprocess
 import sys
@@ -71,6 +72,35 @@ def test_every_subcommand_help_has_an_example(command: str, capsys: pytest.Captu
     text = capsys.readouterr().out
     assert "examples:" in text
     assert f"humanoid {command}" in text.split("examples:", 1)[1]
+
+
+def _subcommands(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    found = []
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                found.append((*path, name))
+                found += _subcommands(sub, (*path, name))
+    return found
+
+
+def test_every_subcommand_at_every_level_has_an_example_and_the_exit_codes(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Issue 20: "Every subcommand: --help with an example, exit codes documented" (nested ones too:
+    scenario, perception, model, ik had neither)."""
+    commands = _subcommands(build_parser(grouped=False))
+    assert ("scenario", "chair-egress") in commands and ("perception", "learn") in commands
+    lacking = []
+    for command in commands:
+        with pytest.raises(SystemExit):
+            main([*command, "--help"])
+        text = capsys.readouterr().out
+        if "examples:" not in text or f"humanoid {' '.join(command)}" not in text.split("examples:", 1)[1]:
+            lacking.append(" ".join(command) + " (example)")
+        if "exit codes: 0 ok, 1 error reply or failed run, 2 bad usage, 3 service unavailable" not in text:
+            lacking.append(" ".join(command) + " (exit codes)")
+    assert not lacking, lacking
 
 
 def test_bash_completion_completes_subcommands_and_endpoint_names(tmp_path: Path) -> None:
