@@ -867,8 +867,15 @@ class Listener:
         return Intent("put", clause, obj=obj, place=place, hand=hand)
 
     def _parse_turn(self, rest: str, clause: str, filled: Mapping[str, str]) -> Intent:
+        negative = re.search(r"(?:^|\s)-\s*(?=\d)", rest)  # "turn -45": the scripts' sign, right
+        if negative:
+            rest = (rest[: negative.start()] + " " + rest[negative.end() :]).strip()
         quantity, rest = take_quantity(rest)
         direction, rest = _take_direction(rest)
+        if negative:
+            if direction:
+                raise NotUnderstoodError(clause, "a negative angle and a direction: say one of them")
+            direction = "right"
         if re.search(r"\b(?:to|towards|toward|at)\s+(?:the|a)\s+\w+", rest):
             raise NotUnderstoodError(
                 clause,

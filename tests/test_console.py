@@ -294,6 +294,7 @@ PHRASINGS = [
     ("take the ornge ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
     ("take the orange bal", "localize orange_ball; reach right orange_ball; grasp right as held"),
     ("go to the tabel", "localize yellow_table; goto yellow_table"),
+    ("turn -45 degrees", "turn -45"),  # the scripts' sign: negative is to the right
     (
         "bring it to the table",
         "localize yellow_table; goto yellow_table; localize yellow_table; put held on=yellow_table",
