@@ -373,6 +373,21 @@ def test_a_log_served_to_foxglove_from_a_start_time_and_left_by_its_viewer(tmp_p
     assert "Callback failed" not in capfd.readouterr().err + caplog.text
 
 
+def test_a_port_in_use_is_a_typed_error_naming_it():
+    """A second `humanoid view` (or `up --foxglove`) on a taken port: InvalidRequestError, not a traceback."""
+    import socket
+
+    from services.errors import InvalidRequestError
+    from services.viz.common import start_ws_server
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(InvalidRequestError, match=f"127.0.0.1:{port}.*choose another"):
+            start_ws_server(name="test", host="127.0.0.1", port=port)
+
+
 def _schema_bytes() -> bytes:
     from foxglove.messages import FrameTransforms
 

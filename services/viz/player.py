@@ -18,6 +18,7 @@ from foxglove.websocket import ServerListener
 
 from services.bus.mcaplog import LogReader
 from services.errors import InvalidRequestError
+from services.viz.common import start_ws_server
 
 
 @dataclass
@@ -76,7 +77,7 @@ def serve_log(
                 channel.topic, schema=fx_schema, message_encoding=channel.message_encoding, context=context
             )
     begin_ns = (first_ns or 0) + int(start_s * 1e9)
-    server = foxglove.start_server(
+    server = start_ws_server(
         name=f"humanoid replay {path}", host=host, port=port, context=context, server_listener=Listener()
     )
     stats = PlayStats(channels=len(channels))

@@ -133,7 +133,7 @@ class VizService(Service):
         self._done = threading.Event()
         for topic, msg in _static_topics():
             self._channel(topic, msg)
-        self.server = foxglove.start_server(
+        self.server = c.start_ws_server(
             name=f"humanoid {self.bus.robot}",
             host=cfg.host,
             port=cfg.port,
