@@ -384,7 +384,9 @@ def test_a_port_in_use_is_a_typed_error_naming_it():
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        with pytest.raises(InvalidRequestError, match=f"127.0.0.1:{port}.*choose another"):
+        with pytest.raises(
+            InvalidRequestError, match=f"127.0.0.1:{port}.*another server holds the port: choose another"
+        ):
             start_ws_server(name="test", host="127.0.0.1", port=port)
 
 

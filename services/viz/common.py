@@ -70,8 +70,12 @@ def start_ws_server(**kwargs: Any) -> Any:
         if "bind" not in str(exc).lower():
             raise
         where = f"{kwargs.get('host', '127.0.0.1')}:{kwargs.get('port', 8765)}"
+        why = (
+            "another server holds the port: choose another (humanoid view --port P, humanoid up "
+            "--foxglove P, humanoid replay FILE --foxglove P)"
+            if "in use" in str(exc).lower()
+            else "this host has no such address (--host: 127.0.0.1, or one of this machine's addresses)"
+        )
         raise InvalidRequestError(
-            f"cannot serve Foxglove on {where}: {exc}. Another server holds the port: choose another "
-            "(humanoid view --port P, humanoid up --foxglove P, humanoid replay FILE --foxglove P)",
-            {"field": "port"},
+            f"cannot serve Foxglove on {where}: {exc}; {why}", {"field": "port"}
         ) from exc

@@ -51,6 +51,8 @@ def serve_log(
     ``loop`` plays it again and again until ``stop``."""
     if not speed > 0:
         raise InvalidRequestError(f"speed={speed} must be > 0 (2 plays twice as fast)")
+    if not 0 <= port <= 65535:
+        raise InvalidRequestError(f"port {port} is not a TCP port (0..65535)")
     if not start_s >= 0:
         raise InvalidRequestError(f"start={start_s} must be >= 0 s")
     stop = stop or threading.Event()
