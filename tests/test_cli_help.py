@@ -157,3 +157,12 @@ def test_zsh_completion_completes_subcommands_and_endpoint_names(tmp_path: Path)
     (tmp_path / "_humanoid").write_text(result.stdout)
     assert _zsh_complete(tmp_path, "humanoid call sim/st") == "humanoid call sim/state"
     assert _zsh_complete(tmp_path, "humanoid interf") == "humanoid interface"
+
+
+@pytest.mark.parametrize("command", [["fetch"], ["run", "script.txt"], ["console"]])
+def test_a_seed_out_of_range_is_refused_before_any_service_starts(
+    command: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as info:
+        main([*command, "--seed", "-1"])
+    assert info.value.code == 2 and "-1 is not a seed: 0..4294967295" in capsys.readouterr().err
