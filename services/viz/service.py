@@ -33,6 +33,7 @@ from typing import Any
 
 import foxglove
 import zenoh
+from foxglove.websocket import ServerListener
 
 from services.bus import keys
 from services.bus.config import from_mapping
@@ -74,8 +75,9 @@ class VizConfig:
             )
 
 
-class _Listener:
-    """Counts subscriptions per topic (SDK thread: only touches a counter and a queue)."""
+class _Listener(ServerListener):
+    """Counts subscriptions per topic (SDK thread: only touches a counter and a queue); the SDK's
+    other callbacks keep their no-op defaults."""
 
     def __init__(self, resend: queue.Queue[Any]) -> None:
         self.lock = threading.Lock()
