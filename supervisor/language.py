@@ -840,6 +840,8 @@ class Listener:
             obj_phrase, place_phrase = "", "there"
         if not (ctx.held or ctx.last) and (not obj_phrase or obj_phrase in ("it", "that", "this")):
             obj = HELD  # what the hand holds, as the runner bound it
+        elif ctx.held and ctx.held in resolve(obj_phrase, self.known).candidates:
+            obj = ctx.held  # "put the ball on the table" holding the orange ball: the one in the hand
         else:
             obj = self._object(obj_phrase, ctx.held or ctx.last, "obj", filled)
         if place_phrase == "there" or place_phrase.startswith("there "):

@@ -431,6 +431,16 @@ def test_a_question_about_what_is_held_names_it_it():
     )
 
 
+def test_putting_the_ball_down_while_holding_one_puts_that_one():
+    listener = Listener(KNOWN, actions=ACTIONS_PLUS)
+    listener.hear("take the blue ball")
+    assert [s.text() for s in listener.hear("place the ball on the table").steps] == [
+        "localize yellow_table",
+        "put blue_ball on=yellow_table",
+    ]
+    assert listener.hear("take the ball").control == "ask"  # nothing held now: which ball?
+
+
 def test_help_me_is_help():
     assert Listener(KNOWN, actions=ACTIONS_PLUS).hear("help me").control == "help"
 
