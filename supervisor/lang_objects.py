@@ -156,6 +156,11 @@ def resolve(phrase: str, known: list[str] | tuple[str, ...], referent: str | Non
     if text.replace(" ", "_") in known:
         return ObjectRef(phrase, name=text.replace(" ", "_"))
     words = [w for w in text.replace("_", " ").split() if w not in DETERMINERS]
+    if "_".join(words) in known:  # "the red cup", "the coffee mug": a learned object's own name
+        return ObjectRef(phrase, name="_".join(words))
+    # the kinds of the known objects are words too ("cup" of red_cup; "mug" of coffee_mug), beyond the
+    # synonyms' table
+    known_kinds = {kind.rsplit("_", 1)[-1]: kind for kind in (_parts(k)[1] for k in known)}
     colour = ""
     kind = ""
     unknown: list[str] = []
@@ -164,6 +169,8 @@ def resolve(phrase: str, known: list[str] | tuple[str, ...], referent: str | Non
             colour = "grey" if w == "gray" else w
         elif w in KIND_SYNONYMS:
             kind = KIND_SYNONYMS[w]
+        elif w in known_kinds or (w.endswith("s") and w[:-1] in known_kinds):
+            kind = known_kinds[w if w in known_kinds else w[:-1]]
         elif w.endswith("ish") and w[:-3] in COLOURS:
             colour = w[:-3]
         elif w in IGNORED_ADJECTIVES:

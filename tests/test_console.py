@@ -441,6 +441,25 @@ def test_putting_the_ball_down_while_holding_one_puts_that_one():
     assert listener.hear("take the ball").control == "ask"  # nothing held now: which ball?
 
 
+@pytest.mark.parametrize(
+    ("text", "steps"),
+    [
+        ("take the red cup", "localize red_cup; reach right red_cup; grasp right as held"),
+        ("grab the bottle", "localize bottle; reach right bottle; grasp right as held"),
+        ("take the mug", "localize coffee_mug; reach right coffee_mug; grasp right as held"),
+        ("put the blue cup on the table", "localize blue_cup; reach right blue_cup; grasp right as held; "
+         "localize yellow_table; put blue_cup on=yellow_table"),
+    ],
+)  # fmt: skip
+def test_objects_of_kinds_the_grammar_was_not_written_for(text: str, steps: str):
+    """Perception may learn any object ("red_cup", "bottle", "coffee_mug"): its name's words are words
+    of the grammar (they were refused: "I don't know a red cup", "did you mean the bottle?")."""
+    known = ["red_cup", "blue_cup", "bottle", "coffee_mug", "yellow_table"]
+    understanding = Listener(known, actions=ACTIONS_PLUS).hear(text)
+    assert "; ".join(step.text() for step in understanding.steps) == steps, understanding.say
+    assert Listener(known).hear("take the cup").say == "which cup: the red one or the blue one?"
+
+
 def test_help_me_is_help():
     assert Listener(KNOWN, actions=ACTIONS_PLUS).hear("help me").control == "help"
 
