@@ -5,10 +5,12 @@ from the sim, and f_T (eq. 1) and the progress s' along T of every contact set o
   in the chair_egress scene (pybullet, DIRECT) with its change of contact;
 * ``out/contacts_chair_potential.png``: f_T and s' of each set's witness, set by set.
 
-The plan is computed (search, then interpolation) and saved as ``out/contacts_chair_plan.npz``; with
-``--reuse`` an existing one is drawn again.
+The plan is computed (search, then interpolation) and saved as ``out/contacts_chair_plan.npz`` in the
+format of ``humanoid scenario chair-egress --save-plan`` (``services/contacts/plan_file.py``: the
+scenario plays it with ``--plan``); with ``--reuse`` an existing one is drawn again, with ``--plan FILE``
+a plan the scenario saved.
 
-Usage: python examples/contacts_chair.py [--budget S] [--reuse] [--out out] [--panels N]
+Usage: python examples/contacts_chair.py [--budget S] [--reuse | --plan FILE] [--out out] [--panels N]
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import io
-import json
 from pathlib import Path
 
 import matplotlib
@@ -29,9 +30,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 
-def compute_plan(budget_s: float, path: Path) -> dict:
+def _problem(slope_k: float | None = None, budget_s: float = 300.0):
+    """The robot and the chair scenario's default problem (``services.contacts.planner``)."""
     from services.contacts.interpolate import InterpolationConfig
-    from services.contacts.planner import default_problem, plan
+    from services.contacts.planner import default_problem
     from services.contacts.search import SearchConfig
     from services.model import load_robot
     from sim.scene import layout, load_scene
@@ -39,6 +41,23 @@ def compute_plan(budget_s: float, path: Path) -> dict:
 
     robot = load_robot("hrp2_like")
     q0 = start_configuration(robot, layout(load_scene("chair_egress")))
+    problem = default_problem(
+        robot,
+        q0,
+        search=SearchConfig(time_budget_s=budget_s),
+        interpolation=InterpolationConfig(n=10),
+        **({} if slope_k is None else {"slope_k": slope_k}),
+    )
+    return robot, problem
+
+
+def compute_plan(budget_s: float, path: Path) -> Path:
+    """Plan (search, then interpolation) and save the plan as ``humanoid scenario chair-egress
+    --save-plan`` does (``services/contacts/plan_file.py``): either draws or plays the other's."""
+    from services.contacts.plan_file import save_plan
+    from services.contacts.planner import plan
+
+    robot, problem = _problem(budget_s=budget_s)
 
     def progress(kind, node, generated, expanded, elapsed) -> None:
         print(
@@ -46,30 +65,33 @@ def compute_plan(budget_s: float, path: Path) -> dict:
             flush=True,
         )
 
-    problem = default_problem(
-        robot, q0, search=SearchConfig(time_budget_s=budget_s), interpolation=InterpolationConfig(n=10)
-    )
     result = plan(robot, problem, progress)
-    path_nodes = result.search.path
-    data = {
-        "witnesses": np.array([n.q for n in path_nodes]),
-        "f": np.array([n.f for n in path_nodes]),
-        "s": np.array([result.trajectory.progress(n.q) for n in path_nodes]),
-        "changes": np.array([n.change for n in path_nodes]),
-        "q": result.motion.q,
-        "set_samples": np.array(result.motion.set_samples),
-        "meta": json.dumps(
-            {
-                "nodes_generated": result.search.nodes_generated,
-                "nodes_expanded": result.search.nodes_expanded,
-                "plan_s": result.search.plan_s,
-                "interpolation_s": result.motion.interpolation_s,
-            }
-        ),
+    nodes = result.search.path
+    meta = {
+        "nodes_generated": result.search.nodes_generated,
+        "nodes_expanded": result.search.nodes_expanded,
+        "plan_s": result.search.plan_s,
+        "interpolation_s": result.motion.interpolation_s,
+        "slope_k": problem.slope_k,
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **data)
-    return {k: data[k] for k in data}
+    return save_plan(path, [n.contacts for n in nodes], [n.q for n in nodes], [n.change for n in nodes], meta)
+
+
+def figure_data(path: Path) -> dict:
+    """The witnesses and changes of the saved plan at ``path``, with f_T (eq. 1) and s' of each witness
+    on the chair scenario's rough trajectory (its slope k as saved, else the default)."""
+    from services.contacts.plan_file import load_plan
+    from services.contacts.planner import build
+
+    saved = load_plan(path)
+    robot, problem = _problem(slope_k=saved.meta.get("slope_k"))
+    _gen, trajectory, _start, _pairs = build(robot, problem)
+    return {
+        "witnesses": saved.witnesses,
+        "changes": saved.changes,
+        "f": np.array([trajectory.value(q) for q in saved.witnesses]),
+        "s": np.array([trajectory.progress(q) for q in saved.witnesses]),
+    }
 
 
 def render_strip(data: dict, out: Path, panels: int) -> Path:
@@ -123,15 +145,18 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", type=float, default=300.0, help="search budget [s] (300)")
     parser.add_argument("--reuse", action="store_true", help="draw out/contacts_chair_plan.npz again")
+    parser.add_argument(
+        "--plan",
+        type=Path,
+        help="draw this saved plan (`humanoid scenario chair-egress --save-plan FILE`)",
+    )
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory (out)")
     parser.add_argument("--panels", type=int, default=8, help="witness postures in the strip (8)")
     args = parser.parse_args()
-    plan_path = args.out / "contacts_chair_plan.npz"
-    if args.reuse and plan_path.is_file():
-        loaded = np.load(plan_path)
-        data = {k: loaded[k] for k in loaded.files}
-    else:
-        data = compute_plan(args.budget, plan_path)
+    plan_path = args.plan or args.out / "contacts_chair_plan.npz"
+    if args.plan is None and not (args.reuse and plan_path.is_file()):
+        print("plan written to", compute_plan(args.budget, plan_path))
+    data = figure_data(plan_path)
     print("wrote", render_strip(data, args.out, args.panels))
     print("wrote", plot_potential(data, args.out))
     return 0

@@ -11,7 +11,10 @@ as the whole-body motion carries it (coloured by height); the bar's height over 
 (first whole-body solution) and after (key frames at the anticipating, colliding and regaining times,
 quintic interpolation, the reshaped whole-body motion); the bar's distance to the box before and after.
 
-    .venv/bin/python examples/navigation_plots.py            # writes both PNGs under out/
+``out/navigation_bar_rotation.png``: the same for the bar carried past a box and a pole, where lifting
+alone does not pass (the reshaping samples the bar's 6-D pose: it tilts and turns as well as lifts).
+
+    .venv/bin/python examples/navigation_plots.py [--out DIR]   # the three PNGs under out/ (or DIR)
 """
 
 from __future__ import annotations
@@ -132,19 +135,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--out", type=Path, default=REPO / "out" / "navigation_topview.png", help="PNG path")
     parser.add_argument(
-        "--bar-out", type=Path, default=REPO / "out" / "navigation_bar_reshaping.png", help="PNG of stage 2"
-    )
-    parser.add_argument(
-        "--rotation-out",
+        "--out",
         type=Path,
-        default=REPO / "out" / "navigation_bar_rotation.png",
-        help="PNG of stage 2 in the scenario where lifting alone does not pass (a pole beside the box)",
+        default=REPO / "out",
+        help="output directory, as the other examples (default out/); a path ending in .png is the top "
+        "view's file, the stage-2 figures beside it",
     )
     parser.add_argument("--robot", default="hrp2_like", help="body model (hrp2_like, talos)")
     parser.add_argument("--turning-radius", type=float, default=0.5, help="minimum turning radius [m]")
     args = parser.parse_args(argv)
+    png = args.out.suffix == ".png"
+    out_dir, topview = (args.out.parent, args.out) if png else (args.out, args.out / "navigation_topview.png")
     body = body_model(args.robot)
     config = PlannerConfig(turning_radius_m=args.turning_radius)
     fig, (ax_room, ax_bar) = plt.subplots(1, 2, figsize=(15, 7.5))
@@ -194,14 +196,15 @@ def main(argv: list[str] | None = None) -> int:
         for seg in sweep.segments
     )
     ax_bar.set_title(f"bar scenario, bar at {bar.height_m} m: {title or 'collision-free'}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
+    out_dir.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(args.out, dpi=110)
-    print(f"wrote {args.out}")
-    plot_bar_reshaping(args.robot, args.bar_out)
-    print(f"wrote {args.bar_out}")
-    plot_bar_reshaping(args.robot, args.rotation_out, bar_rotation_scenario, "bar past a box and a pole")
-    print(f"wrote {args.rotation_out}")
+    fig.savefig(topview, dpi=110)
+    print(f"wrote {topview}")
+    reshaping, rotation = out_dir / "navigation_bar_reshaping.png", out_dir / "navigation_bar_rotation.png"
+    plot_bar_reshaping(args.robot, reshaping)
+    print(f"wrote {reshaping}")
+    plot_bar_reshaping(args.robot, rotation, bar_rotation_scenario, "bar past a box and a pole")
+    print(f"wrote {rotation}")
     return 0
 
 

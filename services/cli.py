@@ -48,6 +48,17 @@ def _grouped_commands(subparsers: argparse._SubParsersAction) -> str:  # type: i
     return "\n\n".join(blocks)
 
 
+def _document_exit_codes(parser: argparse.ArgumentParser) -> None:
+    """Every subcommand's ``--help`` ends with the exit codes (issue 20), whichever package made it."""
+    for action in parser._actions:
+        if not isinstance(action, argparse._SubParsersAction):
+            continue
+        for sub in action.choices.values():
+            if EXIT_CODES_TEXT not in (sub.epilog or ""):
+                sub.epilog = f"{sub.epilog.rstrip()}\n{EXIT_CODES_TEXT}" if sub.epilog else EXIT_CODES_TEXT
+            _document_exit_codes(sub)
+
+
 def build_parser(command: str | None = None, *, grouped: bool = True) -> argparse.ArgumentParser:
     """The ``humanoid`` parser; with ``command``, modules after the one defining it are not imported
     (``humanoid status`` need not load OpenCV for another package's subcommands). ``grouped``: the
@@ -68,6 +79,7 @@ def build_parser(command: str | None = None, *, grouped: bool = True) -> argpars
         # (``scenario`` gathers sub-commands from several modules: all of them are imported)
         if command is not None and command in subparsers.choices and command != "scenario":
             break
+    _document_exit_codes(parser)
     if command is None and grouped:  # the full list: grouped instead of argparse's single list
         subparsers.help = argparse.SUPPRESS
         parser.usage = "humanoid [-h] COMMAND ..."

@@ -92,7 +92,7 @@ def add_cli(subparsers: Any) -> None:
     )
     p.add_argument("--script", help="another script to run instead of the fetch script")
     p.add_argument("--scene", default="ball_fetch", help="scene (a name in sim/scenes or a YAML path)")
-    p.add_argument("--seed", type=int, help="random layout seed (default: the nominal layout)")
+    p.add_argument("--seed", type=_seed, help="random layout seed (default: the nominal layout)")
     p.add_argument("--snapshot", default="out/fetch/final.png", help="PNG of the final scene ('' for none)")
     p.add_argument("--record", metavar="FILE", help="record every message to this MCAP file")
     p.add_argument(
@@ -103,6 +103,17 @@ def add_cli(subparsers: Any) -> None:
     p.add_argument("--connect", action="store_true", help="use the services of a running `humanoid up`")
     _bus_options(p)
     p.set_defaults(func=cmd_fetch)
+
+
+def _seed(text: str) -> int:
+    """A layout seed as ``sim/reset`` takes it (unsigned 32-bit), refused before any service starts."""
+    try:
+        seed = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if not 0 <= seed <= 2**32 - 1:
+        raise argparse.ArgumentTypeError(f"{seed} is not a seed: 0..4294967295")
+    return seed
 
 
 def _bus_options(parser: argparse.ArgumentParser) -> None:
@@ -118,7 +129,7 @@ def _bus_options(parser: argparse.ArgumentParser) -> None:
 def _scene_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("scene")
     group.add_argument("--scene", help="reset the sim to this scene first (default: keep the current one)")
-    group.add_argument("--seed", type=int, help="with --scene: random layout seed")
+    group.add_argument("--seed", type=_seed, help="with --scene: random layout seed")
     group.add_argument("--snapshot", help="save a PNG of the scene at the end")
 
 
@@ -212,7 +223,7 @@ def cmd_console(args: argparse.Namespace) -> int:
         refused = False
         for text in args.explain:
             understanding = listener.hear(text)
-            refused = understanding.refused
+            refused = refused or understanding.refused  # any line not understood (not only the last)
             print(understanding.explain())
         return 1 if refused else 0
     from supervisor.core import Supervisor

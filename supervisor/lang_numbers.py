@@ -79,6 +79,10 @@ ANGLE_UNITS = {
 TURN_WORDS = {"quarter": 90.0, "half": 180.0, "full": 360.0, "whole": 360.0, "complete": 360.0}
 #: One step of a relative walk [m] (a comfortable HRP-2 stride).
 STEP_M = 0.2
+#: "a few", "several" (steps, degrees, centimetres): about three.
+FEW = 3
+#: "twice", "thrice": a motion repeated (a step, or a turn of the default angle).
+_REPEATS = {"twice": 2, "thrice": 3}
 #: "a bit", "a little": a small walk [m] and a small turn [deg].
 SMALL_M = 0.1
 SMALL_DEG = 15.0
@@ -93,6 +97,10 @@ def words_to_digits(text: str) -> str:
     out: list[str] = []
     i = 0
     while i < len(words):
+        if words[i] in _REPEATS:  # "twice": "2 times"
+            out += [f"{_REPEATS[words[i]]}", "times"]
+            i += 1
+            continue
         if words[i] == "one" and not _counts(words, i):
             out.append("one")  # "the blue one", "that one": a pronoun, not a number
             i += 1
@@ -145,6 +153,8 @@ def _read_number(words: list[str], i: int) -> tuple[float, int]:
         return 2, 2
     if w == "dozen":
         return 12, 1
+    if (w in ("a", "an") and nxt == "few") or w == "several":  # "a few steps": about three
+        return FEW, 2 if w != "several" else 1
     total = 0.0
     used = 0
     if w in _TENS_WORDS or w in _UNITS_WORDS or re.fullmatch(_NUMBER, w):
@@ -184,6 +194,7 @@ class Quantity:
     steps: float | None = None
     small: bool = False
     text: str = ""
+    times: float | None = None  # "twice", "3 times": the motion said without an amount, repeated
 
     def length_m(self) -> float:
         """The distance to walk [m] (a step is :data:`STEP_M`, "a bit" :data:`SMALL_M`)."""
@@ -191,12 +202,13 @@ class Quantity:
             return self.metres
         if self.steps is not None:
             return self.steps * STEP_M
-        return SMALL_M if self.small else STEP_M
+        return (SMALL_M if self.small else STEP_M) * (self.times or 1.0)
 
     def angle_deg(self, default: float = 90.0) -> float:
+        """The angle to turn [deg] (``default`` when none was said: 90, or 180 for "around")."""
         if self.degrees is not None:
             return self.degrees
-        return SMALL_DEG if self.small else default
+        return (SMALL_DEG if self.small else default) * (self.times or 1.0)
 
 
 _QUANTITY = re.compile(
@@ -233,6 +245,8 @@ def take_quantity(text: str) -> tuple[Quantity | None, str]:
             return Quantity(steps=n, text=m.group(0)), _cut(text, m)
         if unit in ("turn", "turns", "revolution", "revolutions") and re.fullmatch(_NUMBER, raw):
             return Quantity(degrees=n * 360.0, text=m.group(0)), _cut(text, m)
+        if unit in ("time", "times") and re.fullmatch(_NUMBER, raw):
+            return Quantity(times=n, text=m.group(0)), _cut(text, m)
     m = re.search(rf"\b(?:by )?(?P<n>{_NUMBER})\b", text)
     if m:  # a bare number: its unit depends on the motion (degrees for a turn, metres for a walk)
         return Quantity(metres=float(m["n"]), degrees=float(m["n"]), text=m.group(0)), _cut(text, m)

@@ -121,6 +121,31 @@ def _parts(name: str) -> tuple[str, str]:
     return "", name
 
 
+def _typo_of(word: str, vocabulary: tuple[str, ...] | dict[str, str], *, changed_letter: bool = True) -> str:
+    """The word of ``vocabulary`` (of 4 letters or more) that ``word`` is a typing slip of: one letter
+    missing, added or swapped with its neighbour, or (``changed_letter``) one letter changed; or ""."""
+    if len(word) < 3:
+        return ""
+    for known in vocabulary:
+        if len(known) < 4 or edit_distance(word, known) != 1:
+            continue
+        if changed_letter or len(word) != len(known) or sorted(word) == sorted(known):
+            return known
+    return ""
+
+
+def edit_distance(a: str, b: str) -> int:
+    """Optimal string alignment distance (a swap of two neighbours counts 1): "tkae" -> "take" is 1."""
+    d = [[i + j if i * j == 0 else 0 for j in range(len(b) + 1)] for i in range(len(a) + 1)]
+    for i in range(1, len(a) + 1):
+        for j in range(1, len(b) + 1):
+            cost = a[i - 1] != b[j - 1]
+            d[i][j] = min(d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost)
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                d[i][j] = min(d[i][j], d[i - 2][j - 2] + 1)
+    return d[len(a)][len(b)]
+
+
 def resolve(phrase: str, known: list[str] | tuple[str, ...], referent: str | None = None) -> ObjectRef:
     """Resolve an object phrase against the known names; ``referent`` is what "it"/"that" means now."""
     text = " ".join(phrase.split())
@@ -131,6 +156,11 @@ def resolve(phrase: str, known: list[str] | tuple[str, ...], referent: str | Non
     if text.replace(" ", "_") in known:
         return ObjectRef(phrase, name=text.replace(" ", "_"))
     words = [w for w in text.replace("_", " ").split() if w not in DETERMINERS]
+    if "_".join(words) in known:  # "the red cup", "the coffee mug": a learned object's own name
+        return ObjectRef(phrase, name="_".join(words))
+    # the kinds of the known objects are words too ("cup" of red_cup; "mug" of coffee_mug), beyond the
+    # synonyms' table
+    known_kinds = {kind.rsplit("_", 1)[-1]: kind for kind in (_parts(k)[1] for k in known)}
     colour = ""
     kind = ""
     unknown: list[str] = []
@@ -139,9 +169,17 @@ def resolve(phrase: str, known: list[str] | tuple[str, ...], referent: str | Non
             colour = "grey" if w == "gray" else w
         elif w in KIND_SYNONYMS:
             kind = KIND_SYNONYMS[w]
+        elif w in known_kinds or (w.endswith("s") and w[:-1] in known_kinds):
+            kind = known_kinds[w if w in known_kinds else w[:-1]]
         elif w.endswith("ish") and w[:-3] in COLOURS:
             colour = w[:-3]
-        elif w not in IGNORED_ADJECTIVES:
+        elif w in IGNORED_ADJECTIVES:
+            continue
+        elif typo := _typo_of(w, COLOURS):  # "ornge": a typed colour one letter off
+            colour = "grey" if typo == "gray" else typo
+        elif typo := _typo_of(w, KIND_SYNONYMS, changed_letter=False):  # "bal", "tabel"; not "cable"
+            kind = KIND_SYNONYMS[typo]
+        else:
             unknown.append(w)
     if not colour and not kind:
         if unknown:
@@ -200,6 +238,7 @@ def answer(text: str, candidates: tuple[str, ...]) -> str | None:
     words = text.split()
     for w in words:
         if w in _ORDINALS:
-            return candidates[_ORDINALS[w]] if abs(_ORDINALS[w]) <= len(candidates) else None
+            index = _ORDINALS[w]
+            return candidates[index] if -len(candidates) <= index < len(candidates) else None
     ref = resolve(text, candidates)
     return ref.name or None

@@ -24,7 +24,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 from supervisor.lang_numbers import STEP_M, Quantity, take_quantity, words_to_digits
-from supervisor.lang_objects import ObjectRef, answer, question, resolve, spoken
+from supervisor.lang_objects import ObjectRef, answer, edit_distance, question, resolve, spoken
 from supervisor.script import ACTIONS, Signature, Step
 
 #: Verb phrases -> what they mean. Longer phrases are tried first.
@@ -176,6 +176,7 @@ VERBS: dict[str, str] = {
     "hold on": "stop",
     "stay": "stop",
     "help": "help",
+    "help me": "help",
     "what can you do": "help",
     "what do you understand": "help",
     "quit": "quit",
@@ -293,7 +294,7 @@ _CONTRACTIONS = {
 }
 _CLAUSE_SPLIT = re.compile(
     r"\s*[,;:]\s*|\s+(?:and then|and after that|and afterwards|after that|afterwards|then|and|"
-    r"and finally|finally|next|followed by)\s+"
+    r"and finally|finally|next(?!\s+to\b)|followed by)\s+"
 )
 _DIRECTIONS = {
     "left": "left",
@@ -363,7 +364,7 @@ class Intent:
         o, p = ("what I hold" if self.obj == HELD else spoken(self.obj)), spoken(self.place)
         return {
             "take": f"take the {o}",
-            "bring": f"bring the {o} to the {p}",
+            "bring": f"bring {o if self.obj == HELD else 'the ' + o} to the {p}",
             "go": f"go to the {o}",
             "put": f"put {o if self.obj == HELD else 'the ' + o} on the {p}",
             "release": f"release what the {self.hand} hand holds",
@@ -504,7 +505,7 @@ def _verb(clause: str) -> tuple[str, str, str]:
     base = _base_form(first)
     if base != first:
         return _verb(f"{base} {rest}".strip())
-    close = [v for v in VERBS if " " not in v and len(first) >= 4 and _edit_distance(first, v) <= 1]
+    close = [v for v in VERBS if " " not in v and len(first) >= 4 and edit_distance(first, v) <= 1]
     if close:
         suggestion = " ".join([close[0], rest]).strip()
         raise NotUnderstoodError(clause, f"'{first}' is no action I know. The closest I know: '{suggestion}'")
@@ -526,16 +527,10 @@ def _base_form(word: str) -> str:
     return word
 
 
-def _edit_distance(a: str, b: str) -> int:
-    """Optimal string alignment distance (a swap of two neighbours counts 1): "tkae" -> "take" is 1."""
-    d = [[i + j if i * j == 0 else 0 for j in range(len(b) + 1)] for i in range(len(a) + 1)]
-    for i in range(1, len(a) + 1):
-        for j in range(1, len(b) + 1):
-            cost = a[i - 1] != b[j - 1]
-            d[i][j] = min(d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost)
-            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
-                d[i][j] = min(d[i][j], d[i - 2][j - 2] + 1)
-    return d[len(a)][len(b)]
+def _is_amount(text: str) -> bool:
+    """Whether ``text`` is only an amount ("0.5 m", "a bit", "2 steps"), not a place."""
+    quantity, left = take_quantity(text)
+    return quantity is not None and not left.strip()
 
 
 def _take_hand(rest: str) -> tuple[str, str]:
@@ -735,8 +730,10 @@ class Listener:
         if kind == "put":
             return self._parse_put(verb, rest, clause, ctx, filled, hand)
         if kind == "release":
-            # what is released is whatever the hand holds: the object named does not change the step
-            return Intent("release", clause, hand=hand)
+            # what is released is whatever the hand holds: the object named does not change the step;
+            # the hand may be the object ("open the left hand", "release your right gripper")
+            side = re.search(r"\b(?P<h>left|right)\b(?: (?:hand|gripper|arm|one|side))?", rest)
+            return Intent("release", clause, hand=side["h"] if side else hand)
         if kind in ("look", "find"):
             rest = re.sub(r"^(?:at|for|around for|around|to|towards|toward)\b", "", rest).strip()
             rest = re.sub(
@@ -786,7 +783,10 @@ class Listener:
         rest = re.sub(r"\s+(?:on|from|off|in|at|near|beside|by)\s+.+$", "", rest)  # "the ball on the box"
         if goal and _RECIPIENT.fullmatch(goal):
             goal = ""
-        obj = self._object(rest, ctx.last, "obj", filled)
+        if goal and rest in ("it", "that", "this") and not (ctx.held or ctx.last):
+            obj = HELD  # "bring it to the table" in a new conversation: what the hand holds
+        else:
+            obj = self._object(rest, ctx.last, "obj", filled)
         if goal:
             place = self._object(goal, ctx.last_place, "place", filled)
             return Intent("bring", clause, obj=obj, place=place, hand=hand)
@@ -807,6 +807,8 @@ class Listener:
         ):  # "move the ball to the table"
             return self._parse_take("bring", rest, clause, ctx, filled, self.hand)
         m = None if sideways else _GOAL_PREP.match(rest)
+        if m and _is_amount(rest[m.end() :]):  # "move back by 0.5 m": an amount, not a place
+            m = None
         if m or (verb == "approach" and rest):
             goal = rest[m.end() :] if m else rest
             goal = re.sub(r"^(?:the )?(?:side of|front of)\s+", "", goal)
@@ -838,6 +840,8 @@ class Listener:
             obj_phrase, place_phrase = "", "there"
         if not (ctx.held or ctx.last) and (not obj_phrase or obj_phrase in ("it", "that", "this")):
             obj = HELD  # what the hand holds, as the runner bound it
+        elif ctx.held and ctx.held in resolve(obj_phrase, self.known).candidates:
+            obj = ctx.held  # "put the ball on the table" holding the orange ball: the one in the hand
         else:
             obj = self._object(obj_phrase, ctx.held or ctx.last, "obj", filled)
         if place_phrase == "there" or place_phrase.startswith("there "):
@@ -850,9 +854,10 @@ class Listener:
                     return Intent("put", clause, obj=obj, place=filled["place"], hand=hand)
                 return Intent("release", clause, hand=hand)
             places = tuple(k for k in self.known if any(k.endswith(p) for p in _PLACE_KINDS) and k != obj)
+            what = "it" if obj == HELD else f"the {spoken(obj)}"
             raise _AskError(
                 "place",
-                f"where should I put the {spoken(obj)}? ({', '.join('on the ' + spoken(p) for p in places)})",
+                f"where should I put {what}? ({', '.join('on the ' + spoken(p) for p in places)})",
                 places,
             )
         if place_phrase in ("itself", "it"):
@@ -864,8 +869,15 @@ class Listener:
         return Intent("put", clause, obj=obj, place=place, hand=hand)
 
     def _parse_turn(self, rest: str, clause: str, filled: Mapping[str, str]) -> Intent:
+        negative = re.search(r"(?:^|\s)-\s*(?=\d)", rest)  # "turn -45": the scripts' sign, right
+        if negative:
+            rest = (rest[: negative.start()] + " " + rest[negative.end() :]).strip()
         quantity, rest = take_quantity(rest)
         direction, rest = _take_direction(rest)
+        if negative:
+            if direction:
+                raise NotUnderstoodError(clause, "a negative angle and a direction: say one of them")
+            direction = "right"
         if re.search(r"\b(?:to|towards|toward|at)\s+(?:the|a)\s+\w+", rest):
             raise NotUnderstoodError(
                 clause,
@@ -919,7 +931,7 @@ class Listener:
         out = [intent]
         if intent.kind == "put" and intent.obj not in (ctx.held, HELD):
             out = [Intent("take", intent.clause, obj=intent.obj, hand=intent.hand), intent]
-        if intent.kind == "bring" and intent.obj == ctx.held:  # already in the hand: go and put it
+        if intent.kind == "bring" and intent.obj in (ctx.held, HELD):  # in the hand: go and put it
             out = [Intent("go", intent.clause, obj=intent.place), replace(intent, kind="put")]
         for i in out:
             if i.kind == "take":

@@ -280,6 +280,25 @@ PHRASINGS = [
     ),
     ("turn 360 degrees", "turn 360"),
     ("turn left 1 and a half turns", "turn 540"),
+    # session 11's audit: phrasings tried as a user would, refused or wrong before
+    ("go next to the yellow table", "localize yellow_table; goto yellow_table"),
+    ("move back by 0.5 m", "walk -0.5 0"),
+    ("go forward by 30 cm", "walk 0.3 0"),
+    ("take a few steps back", "walk -0.6 0"),
+    ("move several steps forward", "walk 0.6 0"),
+    ("step to the left twice", "walk 0 0.4"),
+    ("step back three times", "walk -0.6 0"),
+    ("turn left twice", "turn 180"),
+    ("open the left hand", "open left"),
+    ("open your left gripper", "open left"),
+    ("take the ornge ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("take the orange bal", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("go to the tabel", "localize yellow_table; goto yellow_table"),
+    ("turn -45 degrees", "turn -45"),  # the scripts' sign: negative is to the right
+    (
+        "bring it to the table",
+        "localize yellow_table; goto yellow_table; localize yellow_table; put held on=yellow_table",
+    ),
 ]
 
 
@@ -398,6 +417,53 @@ def test_it_and_that_follow_the_conversation():
     assert [s.text() for s in listener.hear("look at it").steps] == ["look_at green_box"]
 
 
+def test_an_answer_out_of_range_does_not_crash_the_console():
+    listener = Listener(KNOWN, actions=ACTIONS_PLUS)
+    assert listener.hear("take the ball").control == "ask"  # two balls known
+    understanding = listener.hear("the third one")
+    assert understanding.refused and understanding.steps == ()
+    assert not listener.asking
+
+
+def test_a_question_about_what_is_held_names_it_it():
+    assert (
+        Listener(KNOWN, actions=ACTIONS_PLUS).hear("put it down").say.startswith("where should I put it? (")
+    )
+
+
+def test_putting_the_ball_down_while_holding_one_puts_that_one():
+    listener = Listener(KNOWN, actions=ACTIONS_PLUS)
+    listener.hear("take the blue ball")
+    assert [s.text() for s in listener.hear("place the ball on the table").steps] == [
+        "localize yellow_table",
+        "put blue_ball on=yellow_table",
+    ]
+    assert listener.hear("take the ball").control == "ask"  # nothing held now: which ball?
+
+
+@pytest.mark.parametrize(
+    ("text", "steps"),
+    [
+        ("take the red cup", "localize red_cup; reach right red_cup; grasp right as held"),
+        ("grab the bottle", "localize bottle; reach right bottle; grasp right as held"),
+        ("take the mug", "localize coffee_mug; reach right coffee_mug; grasp right as held"),
+        ("put the blue cup on the table", "localize blue_cup; reach right blue_cup; grasp right as held; "
+         "localize yellow_table; put blue_cup on=yellow_table"),
+    ],
+)  # fmt: skip
+def test_objects_of_kinds_the_grammar_was_not_written_for(text: str, steps: str):
+    """Perception may learn any object ("red_cup", "bottle", "coffee_mug"): its name's words are words
+    of the grammar (they were refused: "I don't know a red cup", "did you mean the bottle?")."""
+    known = ["red_cup", "blue_cup", "bottle", "coffee_mug", "yellow_table"]
+    understanding = Listener(known, actions=ACTIONS_PLUS).hear(text)
+    assert "; ".join(step.text() for step in understanding.steps) == steps, understanding.say
+    assert Listener(known).hear("take the cup").say == "which cup: the red one or the blue one?"
+
+
+def test_help_me_is_help():
+    assert Listener(KNOWN, actions=ACTIONS_PLUS).hear("help me").control == "help"
+
+
 def test_put_it_with_nothing_known_refers_to_the_grasp_binding():
     assert [s.text() for s in Listener(KNOWN).hear("put it on the table").steps] == [
         "localize yellow_table",
@@ -415,6 +481,7 @@ def test_put_it_with_nothing_known_refers_to_the_grasp_binding():
         ("tkae the orange ball", "", "The closest I know: 'take the orange ball'"),
         ("put the orange ball on itself", "", "on itself"),
         ("go", "", "go where?"),
+        ("take the cable", "", "I don't know 'cable'"),  # one letter off 'table', but not a typing slip
     ],
 )
 def test_a_refusal_says_what_it_understood_and_what_it_can_do(text: str, understood: str, reason: str):
@@ -525,3 +592,11 @@ def test_console_explain_subprocess():
         cwd=REPO,
     )
     assert refused.returncode == 1 and "refused: I did not understand 'dance'" in refused.stdout
+
+
+def test_console_explain_exit_code_counts_every_line(capsys: pytest.CaptureFixture[str]):
+    from services.cli import main
+
+    code = main(["console", "--objects", ",".join(KNOWN), "--explain", "dance", "--explain", "turn left"])
+    assert code == 1  # the first line was refused, the last understood
+    assert "refused: I did not understand 'dance'" in capsys.readouterr().out

@@ -253,6 +253,32 @@ def test_the_search_stops_at_its_cpu_budget(chair):
     assert 0.5 <= result.plan_cpu_s < 30.0 and result.nodes_generated >= 1
 
 
+def test_a_search_stopped_before_its_first_expansion_reports_the_start(chair):
+    """max_nodes 1 (a valid request: 1..100000) stopped the search before the root was expanded: a
+    ValueError (min of no node) came out of contacts/plan as ``internal``; the start is the best set."""
+    robot, env, gen, q0, start = chair
+    T = RoughTrajectory(gen.model, chair_egress.key_postures(robot, env, q0))
+    planner = ContactPlanner(
+        gen, T, Goal("y", 0.6, chair_egress.FINAL_PAIRS), chair_egress.PAIRS, SearchConfig(max_nodes=1)
+    )
+    result = planner.plan(start, q0)
+    assert result.status == "max_nodes" and result.nodes_expanded == 0
+    assert [n.change for n in result.path] == ["start"]
+
+
+def test_the_chair_scenario_refuses_bad_options_before_planning(capsys: pytest.CaptureFixture[str]):
+    from services.cli import main
+
+    for options, said in (
+        (["--budget", "-5"], "--budget -5"),
+        (["--max-nodes", "0"], "--max-nodes 0"),
+        (["--n", "0"], "--n 0"),
+        (["--plan", "no/such/plan.npz"], "no such file"),
+    ):
+        assert main(["scenario", "chair-egress", *options]) == 2
+        assert said in capsys.readouterr().err
+
+
 # ------------------------------------------------------------------------------------------ f_T
 def test_potential_is_smooth_descends_along_t_and_rounds_corners(chair):
     robot, _env, gen, q0, _ = chair

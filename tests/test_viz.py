@@ -315,6 +315,81 @@ def test_a_recorded_log_is_served_to_foxglove(tmp_path):
     assert xs == [round(0.01 * i, 3) for i in range(20)]
 
 
+def test_a_log_served_to_foxglove_from_a_start_time_and_left_by_its_viewer(tmp_path, capfd, caplog):
+    """``humanoid replay FILE --foxglove --start S --topics GLOB``: only what the bus replay would
+    play; a viewer that unsubscribes and leaves raises nothing in the server's callbacks."""
+    import threading
+
+    from services.bus.mcaplog import LogWriter
+    from services.bus.replay import key_filter
+    from services.viz.player import serve_log
+    from services.viz.wsclient import FoxgloveClient
+    from tests.conftest import free_port
+
+    robot = load_robot("hrp2_like")
+    path = tmp_path / "log.mcap"
+    writer = LogWriter(path, views=Converter().views)
+    t = time.time_ns()
+    for i in range(20):
+        q = robot.q_half_sitting.copy()
+        q[0] = 0.01 * i
+        frame = encode(sim_msg.JointState(sim_time_s=0.005 * i, q=q, v=np.zeros(robot.nv)))
+        writer.write("hrp/hrp2/sim/joint_state", frame, t + i * 50_000_000)
+        writer.write("hrp/hrp2/sim/heartbeat", b"{}", t + i * 50_000_000)
+    writer.close()
+    port = free_port()
+    ready = threading.Event()
+    player = threading.Thread(
+        target=serve_log,
+        args=(str(path),),
+        kwargs={
+            "port": port,
+            "speed": 4.0,
+            "on_ready": lambda _p: ready.set(),
+            "wait_for_viewer_s": 10.0,
+            "start_s": 0.5,
+            "accept": key_filter(["/tf", "hrp/*/sim/*"]),
+        },
+    )
+    player.start()
+    try:
+        assert ready.wait(10.0)
+        with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
+            assert client.wait_for_topics([c.TF, "hrp/hrp2/sim/joint_state"])
+            assert c.ROBOT not in client.topics() and "hrp/hrp2/sim/heartbeat" not in client.topics()
+            client.subscribe([c.TF])
+            FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_bytes())
+            xs = []
+            while len(xs) < 10:
+                got = client.receive(5.0)
+                assert got is not None
+                transforms = FrameTransforms.FromString(got.data).transforms
+                xs.append(
+                    round(next(tf for tf in transforms if tf.parent_frame_id == "world").translation.x, 3)
+                )
+    finally:
+        player.join(timeout=20)
+    assert xs == [round(0.01 * i, 3) for i in range(10, 20)]
+    assert "Callback failed" not in capfd.readouterr().err + caplog.text
+
+
+def test_a_port_in_use_is_a_typed_error_naming_it():
+    """A second `humanoid view` (or `up --foxglove`) on a taken port: InvalidRequestError, not a traceback."""
+    import socket
+
+    from services.errors import InvalidRequestError
+    from services.viz.common import start_ws_server
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(
+            InvalidRequestError, match=f"127.0.0.1:{port}.*another server holds the port: choose another"
+        ):
+            start_ws_server(name="test", host="127.0.0.1", port=port)
+
+
 def _schema_bytes() -> bytes:
     from foxglove.messages import FrameTransforms
 

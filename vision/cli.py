@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from services.cli_common import examples
 from services.errors import HumanoidError, InvalidRequestError, NotFoundError
 from vision.backproject import back_project
 from vision.camshift import DetectionConfig, check_unambiguous, detect_all
@@ -126,11 +127,23 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     return 0
 
 
+EXAMPLES = examples(
+    "humanoid perception learn-sim                      # the demo objects' models from sim renders",
+    "humanoid perception learn orange_ball --from ball.png --mask ball_mask.png --shape sphere",
+    "humanoid perception detect orange_ball --image view.png --out out/detect.png",
+)
+
+
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Register the ``perception`` command group (``learn``, ``detect``, ``learn-sim``) on ``subparsers``."""
     group = subparsers.add_parser(
-        "perception", help="learn object colour models, test detection", description=__doc__.split("\n")[0]
+        "perception",
+        help="learn object colour models, test detection",
+        description=__doc__.split("\n")[0],
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    raw = {"epilog": EXAMPLES, "formatter_class": argparse.RawDescriptionHelpFormatter}
     sub = group.add_subparsers(dest="perception_command", required=True, metavar="COMMAND")
 
     p = sub.add_parser(
@@ -138,6 +151,7 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
         help="learn an object's Hue-Saturation histogram from sample image(s)",
         description="Learn a named object's 2D Hue-Saturation histogram from sample images and the object's "
         "pixels (a mask per image, or one rectangle), and save it as <models-dir>/<NAME>.json.",
+        **raw,
     )
     p.add_argument("name", metavar="NAME", help="object name, e.g. orange_ball (lower-case, digits, _ or -)")
     p.add_argument(
@@ -171,6 +185,7 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
         description="Back-project NAME's model onto IMAGE, run CamShift from its blobs and print the "
         "detection; "
         "--out writes the image and its back projection with the CamShift box.",
+        **raw,
     )
     p.add_argument("name", metavar="NAME", help="a learned object name")
     p.add_argument("--image", required=True, help="image file")
@@ -187,6 +202,7 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
         help="learn the demo objects from sim renders and their segmentation masks",
         description=learn_from_sim.__doc__.split("\n")[0]
         + " Writes <models-dir>/<NAME>.json for each object and checks detection on the views.",
+        **raw,
     )
     learn_from_sim.add_arguments(p)
     p.set_defaults(func=learn_from_sim.run_cli)

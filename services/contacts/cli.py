@@ -118,6 +118,21 @@ def _closed_loop(
     return run.outcome, run.message
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """Bad options refused before the minutes of planning (InvalidRequestError, exit code 2): the
+    limits of the ``contacts/plan`` and ``contacts/transition`` requests (services/contacts/README.md)."""
+    from services.errors import InvalidRequestError
+
+    if not 0 < args.budget <= 600:
+        raise InvalidRequestError(f"--budget {args.budget:g}: the search budget must be in (0, 600] s")
+    if not 1 <= args.max_nodes <= 100_000:
+        raise InvalidRequestError(f"--max-nodes {args.max_nodes}: must be in 1..100000")
+    if not 2 <= args.n <= 100:
+        raise InvalidRequestError(f"--n {args.n}: posture generations per transition must be in 2..100")
+    if args.plan is not None and not args.plan.is_file():
+        raise InvalidRequestError(f"--plan {args.plan}: no such file (write one with --save-plan FILE)")
+
+
 def cmd_scenario(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -130,6 +145,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
     from sim.scene import layout, load_scene
     from sim.world import World, start_configuration
 
+    check_arguments(args)
     robot = load_robot("hrp2_like")
     q0 = start_configuration(robot, layout(load_scene("chair_egress")))
 
@@ -179,6 +195,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
                 "nodes_generated": s.nodes_generated,
                 "nodes_expanded": s.nodes_expanded,
                 "plan_s": s.plan_s,
+                "slope_k": problem.slope_k,
             }
             print(
                 "plan written to",

@@ -374,7 +374,9 @@ class ContactPlanner:
                 self._advance(stream)
             self._removal_sons(node)
             self._addition_sons(node)
-        expanded_nodes = [n for n in self.nodes if n.expanded]
+        # the best set reached; the root when the budget or max_nodes ended the search before its
+        # first expansion (a budget spent by the root's own posture generation, max_nodes 1)
+        expanded_nodes = [n for n in self.nodes if n.expanded] or [root]
         best = goal_node or min(expanded_nodes, key=lambda n: n.f)
         return SearchResult(
             status,

@@ -7,6 +7,8 @@ import argparse
 import json
 from pathlib import Path
 
+from services.cli_common import examples
+
 SCENARIO_COMMANDS = {
     "footsteps-reach": (
         "reach",
@@ -26,6 +28,12 @@ def scenario_subparsers(subparsers: argparse._SubParsersAction) -> argparse._Sub
             "scenario",
             help="run a named demonstration scenario",
             description="Run a named demonstration scenario; `humanoid scenario NAME --help` documents each.",
+            epilog=examples(
+                "humanoid scenario footsteps-reach       # the footstep paper's section 4.1; figures: out/",
+                "humanoid scenario footsteps-posture --json",
+                "humanoid scenario chair-egress                  # contact planning out of a chair",
+            ),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         parser.set_defaults(func=lambda _args: parser.print_help() or 2)
         parser._humanoid_scenarios = parser.add_subparsers(dest="scenario", metavar="SCENARIO")  # type: ignore[attr-defined]
@@ -41,6 +49,12 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
             help=help_text,
             description=f"Footstep planning as inverse kinematics: {help_text}. Prints the footsteps, the "
             "solve time beside the paper's, and writes the chain states and task values figures.",
+            epilog=examples(
+                f"humanoid scenario {command}                 # figures in out/",
+                f"humanoid scenario {command} --no-figures --json",
+                f"humanoid scenario {command} --robot talos --out out/talos",
+            ),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         p.add_argument("--robot", default="hrp2_like", help="robot model (default: hrp2_like)")
         p.add_argument(

@@ -10,14 +10,23 @@ from typing import Any
 
 import numpy as np
 
+from services.cli_common import examples
+
+EXAMPLES = examples(
+    "humanoid ik reach                               # 0.35 m ahead of the chest, 0.1 m below it",
+    "humanoid ik reach --robot talos --target 0.4 -0.2 1.0 --plot out/ik_reach.png",
+)
+
 
 def add_cli(subparsers: Any) -> None:
     """Register ``humanoid ik reach``."""
-    parser = subparsers.add_parser("ik", help="prioritized inverse kinematics (hierarchical QP)")
+    raw = {"epilog": EXAMPLES, "formatter_class": argparse.RawDescriptionHelpFormatter}
+    parser = subparsers.add_parser("ik", help="prioritized inverse kinematics (hierarchical QP)", **raw)
     sub = parser.add_subparsers(dest="ik_command", metavar="ACTION", required=True)
     reach = sub.add_parser(
         "reach",
         help="feet fixed > CoM in the support polygon > right hand on a point > gaze at it > rest posture",
+        **raw,
     )
     reach.add_argument("--robot", default="hrp2_like", help="hrp2_like (default) or talos")
     reach.add_argument(

@@ -10,22 +10,36 @@ from typing import Any
 
 import numpy as np
 
+from services.cli_common import examples
+
+EXAMPLES = examples(
+    "humanoid model info --robot talos          # joints, limits, frames, cameras, parameters",
+    "humanoid model urdf --check                # exit 1 if the committed URDF is stale",
+    "humanoid model stand --robot hrp2_like --seconds 10",
+)
+
 
 def add_cli(subparsers: Any) -> None:
     """Register ``humanoid model info|urdf|stand``."""
-    parser = subparsers.add_parser("model", help="robot models: info, URDF generation, standing check")
+    parser = subparsers.add_parser(
+        "model",
+        help="robot models: info, URDF generation, standing check",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="model_command", metavar="ACTION", required=True)
 
-    info = sub.add_parser("info", help="joints, limits, frames, half-sitting, cameras and parameters")
+    raw = {"epilog": EXAMPLES, "formatter_class": argparse.RawDescriptionHelpFormatter}
+    info = sub.add_parser("info", help="joints, limits, frames, half-sitting, cameras and parameters", **raw)
     info.add_argument("--robot", default="hrp2_like", help="hrp2_like (default) or talos")
     info.set_defaults(func=_info)
 
-    urdf = sub.add_parser("urdf", help="regenerate services/model/data/hrp2_like.urdf (or --check it)")
+    urdf = sub.add_parser("urdf", help="regenerate services/model/data/hrp2_like.urdf (or --check it)", **raw)
     urdf.add_argument("--check", action="store_true", help="exit 1 if the committed URDF is stale")
     urdf.set_defaults(func=_urdf)
 
     stand = sub.add_parser(
-        "stand", help="stand in half-sitting in pybullet (DIRECT); report tilt, slip, steps/s"
+        "stand", help="stand in half-sitting in pybullet (DIRECT); report tilt, slip, steps/s", **raw
     )
     stand.add_argument("--robot", default="hrp2_like", help="hrp2_like (default) or talos")
     stand.add_argument("--seconds", type=float, default=10.0, help="simulated time [s] (default 10)")

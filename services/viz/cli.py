@@ -6,6 +6,8 @@ import argparse
 import sys
 from typing import Any
 
+from services.cli_common import examples
+
 
 def add_cli(subparsers: Any) -> None:
     p = subparsers.add_parser(
@@ -16,6 +18,11 @@ def add_cli(subparsers: Any) -> None:
         "Foxglove's WebSocket protocol. In Foxglove: Open connection, Foxglove WebSocket, "
         "ws://127.0.0.1:PORT; load services/viz/layout.json for the panels. `humanoid up --foxglove` "
         "starts the same service with the stack.",
+        epilog=examples(
+            "humanoid view                                  # beside `humanoid up`: ws://127.0.0.1:8765",
+            "humanoid view --port 8766 --duration 600       # another port, for ten minutes",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--port", type=int, help="WebSocket port (8765; 0: any free port)")
     p.add_argument("--host", help="address to listen on (127.0.0.1)")

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from foxglove.messages import Color, Point3, Timestamp
+
+from services.errors import InvalidRequestError
 
 #: The fixed frame of the 3D panel (z up, the sim's world frame).
 WORLD = "world"
@@ -52,3 +56,26 @@ COM_COLOR = color(0.1, 0.8, 0.2)
 ZMP_COLOR = color(0.95, 0.75, 0.1)
 PATH_COLOR = color(0.1, 0.9, 0.9)
 MAP_COLOR = color(0.9, 0.3, 0.9, 0.35)
+
+
+def start_ws_server(**kwargs: Any) -> Any:
+    """``foxglove.start_server(**kwargs)``; a port already taken (another viewer server, a second
+    ``humanoid view``) is an InvalidRequestError naming the port and how to choose another, not a
+    traceback (nor, under ``humanoid up --foxglove``, a viz service dying at every restart)."""
+    import foxglove
+
+    try:
+        return foxglove.start_server(**kwargs)
+    except RuntimeError as exc:
+        if "bind" not in str(exc).lower():
+            raise
+        where = f"{kwargs.get('host', '127.0.0.1')}:{kwargs.get('port', 8765)}"
+        why = (
+            "another server holds the port: choose another (humanoid view --port P, humanoid up "
+            "--foxglove P, humanoid replay FILE --foxglove P)"
+            if "in use" in str(exc).lower()
+            else "this host has no such address (--host: 127.0.0.1, or one of this machine's addresses)"
+        )
+        raise InvalidRequestError(
+            f"cannot serve Foxglove on {where}: {exc}; {why}", {"field": "port"}
+        ) from exc

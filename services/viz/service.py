@@ -33,9 +33,11 @@ from typing import Any
 
 import foxglove
 import zenoh
+from foxglove.websocket import ServerListener
 
 from services.bus import keys
 from services.bus.config import from_mapping
+from services.bus.schemas import sim as sim_msg
 from services.bus.service import Service, run_service
 from services.errors import InvalidRequestError
 from services.viz import common as c
@@ -73,8 +75,9 @@ class VizConfig:
             )
 
 
-class _Listener:
-    """Counts subscriptions per topic (SDK thread: only touches a counter and a queue)."""
+class _Listener(ServerListener):
+    """Counts subscriptions per topic (SDK thread: only touches a counter and a queue); the SDK's
+    other callbacks keep their no-op defaults."""
 
     def __init__(self, resend: queue.Queue[Any]) -> None:
         self.lock = threading.Lock()
@@ -132,7 +135,7 @@ class VizService(Service):
         self._done = threading.Event()
         for topic, msg in _static_topics():
             self._channel(topic, msg)
-        self.server = foxglove.start_server(
+        self.server = c.start_ws_server(
             name=f"humanoid {self.bus.robot}",
             host=cfg.host,
             port=cfg.port,
@@ -209,7 +212,7 @@ class VizService(Service):
         return channel
 
     def _poll_world(self) -> None:
-        key = keys.key(self.bus.robot, "sim", "ground_truth")
+        key = keys.key(self.bus.robot, sim_msg.GROUND_TRUTH.service, sim_msg.GROUND_TRUTH.name)
         period = self.config.world_poll_s
         while not self._done.wait(period):
             if not self._listener.watched(c.WORLD_OBJECTS):
