@@ -102,7 +102,8 @@ class Stabilizer:
     ) -> np.ndarray:
         """The offsets [rad] of the commanded joints for the next control period (:attr:`offsets`).
 
-        ``data``: the model's data (its placements are recomputed at ``q_measured``);
+        ``data``: the model's data, its joint placements at ``q_measured`` (``forwardKinematics``
+        done, as :class:`sim.world._Monitor` does every period);
         ``omega_measured``: the base's angular velocity (world) [rad/s]; ``q_planned_prev`` /
         ``q_planned``: the last two planned samples, ``dt_s`` apart [s]; ``sole_forces``: each sole's
         vertical floor force [N]."""
@@ -124,9 +125,7 @@ class Stabilizer:
             pin.computeJointJacobians(model, data, q_measured)
             for side in SIDES:
                 J = pin.getFrameJacobian(model, data, self._sole_fids[side], pin.LOCAL_WORLD_ALIGNED)
-                self._inverse[side] = np.linalg.pinv(J[:, self._legs[side][1]])
-        else:
-            pin.forwardKinematics(model, data, q_measured)
+                self._inverse[side] = np.linalg.pinv(J[:, self._legs[side][1]])  # 6 x n_leg
         self._periods += 1
         centres = {
             side: pin.updateFramePlacement(model, data, self._sole_fids[side]).translation.tolist()
