@@ -38,8 +38,9 @@ class SupervisorConfig:
         walk_double_support_s: double support between the steps of a walk, 0.1 s (Kajita's HRP-2)
             since session 11, with the sim's stabilizer (``sim/stabilizer.py``, as the real robot's):
             0 falls in a fall study of 100 fetch-like walks at 0.7 / 0.1 s (services/walking/README.md);
-            0.2 s before. Open loop, 0.1 s passed session 9's fall study (``scripts/walk_timing_study.py``: 0 falls in 25 fetch-like
-            walks at 0.7 / 0.1 s) but not the fetch: seeds 16 and 43 fell (tilt 28.7-28.9 deg, at
+            0.2 s before. Open loop, 0.1 s passed session 9's fall study
+            (``scripts/walk_timing_study.py``: 0 falls in 25 fetch-like walks at 0.7 / 0.1 s) but not
+            the fetch: seeds 16 and 43 fell (tilt 28.7-28.9 deg, at
             the end of a 24-step straight walk and early in a 21-step one), seed 16 deterministically,
             and at 0.2 s seed 16 succeeds (session 9's notes); 0.3 s before session 8. The cause
             (session 10, services/walking/README.md): touchdowns 30-90 ms off their planned time eat the
