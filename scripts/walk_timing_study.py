@@ -12,14 +12,18 @@ out), then plans from the state the sim reports, as the supervisor does:
 - ``back``: 0.3-0.45 m straight back (the step back before that turn);
 - ``near``: navigation's walk to a goal 0.6-1.4 m away, up to 60 deg to the side and turned by up to
   45 deg (the walk to the box or the table after the approach: walked straight, sideways and turning,
-  or facing the way: turning toward it, walking, turning there).
+  or facing the way: turning toward it, walking, turning there);
+- ``side``: 0.2-0.5 m straight to the left or right (``walking/goal``'s ``walk_to_steps``: side steps,
+  the kind that rocks the robot most with the turns on the spot).
 
-and executes it (``World.execute``). Per setting: walks planned, refused by the planner, fallen,
+and executes it (``World.execute``), with the sim's stabilizer (``sim/stabilizer.py``) when the setting
+ends in ``/s`` (e.g. ``0.7/0.1/s``). Per setting: walks planned, refused by the planner, fallen,
 completed; the smallest planned multibody ZMP margin; the fastest knee (LEG_JOINT3) of the executed
-plan over its 4.0 rad/s limit; the walk's duration. JSON lines to ``--out`` as it goes (resumable
-reading), a table at the end.
+plan over its 4.0 rad/s limit; the walk's duration; the largest base roll and pitch measured during
+the walk and the 0.5 s after it (the rocking). JSON lines to ``--out`` as it goes (resumable reading),
+a table at the end.
 
-Usage: .venv/bin/python scripts/walk_timing_study.py [--n 12] [--start I] [--settings 0.7/0.2,0.7/0.1,...]
+Usage: .venv/bin/python scripts/walk_timing_study.py [--n 12] [--start I] [--settings 0.7/0.2,0.7/0.1/s,...]
 [--out F] [--summarize]
 """
 
@@ -46,15 +50,18 @@ from services.navigation.goto import GotoOptions, plan_goto, start_pose  # noqa:
 from services.navigation.stage2 import Stage2Options  # noqa: E402
 from services.reaching import ReachRequest, plan_reach  # noqa: E402
 from services.walking.footsteps import FootstepBounds, straight_walk, turn_in_place  # noqa: E402
+from services.walking.goals import soles_on, walk_to_steps  # noqa: E402
 from services.walking.timing import WalkTiming  # noqa: E402
 from services.walking.wholebody import plan_walk  # noqa: E402
+from sim.config import SimConfig  # noqa: E402
+from sim.stabilizer import roll_pitch  # noqa: E402
 from sim.world import World  # noqa: E402
 from supervisor.config import SupervisorConfig  # noqa: E402
 
 _FORWARD_M, _SIDE_M, _HEIGHT_M = SupervisorConfig().carry_m
 CARRY_M = (_FORWARD_M, -_SIDE_M, _HEIGHT_M)  # the supervisor's carry point, right hand (lateral to the right)
 KNEES = ("LLEG_JOINT3", "RLEG_JOINT3")
-KINDS = ("goto", "turn", "back", "near")
+KINDS = ("goto", "turn", "back", "near", "side")
 
 
 def _carry(world: World) -> None:
@@ -109,6 +116,8 @@ def _plan(
             right_start=right,
             limits=limits,
         )
+    elif kind == "side":
+        seq = walk_to_steps(soles_on(robot, q), 0.0, rng_values["side"], 0.0, limits)
     else:
         n = max(2, round(rng_values["back"] / 0.1))
         seq = straight_walk(n, -rng_values["back"] / n, left_start=left, right_start=right, limits=limits)
@@ -127,14 +136,35 @@ def _knee_ratio(robot, q: np.ndarray, dt_s: float = 0.005) -> float:
     return worst
 
 
+class _Rocking:
+    """``World.on_tick`` hook: the largest base roll and pitch [deg] (base frame, from the measured q)."""
+
+    def __init__(self) -> None:
+        self.roll_deg = 0.0
+        self.pitch_deg = 0.0
+
+    def __call__(self, world: World) -> None:
+        roll, pitch = roll_pitch(world.pyrobot.read_q())
+        self.roll_deg = max(self.roll_deg, abs(math.degrees(roll)))
+        self.pitch_deg = max(self.pitch_deg, abs(math.degrees(pitch)))
+
+
 def run_one(
-    index: int, kind: str, carrying: bool, values: dict[str, float], setting: tuple[float, float]
+    index: int, kind: str, carrying: bool, values: dict[str, float], setting: tuple[float, float, bool]
 ) -> dict:
-    ss, ds = setting
+    ss, ds, stab = setting
     timing = WalkTiming(single_support_s=ss, double_support_s=ds)
-    row: dict = {"index": index, "kind": kind, "carrying": carrying, "ss": ss, "ds": ds, **values}
+    row: dict = {
+        "index": index,
+        "kind": kind,
+        "carrying": carrying,
+        "ss": ss,
+        "ds": ds,
+        "stab": stab,
+        **values,
+    }
     t0 = time.perf_counter()
-    with World("hrp2_like", "empty") as world:
+    with World("hrp2_like", "empty", config=SimConfig(stabilizer=stab)) as world:
         if carrying:
             _carry(world)
         try:
@@ -145,8 +175,13 @@ def run_one(
         row["zmp_margin_mm"] = 1e3 * margin
         row["knee_ratio"] = _knee_ratio(world.robot, q)
         row["duration_s"] = (q.shape[0] - 1) * 0.005
+        rocking = _Rocking()
+        world.on_tick = rocking
+        cpu0 = time.process_time()
         out = world.execute(q, hold_s=0.5)
+        row["exec_cpu_s"] = time.process_time() - cpu0
         row.update(outcome=out.outcome, message=out.message[:200], slip_mm=1e3 * out.foot_slip_m)
+        row.update(max_roll_deg=rocking.roll_deg, max_pitch_deg=rocking.pitch_deg)
     row["wall_s"] = time.perf_counter() - t0
     return row
 
@@ -164,6 +199,7 @@ def walks(n: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[tuple[int, 
             "heading": float(rng.uniform(-math.pi, math.pi)),
             "angle": float(rng.choice([-1, 1]) * rng.uniform(math.radians(60), math.pi)),
             "back": float(rng.uniform(0.3, 0.45)),
+            "side": float(rng.choice([-1, 1]) * rng.uniform(0.2, 0.5)),
         }
         if kind == "near":
             values.update(
@@ -176,6 +212,7 @@ def walks(n: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[tuple[int, 
             "near": ("d", "bearing", "heading"),
             "turn": ("angle",),
             "back": ("back",),
+            "side": ("side",),
         }[kind]
         out.append((i, kind, carrying, {k: values[k] for k in keep}))
     return out
@@ -184,24 +221,42 @@ def walks(n: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[tuple[int, 
 def table(rows: list[dict]) -> str:
     lines = [
         "| single / double support [s] | walks | refused | fell | completed | min ZMP margin [mm] "
-        "| knee > limit (walks) | max knee / limit | median duration [s] |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| knee > limit (walks) | max knee / limit | median duration [s] | max roll / pitch [deg] "
+        "| median roll / pitch [deg] |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
-    settings = sorted({(r["ss"], r["ds"]) for r in rows}, reverse=True)
-    for ss, ds in settings:
-        rs = [r for r in rows if (r["ss"], r["ds"]) == (ss, ds)]
+    settings = sorted({(r["ss"], r["ds"], r.get("stab", False)) for r in rows}, reverse=True)
+    for ss, ds, stab in settings:
+        rs = [r for r in rows if (r["ss"], r["ds"], r.get("stab", False)) == (ss, ds, stab)]
+        name = f"{ss} / {ds}{' stabilized' if stab else ''}"
         planned = [r for r in rs if r["outcome"] != "refused"]
         margins = [r["zmp_margin_mm"] for r in planned]
         knees = [r["knee_ratio"] for r in planned]
+        rolls = [r["max_roll_deg"] for r in planned if "max_roll_deg" in r]
+        pitches = [r["max_pitch_deg"] for r in planned if "max_pitch_deg" in r]
+        rocking = (
+            f"{max(rolls):.2f} / {max(pitches):.2f} | {float(np.median(rolls)):.2f} / "
+            f"{float(np.median(pitches)):.2f}"
+            if rolls
+            else "- | -"
+        )
         lines.append(
-            f"| {ss} / {ds} | {len(rs)} | {len(rs) - len(planned)} "
+            f"| {name} | {len(rs)} | {len(rs) - len(planned)} "
             f"| {sum(r['outcome'] == 'fell' for r in rs)} | {sum(r['outcome'] == 'completed' for r in rs)} "
             f"| {min(margins):.1f} | {sum(k > 1.0 for k in knees)} | {max(knees):.2f} "
-            f"| {float(np.median([r['duration_s'] for r in planned])):.1f} |"
+            f"| {float(np.median([r['duration_s'] for r in planned])):.1f} | {rocking} |"
             if planned
-            else f"| {ss} / {ds} | {len(rs)} | {len(rs)} | - | - | - | - | - | - |"
+            else f"| {name} | {len(rs)} | {len(rs)} | - | - | - | - | - | - | - | - |"
         )
     return "\n".join(lines)
+
+
+def _setting(text: str) -> tuple[float, float, bool]:
+    """``ss/ds`` or ``ss/ds/s`` (the stabilizer on) -> (single, double support [s], stabilizer)."""
+    parts = text.split("/")
+    if len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] != "s"):
+        raise SystemExit(f"a setting is ss/ds or ss/ds/s, got {text!r}")
+    return float(parts[0]), float(parts[1]), len(parts) == 3
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -210,18 +265,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--kinds", default=",".join(KINDS), help="walk kinds in turn")
     parser.add_argument("--start", type=int, default=0, help="first walk index (resume a run)")
-    parser.add_argument("--settings", default="0.7/0.2,0.7/0.1,0.6/0.2,0.6/0.1", help="ss/ds pairs [s]")
+    parser.add_argument(
+        "--settings", default="0.7/0.2,0.7/0.1,0.7/0.1/s", help="ss/ds [s], /s: with the sim's stabilizer"
+    )
     parser.add_argument("--out", default="/tmp/walk_timing_study.jsonl")
     parser.add_argument("--summarize", action="store_true", help="only print the table of --out")
     args = parser.parse_args(argv)
     out = Path(args.out)
     if not args.summarize:
-        settings = [tuple(float(v) for v in s.split("/")) for s in args.settings.split(",")]
+        settings = [_setting(s) for s in args.settings.split(",")]
         with out.open("a") as f:
             kinds = tuple(args.kinds.split(","))
             for index, kind, carrying, values in walks(args.n, args.seed, kinds)[args.start :]:
                 for setting in settings:
-                    row = run_one(index, kind, carrying, values, setting)  # type: ignore[arg-type]
+                    row = run_one(index, kind, carrying, values, setting)
                     f.write(json.dumps(row) + "\n")
                     f.flush()
                     print(json.dumps(row), flush=True)

@@ -36,6 +36,12 @@ class SimConfig:
         loaded_foot_force_n: a sole carries weight (and its slip is measured) above this normal force [N].
         contact_force_n: contacts weaker than this are ignored when looking for collisions [N].
         render_near_m, render_far_m: clipping planes of the cameras [m].
+        stabilizer: leg corrections from the measured body inclination during executions
+            (:mod:`sim.stabilizer`, as the real robot's stabilizer; on by default since session 11);
+            off: the trajectories are played open loop.
+        stabilizer_gain: correction per radian of inclination error [rad/rad].
+        stabilizer_damping_s: correction per rad/s of inclination rate error [s].
+        stabilizer_max_rad: largest correction [rad].
     """
 
     model: str = "hrp2_like"
@@ -56,6 +62,10 @@ class SimConfig:
     contact_force_n: float = 0.05
     render_near_m: float = 0.05
     render_far_m: float = 30.0
+    stabilizer: bool = True
+    stabilizer_gain: float = 1.0
+    stabilizer_damping_s: float = 0.02
+    stabilizer_max_rad: float = 0.05
 
     def __post_init__(self) -> None:
         for name in (
@@ -72,6 +82,10 @@ class SimConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise InvalidRequestError(f"sim config: {name} must be a positive number, got {value!r}")
+        for name in ("stabilizer_gain", "stabilizer_damping_s", "stabilizer_max_rad"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise InvalidRequestError(f"sim config: {name} must be a number >= 0, got {value!r}")
         if self.settle_s < 0 or self.contact_force_n < 0 or self.loaded_foot_force_n < 0:
             raise InvalidRequestError(
                 "sim config: settle_s, contact_force_n and loaded_foot_force_n must be >= 0"

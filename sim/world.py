@@ -39,6 +39,7 @@ from sim.contacts import Contact, ContactRules, floor_force
 from sim.objects import build_scene
 from sim.results import CameraImage, ExecutionResult, GripperResult, ObjectState, RobotState
 from sim.scene import Layout, SceneSpec, layout, load_scene
+from sim.stabilizer import Stabilizer, StabilizerGains
 
 GRIPPER_ACTIONS = ("open", "close")
 _FINGER_STALL_SPEED = 2e-3  # [m/s or rad/s]: a closing finger slower than this has stopped
@@ -191,24 +192,60 @@ class World:
         self._kd = [self.config.velocity_gain] * n
         self._base_fid = robot.frame_id(robot.frames.base)
         self._sole_fids = {side: robot.frame_id(robot.frames.sole(side)) for side in ("left", "right")}
+        cfg = self.config
+        self.stabilizer = (
+            Stabilizer(
+                robot,
+                self._body_joint_names,
+                StabilizerGains(
+                    cfg.stabilizer_gain,
+                    cfg.stabilizer_damping_s,
+                    cfg.stabilizer_max_rad,
+                    cfg.loaded_foot_force_n,
+                ),
+            )
+            if cfg.stabilizer
+            else None
+        )
 
     # ---------------------------------------------------------------------------------- low level
     def _command_body(self, q: np.ndarray, v: np.ndarray) -> None:
-        self._command_joints(q[self._body_iq].tolist(), v[self._body_iv].tolist())
-
-    def _command_joints(self, q_body: list[float], v_body: list[float]) -> None:
-        """Position targets [rad or m] and feed-forward velocities of the body joints (the order of
-        ``_body_ids``)."""
-        p.setJointMotorControlArray(
+        self._command_joints(
+            self.client,
             self.robot_id,
             self._body_ids,
+            self._kp,
+            self._kd,
+            self._body_force,
+            q[self._body_iq].tolist(),
+            v[self._body_iv].tolist(),
+        )
+
+    @staticmethod
+    def _command_joints(
+        client: int,
+        robot_id: int,
+        ids: list[int],
+        kp: list[float],
+        kd: list[float],
+        forces: list[float],
+        q_body: list[float],
+        v_body: list[float],
+    ) -> None:
+        """The one motor command of the body joints: position targets ``q_body`` [rad or m] and
+        feed-forward velocities ``v_body`` of the joints ``ids`` (pybullet indices, e.g.
+        ``_body_ids``) with the gains ``kp``, ``kd`` and the force caps ``forces`` [N or N m]. Takes
+        the world's attributes as arguments so that the stepping loop hoists them once."""
+        p.setJointMotorControlArray(
+            robot_id,
+            ids,
             p.POSITION_CONTROL,
             targetPositions=q_body,
             targetVelocities=v_body,
-            positionGains=self._kp,
-            velocityGains=self._kd,
-            forces=self._body_force,
-            physicsClientId=self.client,
+            positionGains=kp,
+            velocityGains=kd,
+            forces=forces,
+            physicsClientId=client,
         )
 
     def _command_finger(self, side: str, target: float) -> None:
@@ -239,22 +276,13 @@ class World:
         """One physics step per row of ``targets`` (the body joints' position targets [rad or m], the
         order of ``_body_ids``), each commanded with the feed-forward velocities ``v_ff`` first: the
         loop of :meth:`step` with the motor command inside, written out (it runs 1000 times per
-        simulated second)."""
+        simulated second, :meth:`_command_joints` with its arguments hoisted)."""
         client, robot_id, ids = self.client, self.robot_id, self._body_ids
         kp, kd, forces = self._kp, self._kd, self._body_force
         substeps, dt_s = self.config.substeps, self.config.physics_dt_s
+        command = self._command_joints
         for target in targets:
-            p.setJointMotorControlArray(
-                robot_id,
-                ids,
-                p.POSITION_CONTROL,
-                targetPositions=target,
-                targetVelocities=v_ff,
-                positionGains=kp,
-                velocityGains=kd,
-                forces=forces,
-                physicsClientId=client,
-            )
+            command(client, robot_id, ids, kp, kd, forces, target, v_ff)
             p.stepSimulation(physicsClientId=client)
             self._steps += 1
             self.sim_time_s = self._steps * dt_s
@@ -486,6 +514,8 @@ class World:
         rules.already_touching = rules.touching_pairs()
         n_hold = round(hold_s / dt)
         monitor = _Monitor(self)
+        # the soles the only supports: a multi-contact motion's body leans on its supports as planned
+        stabilizer = self.stabilizer if not (supports or force_targets) else None
         start_time = self.sim_time_s
         outcome, message = "completed", f"executed {len(q_traj)} samples"
         executed = 1
@@ -501,13 +531,28 @@ class World:
             b_prev, b_next = body[k_prev], body[k_next]
             v_ff = ((b_next - b_prev) / dt).tolist()
             offsets = 0.0 if admittance is None else admittance.update(k_prev, self.pyrobot.read_q())
+            if stabilizer is not None:
+                offsets = offsets + stabilizer.offsets
             self._step_commanded(((1.0 - a) * b_prev + a * b_next + offsets).tolist(), v_ff)
             self.q_cmd = q_next.copy()
+            if stabilizer is not None:
+                self.q_cmd[self._body_iq] += stabilizer.offsets
             self.q_planned = q_next.copy()
             executed = min(k + 1, len(q_traj))
             # one contact query per period for the slip monitor and the collision rules
             points = p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client)
-            T_base = monitor.update(q_next, points)
+            T_base = monitor.update(self.q_cmd, points)
+            if stabilizer is not None:  # the corrections of the next period, from the state now
+                omega = p.getBaseVelocity(self.robot_id, physicsClientId=self.client)[1]
+                stabilizer.update(
+                    self._data,
+                    monitor.q,
+                    omega,
+                    q_traj[k_prev],
+                    q_next,
+                    dt,
+                    {side: monitor.forces[link] for side, link in self.foot_links.items()},
+                )
             height, tilt = float(T_base.translation[2]), self.tilt_rad(T_base)
             # A planned posture lower or more tilted than the fall limits (seated on a chair, leaning on
             # a table) moves the limits with it: a fall is then a base that much below or more tilted
@@ -530,6 +575,8 @@ class World:
             pairs = ", ".join(f"{c.robot_link} touched {c.other}" for c in collided.values())
             message = f"unplanned contact at t={self.sim_time_s - start_time:.3f} s: {pairs}"
         if outcome != "completed":  # hold still where the robot is instead of finishing the motion
+            if stabilizer is not None:
+                stabilizer.reset()
             self.q_cmd = self.pyrobot.read_q()
             self._command_body(self.q_cmd, np.zeros(self.robot.nv))
         err_max, err_rms, worst = monitor.tracking()
@@ -708,13 +755,15 @@ class _Monitor:
         self.base_error_m = 0.0
         self.foot_slip_m = 0.0
         self._anchor: dict[str, tuple[float, float] | None] = {"left": None, "right": None}
+        self.q = np.zeros(0)  # the configuration read at the last update (pinocchio layout)
+        self.forces: dict[int, float] = {}  # the floor's normal force on each sole link then [N]
 
     def update(self, q_cmd: np.ndarray, points: Sequence[tuple] | None = None) -> pin.SE3:
         """Account the state after a control period commanded at ``q_cmd``; the base pose (world).
         ``points``: the robot's contact points now (``pybullet.getContactPoints(bodyA=robot)``), else
         queried here."""
         w = self.world
-        q = w.pyrobot.read_q()  # from pybullet: (nq,) floats, finite while the physics is
+        self.q = q = w.pyrobot.read_q()  # from pybullet: (nq,) floats, finite while the physics is
         if not math.isfinite(float(np.add.reduce(q))):  # a blown-up simulation: check_q's error, as before
             w.robot.check_q(q)
         err = np.abs(q[w._body_iq] - q_cmd[w._body_iq])
@@ -729,7 +778,7 @@ class _Monitor:
         T_base = pin.SE3(pin.updateFramePlacement(model, data, w._base_fid))
         dx, dy, dz = (q[:3] - q_cmd[:3]).tolist()
         self.base_error_m = max(self.base_error_m, math.sqrt(dx * dx + dy * dy + dz * dz))
-        forces = floor_force(w.client, w.robot_id, w.floor_id, w.foot_links.values(), points)
+        self.forces = forces = floor_force(w.client, w.robot_id, w.floor_id, w.foot_links.values(), points)
         for side, link in w.foot_links.items():
             if forces[link] < w.config.loaded_foot_force_n:
                 self._anchor[side] = None
