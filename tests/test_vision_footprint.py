@@ -119,6 +119,10 @@ def test_a_short_wrong_run_at_either_end_of_the_rows_is_dropped_and_a_slanted_en
         assert keep[:170].all() and not keep[170:].any()
         flipped = _consistent(disparity[::-1])  # the same at the first rows
         assert flipped[-170:].all() and not flipped[:-170].any()
+    # after rows left out next to the hand, the kept edges nearest the end decide (seed 47's approach)
+    disparity = np.concatenate([np.round(np.linspace(80.0, 65.0, 170)), np.zeros(20), np.full(8, 305.0)])
+    keep = _consistent(disparity)
+    assert keep[:170].all() and not keep[170:].any()
     assert _consistent(np.full(12, 40.0)).all() and not _consistent(np.zeros(5)).any()  # fewer rows
 
 
