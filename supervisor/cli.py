@@ -203,7 +203,8 @@ def _explain_objects(args: argparse.Namespace) -> list[str]:
     from supervisor.core import Supervisor
 
     if args.objects:
-        return [o.strip() for o in args.objects.split(",") if o.strip()]
+        # perception's names are lower_snake_case: "Orange Ball" is orange_ball
+        return ["_".join(o.lower().split()) for o in args.objects.split(",") if o.strip()]
     try:
         with Supervisor.connect(_bus(args), out=None) as sup:
             if not sup.wait_for_services(1.0, ("perception",)):

@@ -594,6 +594,13 @@ def test_console_explain_subprocess():
     assert refused.returncode == 1 and "refused: I did not understand 'dance'" in refused.stdout
 
 
+def test_console_explain_objects_written_as_people_write_them(capsys: pytest.CaptureFixture[str]):
+    from services.cli import main
+
+    assert main(["console", "--objects", "Orange Ball, yellow table", "--explain", "take the orange ball"]) == 0
+    assert "1. localize orange_ball" in capsys.readouterr().out
+
+
 def test_console_explain_exit_code_counts_every_line(capsys: pytest.CaptureFixture[str]):
     from services.cli import main
 
