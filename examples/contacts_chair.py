@@ -156,6 +156,7 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory (out)")
     parser.add_argument("--panels", type=int, default=8, help="witness postures in the strip (8)")
     args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
     plan_path = args.plan or args.out / "contacts_chair_plan.npz"
     if args.plan is None and not (args.reuse and plan_path.is_file()):
         print("plan written to", compute_plan(args.budget, plan_path))
