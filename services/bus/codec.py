@@ -77,6 +77,20 @@ def _dec_hook(type_: type, obj: Any) -> Any:
 
 
 def _array_from_list(obj: list[Any]) -> np.ndarray:
+    # Every element checked to be a number first (msgspec, in C): numpy's own guess would turn a list
+    # holding one 1 MB string among 740 numbers into a 3 GB array of strings (30 s, or a MemoryError).
+    depth, first = 0, obj
+    while isinstance(first, list) and depth <= MAX_ARRAY_DIMS:
+        depth, first = depth + 1, first[0] if first else None
+    if depth > MAX_ARRAY_DIMS:
+        raise ValueError(f"array has more than {MAX_ARRAY_DIMS} dimensions")
+    element: Any = float | bool
+    for _ in range(depth):
+        element = list[element]
+    try:
+        msgspec.convert(obj, element)
+    except msgspec.ValidationError as exc:
+        raise ValueError(f"expected an array of numbers ({exc})") from None
     try:
         arr = np.array(obj)
     except (ValueError, TypeError, RecursionError):
