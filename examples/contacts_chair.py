@@ -21,6 +21,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import io
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -28,6 +29,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+
+from services.errors import InvalidRequestError
 
 
 def _problem(slope_k: float | None = None, budget_s: float = 300.0):
@@ -153,10 +156,15 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory (out)")
     parser.add_argument("--panels", type=int, default=8, help="witness postures in the strip (8)")
     args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
     plan_path = args.plan or args.out / "contacts_chair_plan.npz"
     if args.plan is None and not (args.reuse and plan_path.is_file()):
         print("plan written to", compute_plan(args.budget, plan_path))
-    data = figure_data(plan_path)
+    try:
+        data = figure_data(plan_path)
+    except (InvalidRequestError, FileNotFoundError) as exc:  # a plan of before session 11, no file
+        print(f"error: {exc}; plan again without --reuse (or --plan FILE of --save-plan)", file=sys.stderr)
+        return 2
     print("wrote", render_strip(data, args.out, args.panels))
     print("wrote", plot_potential(data, args.out))
     return 0

@@ -31,7 +31,9 @@ what it understands: take/grab/get/pick up/fetch X, go/walk/head to X, put/place
 bring X to Y, release/let go, look at X, find X/where is X/can you see X, turn left/right N degrees,
 step back, move forward one metre, take two steps to the left; "it", "that"; several commands
 joined by "and", "then" or commas; a question when a phrase fits several objects.
-exit codes: 0 ok, 1 a command failed (or --explain: a line was not understood), 3 no services
+exit codes: 0 ok, 1 error reply or failed run, 2 bad usage, 3 service unavailable
+(1 also when the last command was not understood or its question went unanswered; with --explain,
+when a line was not understood)
 """
 
 EXAMPLES_FETCH = """examples:
@@ -203,7 +205,8 @@ def _explain_objects(args: argparse.Namespace) -> list[str]:
     from supervisor.core import Supervisor
 
     if args.objects:
-        return [o.strip() for o in args.objects.split(",") if o.strip()]
+        # perception's names are lower_snake_case: "Orange Ball" is orange_ball
+        return ["_".join(o.lower().split()) for o in args.objects.split(",") if o.strip()]
     try:
         with Supervisor.connect(_bus(args), out=None) as sup:
             if not sup.wait_for_services(1.0, ("perception",)):

@@ -42,10 +42,10 @@ class SupervisorConfig:
             and not at all when there is none to a face either);
         retry_budget_s, retry_turning_radius_m: when navigation finds no path in its default budget,
             the second search's budget and turning radius (the first's is navigation's 0.5 m);
-        walk_double_support_s: double support between the steps of a walk, 0.1 s (Kajita's HRP-2)
-            since session 11, with the sim's stabilizer (``sim/stabilizer.py``, as the real robot's):
-            0 falls in a fall study of 100 fetch-like walks at 0.7 / 0.1 s (services/walking/README.md);
-            0.2 s before. Open loop, 0.1 s passed session 9's fall study
+        walk_double_support_s: double support between the steps of a walk, 0.2 s. With the sim's
+            stabilizer (``sim/stabilizer.py``, off by default) 0.1 s had 0 falls in a fall study of 100
+            fetch-like walks (services/walking/README.md), but the stabilizer failed fetch seed 6
+            (session 11). Open loop, 0.1 s passed session 9's fall study
             (``scripts/walk_timing_study.py``: 0 falls in 25 fetch-like walks at 0.7 / 0.1 s) but not
             the fetch: seeds 16 and 43 fell (tilt 28.7-28.9 deg, at
             the end of a 24-step straight walk and early in a 21-step one), seed 16 deterministically,
@@ -165,7 +165,7 @@ class SupervisorConfig:
     near_face_m: float = 1.0
     retry_budget_s: float = 4.0
     retry_turning_radius_m: float = 0.3
-    walk_double_support_s: float = 0.1
+    walk_double_support_s: float = 0.2
     last_steps: bool = True
     last_steps_max: int = 6
     last_steps_budget_s: float = 5.0

@@ -24,7 +24,17 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 from supervisor.lang_numbers import STEP_M, Quantity, take_quantity, words_to_digits
-from supervisor.lang_objects import ObjectRef, answer, edit_distance, question, resolve, spoken
+from supervisor.lang_objects import (
+    COLOURS,
+    DETERMINERS,
+    KIND_SYNONYMS,
+    ObjectRef,
+    answer,
+    edit_distance,
+    question,
+    resolve,
+    spoken,
+)
 from supervisor.script import ACTIONS, Signature, Step
 
 #: Verb phrases -> what they mean. Longer phrases are tried first.
@@ -582,7 +592,31 @@ class Listener:
             return Understanding(text, say="You're welcome.")
         if not clauses:
             return Understanding(text, refused=True, say="I heard nothing to do. " + CAN_DO + ".")
+        named = self._only_an_object(clauses)
+        if named:  # "the purple one" with no question open: which action? "it" is that object now
+            self.ctx.last = named
+            return Understanding(
+                text,
+                refused=True,
+                say=f"What should I do with the {spoken(named)}? For example: take it, look at it, go to it.",
+            )
         return self._understand(text, clauses, {})
+
+    def _only_an_object(self, clauses: list[str]) -> str:
+        """The object a line names when it is nothing but an object phrase ("the blue one"), else ""."""
+        if len(clauses) != 1:
+            return ""
+        clause = strip_filler(clauses[0])
+        first = clause.split()[0] if clause else ""
+        named = (w for k in self.known for w in k.split("_"))
+        object_words = {*DETERMINERS, *COLOURS, *KIND_SYNONYMS, *named}
+        if first not in object_words:  # "juggle the ball", "tkae the ball": a verb not understood
+            return ""
+        try:
+            _verb(clause)
+            return ""
+        except NotUnderstoodError:
+            return resolve(clause, self.known).name
 
     def forget_held(self) -> None:
         """The hand is empty after all (a take failed, or the object was dropped)."""

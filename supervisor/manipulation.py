@@ -25,12 +25,8 @@ from services.errors import (
     NotGraspedError,
     RequestTimeoutError,
 )
-from supervisor.body import Body, Progress
-from supervisor.calls import ServiceCaller
-from supervisor.config import SupervisorConfig
-from supervisor.memory import Memory
-from supervisor.perceive import Eyes
-from supervisor.planners import LastSteps, Plan, Planners
+from supervisor.parts import ActionParts
+from supervisor.planners import LastSteps, Plan
 from supervisor.report import ActionReport
 from supervisor.scene_map import box_estimate, is_obstacle, neighbours, sphere_radius
 from supervisor.script import Step, parse_point
@@ -102,16 +98,9 @@ def yaw_of(R_world_hand: np.ndarray) -> float:
     return math.atan2(R[1, 0], R[0, 0])
 
 
-class ManipulationActions:
+class ManipulationActions(ActionParts):
     """The manipulation actions (a part of :class:`supervisor.actions.Actions`)."""
 
-    bus: ServiceCaller
-    body: Body
-    memory: Memory
-    eyes: Eyes
-    planners: Planners
-    config: SupervisorConfig
-    progress: Progress
     last_reach: tuple[str, str] | None
     do_look_at: Callable[[Step], ActionReport]
     _back_off: Callable[[str, list[str]], None]

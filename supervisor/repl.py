@@ -3,7 +3,8 @@
 A reader thread takes lines as they come; commands run one after the other on a worker thread, so
 that "stop" typed while an action runs aborts it (at its next service call or trajectory chunk) and
 the progress of the running action keeps showing. At the end of the input the loop waits for the
-commands already given, then returns (0 if the last command succeeded).
+commands already given, then returns 0 if the last command succeeded (1 if it failed, was refused, or
+asked a question the input did not answer).
 """
 
 from __future__ import annotations
@@ -80,6 +81,9 @@ class ConsoleLoop:
                 break
         if self._worker is not None:
             self._worker.join()
+        if self.listener.asking:  # the input ended on a question: what it asked for was not done
+            self.say("(the input ended without an answer: nothing done for the last command)")
+            return 1
         return 0 if self.last_ok in (None, True) else 1
 
     def _handle(self, line: str) -> bool:
@@ -90,6 +94,8 @@ class ConsoleLoop:
         if command.say:
             self.say(command.say)
         if command.refused or command.control == "ask":
+            if command.refused and self._worker is None and not self._pending:
+                self.last_ok = False  # the last command given could not be understood
             self._show_prompt()
             return True
         if command.control == "help":

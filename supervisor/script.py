@@ -20,6 +20,7 @@ before anything runs, and errors name the line and suggest the closest action.
 from __future__ import annotations
 
 import difflib
+import math
 import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -67,6 +68,9 @@ ACTIONS: dict[str, Signature] = {
 }
 
 HANDS = ("left", "right")
+#: Arguments (positional or ``key=value``) that are numbers: checked when the script is read, not when
+#: the action runs (after connecting, after the actions before it).
+NUMBERS = ("angle_deg", "forward_m", "left_m", "yaw_deg", "goal_y", "budget_s", "distance")
 
 
 @dataclass(frozen=True)
@@ -126,7 +130,17 @@ def parse_line(text: str, line: int = 1) -> Step | None:
         hand = args[signature.positional.index("hand")]
         if hand not in HANDS:
             raise InvalidRequestError(f"line {line}: hand '{hand}' is not one of {', '.join(HANDS)}")
+    for name, value in [*zip(signature.positional, args, strict=False), *kwargs.items()]:
+        if name in NUMBERS and not _is_finite_number(value):
+            raise InvalidRequestError(f"line {line}: '{action}' {name} '{value}' is not a number")
     return Step(line=line, action=action, args=tuple(args), kwargs=kwargs, bind=bind)
+
+
+def _is_finite_number(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
 
 
 def parse_script(text: str) -> list[Step]:

@@ -168,6 +168,9 @@ _NAN = np.array([[0.0, float("nan")]]).tobytes()
         (b'{"q": [[0.0]], "allowed_contacts": ["\xff"]}', "ExecuteRequest",
          'not valid UTF-8.*"allowed_contacts"'),
         (b'{"q": [["a", "b"]]}', "ExecuteRequest", r"array of numbers.*at `\$\.q`"),
+        # one 1 MB string among 200 numbers: refused before numpy makes a 800 MB array of strings of it
+        (b'{"q": [[' + b"0.0, " * 200 + b'"' + b"x" * 1_000_000 + b'"]]}', "ExecuteRequest",
+         r"numbers only\) - at `\$\.q`"),
         (b'{"q": [[0.0]], "colour": 1}', "ExecuteRequest", "unknown field `colour`"),
         (b'{"q": [[0.0]], "dt_s": 1e300}', "ExecuteRequest", r"<= 0.1 - at `\$\.dt_s`"),
         (b'{"q": [[0.0]], "dt_s": 1e999}', "ExecuteRequest", "out of range"),

@@ -460,6 +460,13 @@ def test_objects_of_kinds_the_grammar_was_not_written_for(text: str, steps: str)
     assert Listener(known).hear("take the cup").say == "which cup: the red one or the blue one?"
 
 
+def test_an_object_alone_asks_what_to_do_and_it_is_that_object_next():
+    listener = Listener(KNOWN, actions=ACTIONS_PLUS)
+    said = listener.hear("the blue one")
+    assert said.refused and said.say.startswith("What should I do with the blue ball?")
+    assert [s.text() for s in listener.hear("look at it").steps] == ["look_at blue_ball"]
+
+
 def test_help_me_is_help():
     assert Listener(KNOWN, actions=ACTIONS_PLUS).hear("help me").control == "help"
 
@@ -592,6 +599,13 @@ def test_console_explain_subprocess():
         cwd=REPO,
     )
     assert refused.returncode == 1 and "refused: I did not understand 'dance'" in refused.stdout
+
+
+def test_console_explain_objects_written_as_people_write_them(capsys: pytest.CaptureFixture[str]):
+    from services.cli import main
+
+    assert main(["console", "--objects", "Orange Ball, yellow table", "--explain", "take the orange ball"]) == 0
+    assert "1. localize orange_ball" in capsys.readouterr().out
 
 
 def test_console_explain_exit_code_counts_every_line(capsys: pytest.CaptureFixture[str]):

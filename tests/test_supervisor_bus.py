@@ -134,6 +134,20 @@ def test_console_reads_commands_suggests_and_runs_them(stack, sup) -> None:
     assert "SUCCESS" in text
 
 
+def test_console_exit_code_when_the_last_line_is_refused_or_unanswered(stack, sup) -> None:
+    """Read from stdin by a script: a refused last line, or a question the input leaves unanswered, is
+    a failure (exit code 1), not 0 as if it had been done."""
+    import io
+
+    from supervisor.repl import ConsoleLoop
+
+    out = io.StringIO()
+    assert ConsoleLoop(sup, sup.known_objects(), out).run(["juggle the orange ball"]) == 1, out.getvalue()
+    out = io.StringIO()  # perception knows every ball of the scene: "the ball" is ambiguous
+    assert ConsoleLoop(sup, sup.known_objects(), out).run(["take the ball"]) == 1, out.getvalue()
+    assert "which ball" in out.getvalue() and "without an answer" in out.getvalue()
+
+
 def test_console_stop_aborts_the_running_command(stack, sup) -> None:
     import io
 

@@ -42,6 +42,25 @@ def test_script_errors_name_every_bad_line_and_suggest() -> None:
     assert "line 4: 'turn' takes turn angle_deg, got 0 argument(s)" in message
 
 
+@pytest.mark.parametrize(
+    ("line", "said"),
+    [
+        ("goto green_box distance=abc", "'goto' distance 'abc' is not a number"),
+        ("turn left", "'turn' angle_deg 'left' is not a number"),
+        ("walk 0.3 nan", "'walk' left_m 'nan' is not a number"),
+    ],
+)
+def test_a_number_argument_is_checked_when_the_script_is_read(line: str, said: str) -> None:
+    """It failed only when the action ran: after connecting, after the actions before it."""
+    with pytest.raises(InvalidRequestError, match=said):
+        parse_script(f"localize green_box\n{line}\n")
+    assert [s.text() for s in parse_script("turn -120\nwalk -0.3 0 15\ngoto x distance=0.7")] == [
+        "turn -120",
+        "walk -0.3 0 15",
+        "goto x distance=0.7",
+    ]
+
+
 def test_empty_script_is_an_error() -> None:
     with pytest.raises(InvalidRequestError, match="no action"):
         parse_script("# nothing\n\n")

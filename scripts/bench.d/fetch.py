@@ -225,7 +225,8 @@ def main(argv: list[str]) -> int:
         watch = CallWatch(sup)
         cpu = CpuWatch(launcher)
         seeds = _stdin_seeds() if args.worker else range(args.seed0, args.seed0 + args.n)
-        cases = [(layout.name, layout) for layout in layouts] or [(seed, None) for seed in seeds]
+        # lazily: a worker's seeds arrive on stdin one at a time (a list would wait for its EOF)
+        cases = ((layout.name, layout) for layout in layouts) if layouts else ((seed, None) for seed in seeds)
         for seed, layout in cases:
             watch.reset()
             cpu.reset()

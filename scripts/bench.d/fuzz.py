@@ -114,13 +114,14 @@ def main(argv: list[str]) -> int:
     from fuzzing import Tally, reference_q
 
     from services.bus.config import BusConfig
-    from services.bus.discovery import discover
+    from services.bus.discovery import RECORDER, discover
     from services.bus.schemas import endpoints
     from services.bus.session import Client
     from supervisor.fetch import running_stack
 
     found, _ = discover()
-    specs = [s for p, s in sorted(endpoints().items()) if s.service in found]
+    # not the recorder's record/status: the stack runs without a recorder (it would log the whole fuzz)
+    specs = [s for p, s in sorted(endpoints().items()) if s.service in found and s.service != RECORDER]
     if args.only:
         wanted = {p.strip() for p in args.only.split(",")}
         specs = [s for s in specs if s.path in wanted]

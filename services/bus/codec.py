@@ -77,15 +77,18 @@ def _dec_hook(type_: type, obj: Any) -> Any:
 
 
 def _array_from_list(obj: list[Any]) -> np.ndarray:
+    # Converted to float64 directly: numpy's own guess of the element type turned a list holding one
+    # 1 MB string among 740 numbers into a 3 GB array of strings (30 s, or a MemoryError); as floats,
+    # the string fails at once. (msgspec's strict check was tried: it refuses numpy scalars, which
+    # in-process callers put in lists.)
     try:
-        arr = np.array(obj)
-    except (ValueError, TypeError, RecursionError):
-        raise ValueError("expected a rectangular array of numbers (rows of equal length)") from None
-    if arr.dtype.kind not in ARRAY_KINDS:
-        raise ValueError(f"expected an array of numbers, got elements of type {arr.dtype}")
+        arr = np.array(obj, dtype=np.float64)
+    except (ValueError, TypeError, RecursionError, OverflowError):
+        raise ValueError(
+            "expected a rectangular array of numbers (rows of equal length, numbers only)"
+        ) from None
     if arr.ndim > MAX_ARRAY_DIMS:
         raise ValueError(f"array has {arr.ndim} dimensions, at most {MAX_ARRAY_DIMS} allowed")
-    arr = arr.astype(float)
     _check_finite(arr)
     return arr
 

@@ -31,7 +31,7 @@ def scenario_subparsers(subparsers: argparse._SubParsersAction) -> argparse._Sub
             epilog=examples(
                 "humanoid scenario footsteps-reach       # the footstep paper's section 4.1; figures: out/",
                 "humanoid scenario footsteps-posture --json",
-                "humanoid scenario chair-egress                  # contact planning out of a chair",
+                "humanoid scenario chair-egress          # contact planning out of a chair",
             ),
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
