@@ -605,3 +605,29 @@ def test_planner_qp_method_gives_the_working_set_step(robot, stance):
         steps.append(solver.solve(levels, q, alpha=0.7))
         assert any(report.used_qp for report in solver.last_report)
     np.testing.assert_allclose(steps[0], steps[1], atol=1e-6)
+
+
+def test_a_scenario_without_a_paper_time_prints_none_not_nan():
+    """Fig. 10 has no solve time in the paper: the summary says so instead of printing 'nan s'."""
+    from services.footsteps.demo import format_summary
+
+    summary = {
+        "scenario": "fig10",
+        "title": "t",
+        "solved": True,
+        "error": None,
+        "steps": 6,
+        "paper_steps": None,
+        "iterations": 40,
+        "steps_added_at": [3],
+        "solve_wall_s": 0.5,
+        "solve_cpu_s": 0.5,
+        "paper_s": scenarios.fig10("hrp2_like").paper_solve_s,
+        "front_foot": "left",
+        "residuals": {},
+        "footsteps": [],
+        "figures": [],
+    }
+    text = format_summary(summary)
+    assert "nan" not in text and "(paper: -)" in text
+    assert "paper: 3.2 s on a 2.13 GHz Core 2" in format_summary({**summary, "paper_s": 3.2})

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -144,6 +145,13 @@ def run_epsilon_study(
     return rows
 
 
+def _paper_solve(paper_s: float | None) -> str:
+    """The paper's solve time of a scenario [s], or that it gives none (Fig. 10: nan in the table)."""
+    if paper_s is None or not math.isfinite(paper_s):
+        return "paper: -"
+    return f"paper: {paper_s} s on a 2.13 GHz Core 2"
+
+
 def format_summary(summary: dict[str, Any]) -> str:
     """A few human-readable lines for one scenario."""
     lines = [
@@ -153,7 +161,7 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"iterations {summary['iterations']}, "
         f"steps added after iterations {summary['steps_added_at']}",
         f"  solve {summary['solve_wall_s']:.3f} s wall, {summary['solve_cpu_s']:.3f} s CPU "
-        f"(paper: {summary['paper_s']} s on a 2.13 GHz Core 2), front foot {summary['front_foot']}",
+        f"({_paper_solve(summary['paper_s'])}), front foot {summary['front_foot']}",
         "  residuals " + ", ".join(f"{k} {v:.4f}" for k, v in summary["residuals"].items()),
     ]
     for side, x, y, yaw in summary["footsteps"]:
