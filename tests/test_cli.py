@@ -269,6 +269,8 @@ def test_replay_shows_progress_and_takes_start_rate(stack: Stack, tmp_path: Path
     assert "100.0 %" in result.stderr and "msgs  x4" in result.stderr
     replayed = int(re.search(r"replayed (\d+) messages", result.stdout).group(1))
     assert 0 < replayed < everything  # the first half second is skipped
+    past = humanoid(*stack.bus("replay", str(log), "--start", "60"))
+    assert past.returncode == 2 and "past the log's end" in past.stderr
     looping = subprocess.Popen(
         [sys.executable, "-m", "services.cli", *stack.bus("replay", str(log), "--loop", "--rate", "8")],
         cwd=REPO,

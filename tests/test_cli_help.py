@@ -166,3 +166,13 @@ def test_a_seed_out_of_range_is_refused_before_any_service_starts(
     with pytest.raises(SystemExit) as info:
         main([*command, "--seed", "-1"])
     assert info.value.code == 2 and "-1 is not a seed: 0..4294967295" in capsys.readouterr().err
+
+
+def test_record_to_an_unwritable_place_is_a_clear_error(tmp_path: Path) -> None:
+    """Said at once, naming the path, before the recorder joins the bus (no traceback)."""
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    result = humanoid("record", str(blocked / "run.mcap"), "--duration", "1")
+    assert result.returncode == 2, result.stderr
+    assert "cannot write the log" in result.stderr and "run.mcap" in result.stderr
+    assert "Traceback" not in result.stderr

@@ -569,6 +569,12 @@ def cmd_record(args: argparse.Namespace) -> int:
     configure_logging("INFO")
     config = load_section(args.config, "record", RecorderConfig)
     config = dataclasses.replace(config, output=str(Path(args.file).resolve()))
+    try:  # an unwritable place is said before anything starts
+        Path(config.output).parent.mkdir(parents=True, exist_ok=True)
+        with open(config.output, "ab"):
+            pass
+    except OSError as exc:
+        return _fail(f"cannot write the log {config.output}: {exc.strerror or exc}")
     if args.key_expr:
         config = dataclasses.replace(config, key_expr=args.key_expr)
     bus = _bus(args)
@@ -698,6 +704,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 return 1 if differs else 0
 
             info = reader.info()
+            if args.start > info.duration_s:
+                length = f"{info.duration_s:.2f} s long"
+                return _fail(f"--start {args.start:g} s is past the log's end (it is {length})")
             progress = None if args.quiet or args.verbose else Progress(info, args.start, args.speed)
 
             def show_msg(msg: Any) -> None:
