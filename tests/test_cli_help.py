@@ -176,3 +176,12 @@ def test_record_to_an_unwritable_place_is_a_clear_error(tmp_path: Path) -> None:
     assert result.returncode == 2, result.stderr
     assert "cannot write the log" in result.stderr and "run.mcap" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_a_silent_sim_topic_says_the_sim_steps_only_during_a_motion() -> None:
+    """`humanoid hz/echo sim/clock` on an idle stack: the error says why it is silent (a frozen sim)."""
+    from services.bus.cli import silence_hint
+
+    for key in ("hrp/hrp2/sim/clock", "hrp/hrp2/sim/joint_state", "hrp/r2/sim/base_pose"):
+        assert "only during a motion" in silence_hint(key) and "realtime: true" in silence_hint(key)
+    assert silence_hint("hrp/hrp2/diag/pong") == ""

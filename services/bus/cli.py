@@ -58,6 +58,19 @@ def _bus(args: argparse.Namespace) -> Any:
     return load_bus_config(args.config, hub=args.hub, robot=args.robot)
 
 
+def silence_hint(key: str) -> str:
+    """Why ``key`` may be silent although its service runs ('' when nothing is known): the sim publishes
+    its state topics per step of sim time, and it steps only during a motion unless it runs in real time."""
+    from services.bus.schemas import sim
+
+    if "/".join(key.split("/")[-2:]) in {t.path for t in (sim.CLOCK, sim.JOINT_STATE, sim.BASE_POSE)}:
+        return (
+            "; the sim publishes it per step of sim time: only during a motion, unless its config says "
+            "`realtime: true` (sim/README.md)"
+        )
+    return ""
+
+
 def _fail(message: str, code: int = 2) -> int:
     print(f"error: {message}", file=sys.stderr)
     return code
@@ -445,7 +458,7 @@ def cmd_echo(args: argparse.Namespace) -> int:
     with bus_session(bus) as session:
         sub = session.declare_subscriber(key, on_sample)
         try:
-            print(f"listening on {key} (Ctrl-C to stop)", file=sys.stderr, flush=True)
+            print(f"listening on {key} (Ctrl-C to stop){silence_hint(key)}", file=sys.stderr, flush=True)
             while (args.count is None or count < args.count) and (
                 deadline is None or time.monotonic() < deadline
             ):
@@ -453,7 +466,8 @@ def cmd_echo(args: argparse.Namespace) -> int:
                     sample_key, data, rid = inbox.get(timeout=0.1)
                 except queue.Empty:
                     if args.wait and count == 0 and time.monotonic() - started > args.wait:
-                        print(f"error: no message on {key} within {args.wait:.1f} s", file=sys.stderr)
+                        why = silence_hint(key)
+                        print(f"error: no message on {key} within {args.wait:.1f} s{why}", file=sys.stderr)
                         return EXIT_UNAVAILABLE
                     continue
                 count += 1

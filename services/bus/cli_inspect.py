@@ -14,7 +14,7 @@ import threading
 import time
 from typing import Any
 
-from services.bus.cli import _bus, _bus_options, _fail, resolve_key
+from services.bus.cli import _bus, _bus_options, _fail, resolve_key, silence_hint
 from services.cli_common import EXIT_UNAVAILABLE, examples
 
 LIST_KINDS = ("services", "endpoints", "topics")
@@ -361,7 +361,7 @@ def cmd_rate(args: argparse.Namespace) -> int:
                 if count == 0 and now - started > args.wait:
                     print(
                         f"error: no message on {key} within {args.wait:.1f} s; is its service running? "
-                        "(`humanoid list topics`)",
+                        f"(`humanoid list topics`){silence_hint(key)}",
                         file=sys.stderr,
                     )
                     return EXIT_UNAVAILABLE
@@ -382,7 +382,7 @@ def cmd_rate(args: argparse.Namespace) -> int:
         with lock:
             stats = meter.stats()
         if stats is None:
-            print(f"error: fewer than 2 messages on {key}", file=sys.stderr)
+            print(f"error: fewer than 2 messages on {key}{silence_hint(key)}", file=sys.stderr)
             return EXIT_UNAVAILABLE
         print(
             json.dumps({"topic": key, **dataclasses.asdict(stats)})
