@@ -44,6 +44,8 @@ def test_every_subcommand_has_help(capsys):
     [
         (["diag/ech", "{}"], "unknown endpoint 'diag/ech' (did you mean diag/echo"),
         (["diag/echo", "{text: 1"], "the request for diag/echo is not valid JSON"),
+        (["diag/echo", "{text: 1"], "Example: humanoid call diag/echo '{}'"),  # nothing required
+        (["walking/goal", "{not json"], "`humanoid interface walking/goal` describes each field"),
         (["diag/echo", "[1]"], "must be a JSON object, not list"),
         (["diag/echo", '{"txt": "a"}'], "unknown field(s) txt for diag/echo; fields: text (str, default"),
         (["diag/echo", '{"text": 5}'], "Expected `str`, got `int` - at `$.text`"),

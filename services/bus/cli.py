@@ -297,7 +297,7 @@ def build_request(endpoint: str, text: str) -> tuple[Any, Any]:
     except msgspec.DecodeError as exc:
         raise InvalidRequestError(
             f"the request for {endpoint} is not valid JSON ({exc}); "
-            f"fields: {describe_fields(spec.request)}. Example: humanoid call {endpoint} '{{}}'"
+            f"fields: {describe_fields(spec.request)}. {_call_example(endpoint, spec.request)}"
         ) from None
     if not isinstance(value, dict):
         raise InvalidRequestError(
@@ -315,6 +315,15 @@ def build_request(endpoint: str, text: str) -> tuple[Any, Any]:
     except InvalidRequestError as exc:
         raise InvalidRequestError(f"{exc.message}; fields: {describe_fields(spec.request)}") from None
     return spec, request
+
+
+def _call_example(endpoint: str, request: Any) -> str:
+    """An example call that works (no required field), else where the fields are described."""
+    import msgspec
+
+    if any(f.required for f in msgspec.structs.fields(request)):
+        return f"`humanoid interface {endpoint}` describes each field"
+    return f"Example: humanoid call {endpoint} '{{}}'"
 
 
 def describe_fields(type_: Any) -> str:
