@@ -185,3 +185,10 @@ def test_a_silent_sim_topic_says_the_sim_steps_only_during_a_motion() -> None:
     for key in ("hrp/hrp2/sim/clock", "hrp/hrp2/sim/joint_state", "hrp/r2/sim/base_pose"):
         assert "only during a motion" in silence_hint(key) and "realtime: true" in silence_hint(key)
     assert silence_hint("hrp/hrp2/diag/pong") == ""
+
+
+def test_list_topics_names_the_topics_every_service_has() -> None:
+    """Besides the schemas' topics: heartbeat, log and the exchange copies (what `echo` can follow)."""
+    result = humanoid("list", "topics", "--hub", "tcp/127.0.0.1:1", "--wait", "0.1")
+    assert result.returncode == 0, result.stderr
+    assert "SERVICE/log (LogLine" in result.stdout and "/request, /reply and /error" in result.stdout

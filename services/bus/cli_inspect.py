@@ -68,6 +68,14 @@ def _add_list(subparsers: Any) -> None:
     p.set_defaults(func=cmd_list)
 
 
+# The topics every service has besides its schema's (services/bus/keys.py), said under `list topics`.
+EVERY_SERVICE_PUBLISHES = (
+    "Every service also publishes SERVICE/heartbeat (Heartbeat, 2 Hz), SERVICE/log (LogLine: its log "
+    "lines) and, for each of its endpoints, SERVICE/ENDPOINT/request, /reply and /error (a copy of each "
+    "exchange, the request id as attachment)."
+)
+
+
 def list_document(alive: set[str]) -> dict[str, list[dict[str, Any]]]:
     """Services, endpoints and topics as JSON-ready rows."""
     from services.bus import schemas
@@ -150,6 +158,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         else:
             rows = [(t["name"], t["message"], yes[t["alive"]], t["doc"]) for t in doc["topics"]]
             print(format_table(("TOPIC", "MESSAGE", "ALIVE", "WHAT"), rows))
+            print(EVERY_SERVICE_PUBLISHES)
     return 0
 
 
