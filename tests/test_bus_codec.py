@@ -168,6 +168,9 @@ _NAN = np.array([[0.0, float("nan")]]).tobytes()
         (b'{"q": [[0.0]], "allowed_contacts": ["\xff"]}', "ExecuteRequest",
          'not valid UTF-8.*"allowed_contacts"'),
         (b'{"q": [["a", "b"]]}', "ExecuteRequest", r"array of numbers.*at `\$\.q`"),
+        # numpy reads "0.5" as a number and null as NaN: neither is a number in JSON
+        (b'{"q": [["0.5", "1e0"]]}', "ExecuteRequest", r"found the string '0.5' among them - at `\$\.q`"),
+        (b'{"q": [[0.5, null]]}', "ExecuteRequest", r"found null among them - at `\$\.q`"),
         # one 1 MB string among 200 numbers: refused before numpy makes a 800 MB array of strings of it
         (b'{"q": [[' + b"0.0, " * 200 + b'"' + b"x" * 1_000_000 + b'"]]}', "ExecuteRequest",
          r"numbers only\) - at `\$\.q`"),

@@ -87,10 +87,29 @@ def _array_from_list(obj: list[Any]) -> np.ndarray:
         raise ValueError(
             "expected a rectangular array of numbers (rows of equal length, numbers only)"
         ) from None
+    # numpy's float conversion also reads "0.5" as 0.5 and null as NaN: neither is a number in JSON
+    leaf = _first_non_number(obj)
+    if leaf is not None:
+        raise ValueError(f"expected an array of numbers, found {leaf} among them")
     if arr.ndim > MAX_ARRAY_DIMS:
         raise ValueError(f"array has {arr.ndim} dimensions, at most {MAX_ARRAY_DIMS} allowed")
     _check_finite(arr)
     return arr
+
+
+def _first_non_number(obj: list[Any]) -> str | None:
+    """How the first string or null among a nested list's leaves reads in an error (None: only
+    numbers). One pass over a list that numpy already converted (so no string in it is huge)."""
+    stack: list[Any] = [obj]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, list):
+            stack.extend(reversed(item))  # in reading order
+        elif item is None:
+            return "null"
+        elif isinstance(item, str):
+            return f"the string {item[:20]!r}"
+    return None
 
 
 def _array_from_ref(obj: dict[str, Any], blob: memoryview) -> np.ndarray:
