@@ -8,6 +8,7 @@ decides which to ask for and in which order.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -38,6 +39,8 @@ def away_from(box: BoxEstimate, x_m: float, y_m: float, yaw_rad: float) -> tuple
 
 class LocomotionActions(ActionParts):
     """The locomotion actions (a part of :class:`supervisor.actions.Actions`)."""
+
+    _survey: Callable[[set[str]], None]  # LookingActions
 
     def do_goto(self, step: Step) -> ActionReport:
         """Walk in front of an object (``distance`` from its face, facing it) or to a pose 'x,y,yaw_deg'."""
@@ -170,10 +173,6 @@ class LocomotionActions(ActionParts):
         self.eyes.locate(name)
         self._survey(exclude={name})
         self._make_room(f"room to walk to {name}")  # seen nearer now than from afar
-
-    def _survey(self, exclude: set[str]) -> None:
-        """Put the big objects in view on the map (not ``exclude``, not what the hands hold)."""
-        self.eyes.survey(self.progress, exclude={*exclude, *self.memory.holding.values()})
 
     def do_turn(self, step: Step) -> ActionReport:
         """Turn on the spot by ``angle_deg`` (positive = left)."""

@@ -11,6 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from services.bus.schemas import sim as sim_msg
+from services.bus.schemas import walking as walk_msg
 from services.errors import FellError, InfeasibleError, InvalidRequestError, UnavailableError
 from supervisor.health import HealthMonitor
 from supervisor.parts import ActionParts
@@ -99,7 +100,10 @@ class Remedies(ActionParts):
         self.body.straighten()
         try:
             plan = self.planners.square()
-        except (InfeasibleError, InvalidRequestError) as exc:  # invalid_request: square already
+        except (InfeasibleError, InvalidRequestError) as exc:
+            square = exc.details.get("reason") == walk_msg.REASON_ALREADY_SQUARE
+            if isinstance(exc, InvalidRequestError) and not square:
+                raise  # a request walking could not read: not a stance to keep
             self.progress(f"the stance stays as it is ({exc.message})")
             return
         self.progress(f"square the stance: {plan.describe()}")

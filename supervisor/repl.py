@@ -39,6 +39,7 @@ class ConsoleLoop:
         self.hand = hand
         self.prompt = prompt
         self.last_ok: bool | None = None
+        self.last_refused = False  # the last command line heard was not understood (exit code 1)
         self._pending: deque[Command] = deque()
         self._worker: threading.Thread | None = None
         self._count = 0
@@ -84,7 +85,7 @@ class ConsoleLoop:
         if self.listener.asking:  # the input ended on a question: what it asked for was not done
             self.say("(the input ended without an answer: nothing done for the last command)")
             return 1
-        return 0 if self.last_ok in (None, True) else 1
+        return 0 if self.last_ok in (None, True) and not self.last_refused else 1
 
     def _handle(self, line: str) -> bool:
         """Process one line; False to quit."""
@@ -93,9 +94,9 @@ class ConsoleLoop:
         command = self.listener.hear(line)
         if command.say:
             self.say(command.say)
+        # whatever runs or waits: piped lines are all heard before the first command ends
+        self.last_refused = command.refused
         if command.refused or command.control == "ask":
-            if command.refused and self._worker is None and not self._pending:
-                self.last_ok = False  # the last command given could not be understood
             self._show_prompt()
             return True
         if command.control == "help":

@@ -143,6 +143,9 @@ def test_console_exit_code_when_the_last_line_is_refused_or_unanswered(stack, su
 
     out = io.StringIO()
     assert ConsoleLoop(sup, sup.known_objects(), out).run(["juggle the orange ball"]) == 1, out.getvalue()
+    out = io.StringIO()  # piped: the refused last line is heard while the first command still runs
+    lines = ["find the orange ball", "juggle the orange ball"]
+    assert ConsoleLoop(sup, sup.known_objects(), out).run(lines) == 1, out.getvalue()
     out = io.StringIO()  # perception knows every ball of the scene: "the ball" is ambiguous
     assert ConsoleLoop(sup, sup.known_objects(), out).run(["take the ball"]) == 1, out.getvalue()
     assert "which ball" in out.getvalue() and "without an answer" in out.getvalue()
@@ -212,8 +215,9 @@ def test_walk_relative_to_the_robot_and_back(sup) -> None:
     back = math.cos(yaw1) * (x2 - x1) + math.sin(yaw1) * (y2 - y1)
     assert back == pytest.approx(-0.3, abs=0.05)
     # The feet side by side at the end: squaring that stance (the missed grasp's remedy) takes no step.
-    with pytest.raises(InvalidRequestError, match="already square"):
+    with pytest.raises(InvalidRequestError, match="already square") as refused:
         sup.actions.planners.square()
+    assert refused.value.details["reason"] == "already_square"  # the remedy keeps only this refusal
 
 
 def test_the_robot_facts_come_from_the_services_and_match_the_model(sup) -> None:

@@ -305,7 +305,9 @@ def goal_steps(
         else:
             sequence = square_steps(soles, limits)
             if not sequence.steps:
-                raise InvalidRequestError("the stance is already square: no step to make")
+                raise InvalidRequestError(
+                    "the stance is already square: no step to make", {"reason": msg.REASON_ALREADY_SQUARE}
+                )
     except InfeasibleError as exc:
         if "reason" in exc.details:
             raise

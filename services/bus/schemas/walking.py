@@ -180,6 +180,7 @@ GOAL_KINDS = ("pose", "turn", "square")
 REASON_BLOCKED = "blocked_by_obstacle"  # a step or the mid-feet path comes too near a box of the map
 REASON_NO_ROOM_TO_TURN = "no_room_to_turn"  # a box nearer than turn_room_m to the mid-feet point
 REASON_OUT_OF_BOUNDS = "out_of_bounds"  # no count of steps fits the robot's stepping bounds
+REASON_ALREADY_SQUARE = "already_square"  # invalid_request: a `square` goal for a stance square already
 
 
 class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
