@@ -115,3 +115,13 @@ def test_record_in_the_foreground_until_sigint(diag, tmp_path):
     info = LogReader(path).info()
     assert info.complete
     assert {"hrp/hrp2/diag/echo/request", "hrp/hrp2/diag/echo/reply"} <= {c.topic for c in info.channels}
+
+
+def test_a_foxglove_replay_filter_picks_bus_keys_and_keeps_the_views():
+    """`humanoid replay F --foxglove --topics 'hrp/*/sim/*'` still serves the 3D views (/tf, ...)."""
+    from services.bus.replay import key_filter
+
+    accept = key_filter(["hrp/*/sim/*"], views=True)
+    assert accept("hrp/hrp2/sim/clock") and accept("/tf") and accept("/robot/description")
+    assert not accept("hrp/hrp2/perception/locate/reply") and not accept("hrp/hrp2/sim/heartbeat")
+    assert not key_filter(["hrp/*/sim/*"])("/tf")  # on the bus there are no views

@@ -8,6 +8,7 @@ replies and the services keep serving.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sys
@@ -237,11 +238,23 @@ def test_sigterm_stops_a_service_even_with_a_busy_handler(bus_harness):
         timeout=30,
     )
     time.sleep(0.3)
+    # more requests queued behind it: each still gets its one reply when the service stops
+    queued = [
+        bus_harness.session.get(
+            "hrp/hrp2/diag/stream", payload=encode(StreamRequest(count=1, width=8, height=8)), timeout=30
+        )
+        for _ in range(3)
+    ]
+    time.sleep(0.3)
     started = time.monotonic()
     os.kill(proc.pid, signal.SIGTERM)
     proc.wait(timeout=10.0)
     print(f"diag exited {time.monotonic() - started:.2f} s after SIGTERM")
     assert proc.returncode == 0
+    for replies in queued:
+        errors = [json.loads(bytes(r.err.payload.to_bytes())) for r in replies if r.err is not None]
+        assert [e["code"] for e in errors] == ["unavailable"], errors
+        assert errors[0]["details"]["reason"] == "stopping" and "is stopping" in errors[0]["message"]
     bus_harness.wait_gone("diag")
 
 

@@ -674,11 +674,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 "Ctrl-C to stop)"
             )
 
+        accept = key_filter(patterns, heartbeats=args.heartbeats, views=True)
         try:
             stats = serve_log(
                 args.file, port=args.foxglove, speed=args.speed, on_ready=ready, wait_for_viewer_s=600,
-                linger_s=600, start_s=args.start, loop=args.loop,
-                accept=key_filter(patterns, heartbeats=args.heartbeats),
+                linger_s=600, start_s=args.start, loop=args.loop, accept=accept,
             )  # fmt: skip
         except KeyboardInterrupt:
             return 130

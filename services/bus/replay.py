@@ -34,10 +34,16 @@ from services.bus.session import request_id_bytes
 from services.errors import HumanoidError, InvalidRequestError
 
 
-def key_filter(patterns: list[str] | None, *, heartbeats: bool = False) -> Callable[[str], bool]:
-    """Shell-style globs on keys (``*`` also matches ``/``): ``hrp/*/sim/*``; None: everything."""
+def key_filter(
+    patterns: list[str] | None, *, heartbeats: bool = False, views: bool = False
+) -> Callable[[str], bool]:
+    """Shell-style globs on keys (``*`` also matches ``/``): ``hrp/*/sim/*``; None: everything.
+    ``views``: a log's Foxglove views (their topics not under ``hrp/``: ``/tf``, the robot, the
+    cameras) pass whatever the globs say."""
 
     def accept(key: str) -> bool:
+        if views and not key.startswith(f"{keys.PREFIX}/"):
+            return True
         if not heartbeats and key.endswith("/heartbeat"):
             return False
         return patterns is None or any(fnmatch.fnmatchcase(key, p) for p in patterns)

@@ -68,10 +68,13 @@ from services.bus.spec import EndpointSpec, TopicSpec
 from services.errors import HumanoidError, InternalError
 
 HEARTBEAT_PERIOD_S = 0.5
-#: Queries (or samples) waiting for a busy handler; when full, zenoh holds further ones back.
+#: Queries (or samples) waiting for a busy handler. A query finding its endpoint's queue full is refused
+#: at once (``unavailable``, ``REASON_BUSY``); a subscription's full queue holds zenoh's delivery back.
 QUEUE_CAPACITY = 64
 #: ``details["reason"]`` of the ``unavailable`` reply to a request that finds its endpoint's queue full.
 REASON_BUSY = "busy"
+#: ``details["reason"]`` of the ``unavailable`` reply to a request still queued when the service stops.
+REASON_STOPPING = "stopping"
 #: A stopping service exits after this long even if a handler is still running [s].
 EXIT_DEADLINE_S = 0.9
 
@@ -395,10 +398,18 @@ class _Runtime:
         for declared in ([token] if token is not None else []) + self._channels:
             with contextlib.suppress(zenoh.ZError):
                 declared.undeclare()
+        stopping = error_frame(
+            "unavailable", f"{self.service.name} is stopping: not served", {"reason": REASON_STOPPING}
+        )
         for pending in self._queues:  # the workers stop after the request they serve
             with contextlib.suppress(queue.Empty):
                 while True:
-                    pending.get_nowait()  # dropped: zenoh ends that query without a reply
+                    waiting = pending.get_nowait()
+                    if isinstance(waiting, zenoh.Query):  # its one reply: not served (samples: dropped)
+                        with contextlib.suppress(zenoh.ZError):
+                            waiting.reply_err(stopping)
+                        with contextlib.suppress(zenoh.ZError):
+                            waiting.drop()
             pending.put(None)
 
     def shutdown(self, deadline: float) -> None:
