@@ -255,6 +255,12 @@ class SupervisorConfig:
             )
         if len(self.carry_m) != 3:
             raise InvalidRequestError("supervisor config: carry_m must be [forward, lateral, height] m")
+        for name, value, most in (
+            ("straight_back_deg", self.straight_back_deg, 90.0),  # beyond 90 every way out is "back"
+            ("min_turn_deg", self.min_turn_deg, 180.0),
+        ):
+            if value > most:
+                raise InvalidRequestError(f"supervisor config: {name} must be <= {most:g} deg, got {value}")
 
     def arm_timing(self, motion: str) -> dict[str, float]:
         """The ``reaching/reach`` timing fields of the arm ``motion`` (one of ``FAST_ARM_MOTIONS``):

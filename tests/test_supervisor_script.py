@@ -176,6 +176,9 @@ def test_supervisor_config_defaults_yaml_override_and_errors(tmp_path):
     path.write_text("supervisor:\n  goto_farther_m: [0.15, -0.3]\n")
     with pytest.raises(InvalidRequestError, match=r"goto_farther_m must be >= 0 m, got \[0.15, -0.3\]"):
         load_supervisor_config(path)
+    path.write_text("supervisor:\n  straight_back_deg: 120\n")  # every way out would be "back"
+    with pytest.raises(InvalidRequestError, match=r"straight_back_deg must be <= 90 deg, got 120"):
+        load_supervisor_config(path)
 
 
 def test_supervisor_config_arm_timing_per_motion_and_its_bounds():
