@@ -516,6 +516,8 @@ class World:
         monitor = _Monitor(self)
         # the soles the only supports: a multi-contact motion's body leans on its supports as planned
         stabilizer = self.stabilizer if not (supports or force_targets) else None
+        if self.stabilizer is not None and stabilizer is None:  # none kept for after it, from another posture
+            self.stabilizer.reset()
         start_time = self.sim_time_s
         outcome, message = "completed", f"executed {len(q_traj)} samples"
         executed = 1
