@@ -144,27 +144,30 @@ def plot_potential(data: dict, out: Path) -> Path:
     return path
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    """The command line (``argv``: its arguments, default ``sys.argv[1:]``); the exit code."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", type=float, default=300.0, help="search budget [s] (300)")
-    parser.add_argument("--reuse", action="store_true", help="draw out/contacts_chair_plan.npz again")
-    parser.add_argument(
+    which = parser.add_mutually_exclusive_group()  # one plan to draw: the last one, or a saved one
+    which.add_argument("--reuse", action="store_true", help="draw OUT/contacts_chair_plan.npz again")
+    which.add_argument(
         "--plan",
         type=Path,
         help="draw this saved plan (`humanoid scenario chair-egress --save-plan FILE`)",
     )
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory (out)")
     parser.add_argument("--panels", type=int, default=8, help="witness postures in the strip (8)")
-    args = parser.parse_args()
-    args.out.mkdir(parents=True, exist_ok=True)
+    args = parser.parse_args(argv)
     plan_path = args.plan or args.out / "contacts_chair_plan.npz"
     if args.plan is None and not (args.reuse and plan_path.is_file()):
+        args.out.mkdir(parents=True, exist_ok=True)
         print("plan written to", compute_plan(args.budget, plan_path))
     try:
         data = figure_data(plan_path)
     except (InvalidRequestError, FileNotFoundError) as exc:  # a plan of before session 11, no file
         print(f"error: {exc}; plan again without --reuse (or --plan FILE of --save-plan)", file=sys.stderr)
         return 2
+    args.out.mkdir(parents=True, exist_ok=True)  # only once there is a plan to draw
     print("wrote", render_strip(data, args.out, args.panels))
     print("wrote", plot_potential(data, args.out))
     return 0

@@ -99,3 +99,10 @@ def test_the_chair_figures_draw_a_plan_saved_as_the_scenario_saves_it(tmp_path: 
     assert list(data["changes"]) == ["start", "start again"]
     assert np.allclose(data["s"], 0.0, atol=0.05) and data["f"][0] == pytest.approx(data["f"][1])
     assert example.plot_potential(data, tmp_path).is_file()
+    # one plan to draw: --reuse (the last one planned) and --plan FILE together are refused, and a
+    # plan that does not load leaves no output directory behind
+    with pytest.raises(SystemExit) as usage:
+        example.main(["--reuse", "--plan", str(path), "--out", str(tmp_path / "both")])
+    assert usage.value.code == 2 and not (tmp_path / "both").exists()
+    assert example.main(["--plan", str(tmp_path / "missing.npz"), "--out", str(tmp_path / "none")]) == 2
+    assert not (tmp_path / "none").exists()
