@@ -125,12 +125,16 @@ def test_the_grasp_point_follows_the_hand_as_it_is_turned(yaw_deg, tilt_deg):
     from supervisor.manipulation import yaw_of
 
     actions = _hand_actions()
-    actions.memory.remember(_ball(AIMED, 0.97))
+    actions.memory.remember(_ball(AIMED, 0.97))  # seen 0.08 m wide
     R = Rotation.from_euler("ZX", [yaw_deg, tilt_deg], degrees=True).as_matrix()
     point = actions._grasp_point("right", "orange_ball", 0.0, R_world_hand=R)
+    # Where the ball is for the hand at ``point`` turned by R: against the model's fixed finger (the
+    # sim's robot_info), its surface grasp_clearance_m off it, under the palm (the jaws close on it).
     in_hand = R.T @ (AIMED - point)
-    held = actions.body.robot.held_object_offset("right", 0.04)  # the ball seen 0.08 m wide
-    assert in_hand[1] == pytest.approx(held[1] - actions.config.grasp_clearance_m, abs=1e-9)
+    fixed_y = actions.body.robot.info.fixed_finger_y_m["right"]
+    radius = 0.04
+    assert fixed_y - (in_hand[1] + radius) == pytest.approx(actions.config.grasp_clearance_m, abs=1e-9)
+    assert (in_hand[1] - radius) - (-fixed_y) > actions.config.grasp_clearance_m  # the open moving finger
     assert abs(in_hand[0]) < 1e-9 and abs(in_hand[2]) < 1e-9
     assert math.degrees(yaw_of(R)) == pytest.approx(yaw_deg, abs=1e-6)
     # the hand turned by its yaw only: as ``_grasp_point`` for that yaw
