@@ -36,6 +36,10 @@ def _schema_data(name: str) -> bytes:
     return bytes(getattr(fm, name.removeprefix("foxglove.")).get_schema().data)
 
 
+#: The entities of /world/objects in the scene of the stack below (sim/scenes/footsteps_reach.yaml).
+SCENE_OBJECTS = {"object/stand", "object/orange_ball", "object/obstacle_disk"}
+
+
 @pytest.fixture(scope="module")
 def log_path(tmp_path_factory):
     return tmp_path_factory.mktemp("viz") / "live.mcap"
@@ -45,7 +49,8 @@ def log_path(tmp_path_factory):
 def stack(module_bus_harness, log_path):
     h = module_bus_harness
     h.spawn_service("services.bus.recorder", "--output", str(log_path), name="record")
-    h.spawn_service("sim.service", "--scene", "empty", name="sim", timeout_s=60)
+    # a scene with objects (for /world/objects), none on the walk's way: the disk starts 0.7 m ahead
+    h.spawn_service("sim.service", "--scene", "footsteps_reach", name="sim", timeout_s=60)
     h.spawn_service("services.walking.service", name="walking", timeout_s=60)
     h.spawn_service("services.bus.diag", name="diag")
     port = free_port()
@@ -115,7 +120,7 @@ def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
     footsteps = [SceneUpdate.FromString(m.data) for m in got if m.topic == c.PLAN_FOOTSTEPS]
     assert footsteps and len(footsteps[-1].entities[0].cubes) == 4  # the walk's four soles
     objects = [SceneUpdate.FromString(m.data) for m in got if m.topic == c.WORLD_OBJECTS]
-    assert objects  # the empty scene: an update that clears, polled from the sim while watched
+    assert objects and {e.id for e in objects[-1].entities} == SCENE_OBJECTS  # the sim's, as they are
 
 
 def test_misbehaving_viewers_do_not_hurt_the_stack(stack):
@@ -177,25 +182,42 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
     from mcap.reader import make_reader
 
     from services.bus import keys
+    from services.bus import world as world_keys
     from services.bus.foxglove import schema_problems
     from services.bus.schemas.record import STATUS, StatusRequest
 
     h = stack[0]
     recorder = next(p for p in h.procs if "services.bus.recorder" in " ".join(map(str, p.args)))
     warning = keys.key(h.bus.robot, "diag", "log")
+    truth = world_keys.mirror_key(h.bus.robot)  # the sim's ground truth's copy: /world/objects
+
+    def written(key: str) -> int:
+        return h.client.call(STATUS, StatusRequest(), 10.0).per_key.get(key, 0)
+
+    # no viewer watches /world/objects now (the live view asks the sim only then): after the gripper
+    # opens, the recorder itself asks what is there
+    truths = written(truth)
+    h.client.call(sim_msg.GRIPPER, sim_msg.GripperRequest(side="right", action="open"), 30.0)
     deadline = time.monotonic() + 30.0  # a hang guard: the assertions below say what is missing
     while time.monotonic() < deadline:
-        if h.client.call(STATUS, StatusRequest(), 10.0).per_key.get(warning, 0) > 0:
+        if written(warning) > 0 and written(truth) > truths:
             break
         time.sleep(0.05)
     assert h.stop(recorder) == 0
     topics: dict[str, int] = {}
     robot = h.bus.robot
+    world: list[tuple[int, set[str]]] = []  # /world/objects: (log time [ns], entity ids)
+    executed: list[int] = []  # log times of sim/execute's replies [ns]
     with open(log_path, "rb") as stream:
         reader = make_reader(stream, validate_crcs=True)
         summary = reader.get_summary()
         for schema, channel, message in reader.iter_messages():
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
+            if channel.topic == c.WORLD_OBJECTS:
+                update = protobuf_class(schema.name, schema.data).FromString(message.data)
+                world.append((message.log_time, {e.id for e in update.entities}))
+            if channel.topic in (f"hrp/{robot}/sim/execute/reply", f"hrp/{robot}/sim/gripper/reply"):
+                executed.append(message.log_time)
             if channel.topic == f"hrp/{robot}/sim/joint_state":  # rounded, as numbers Foxglove plots
                 assert channel.metadata["hrp.decimals"] == "6"
                 assert len(json.loads(message.data)["q"]["values"]) >= 37
@@ -223,6 +245,11 @@ def test_recorded_log_reads_back_with_the_official_reader_and_decodes(stack, log
         f"hrp/{robot}/sim/joint_state"
     ]
     assert topics[c.TF] < topics[f"hrp/{robot}/sim/joint_state"] / 2
+    # What is there, as the live view shows it: the recorder asked the sim when the log began and
+    # after each motion, the gripper's last (the copy of the reply, converted as the live view does)
+    assert world and executed, (len(world), len(executed))
+    assert world[0][1] == SCENE_OBJECTS and world[0][0] < executed[0]
+    assert any(t > executed[-1] and ids == SCENE_OBJECTS for t, ids in world), (world, executed)
 
 
 def test_foxglove_own_reader_decodes_every_message_of_the_recorded_log(stack, log_path):

@@ -28,6 +28,7 @@ from typing import Any
 
 import zenoh
 
+from services.bus import world
 from services.bus.config import from_mapping
 from services.bus.mcaplog import LogWriter
 from services.bus.schemas.record import STATUS, StatusReply, StatusRequest
@@ -40,6 +41,10 @@ STATE_TOPICS = ("/sim/joint_state", "/sim/base_pose", "/sim/clock")
 #: The sim's 200 Hz sensor streams written rounded to ``state_decimals`` (their float64 low bits are
 #: physics noise that zstd cannot compress: 2/3 of a fetch's log otherwise).
 ROUNDED_TOPICS = ("sim/joint_state", "sim/base_pose")
+#: How long the recorder waits for ``sim/ground_truth`` [s]; how often it looks for the sim before it
+#: answered once, and for the stop [s].
+WORLD_TIMEOUT_S = 2.0
+WORLD_RETRY_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -60,6 +65,10 @@ class RecorderConfig:
         state_every: record one in this many messages of the sim's 200 Hz state topics
             (``sim/joint_state``, ``sim/base_pose``, ``sim/clock``); 1 (default): every message. The
             transforms in the views stay above 30 Hz of sim time up to 6.
+        world_objects: with ``foxglove_views``, the recorder asks ``sim/ground_truth`` when the log
+            begins (once the sim answers) and after each answer of sim/execute, gripper and reset, so
+            that the log's ``/world/objects`` shows what is there, as the live view does
+            (:mod:`services.bus.world`); only when ``key_expr`` takes the reply's copy.
         state_decimals: the sim's joint state and base pose are written with their floats rounded to
             this many decimals (6: 1 um, 1 urad, 1 um/s; far below what a joint encoder or an IMU
             resolves) as JSON numbers Foxglove plots; None: the exact float64 bytes (lossless, the
@@ -75,6 +84,7 @@ class RecorderConfig:
     model: str = ""
     transform_hz: float = 30.0
     state_every: int = 1
+    world_objects: bool = True
     state_decimals: int | None = 6
 
     def __post_init__(self) -> None:
@@ -139,9 +149,34 @@ class RecorderService(Service):
         self._subscriber = self.session.declare_subscriber(
             cfg.key_expr, zenoh.handlers.FifoChannel(cfg.queue_capacity)
         )
+        self._stopping = threading.Event()
+        self._moved = threading.Event()  # the world may have changed: ask it again
+        self._moving_keys: frozenset[str] = frozenset()
+        self._world_thread: threading.Thread | None = None
+        if cfg.foxglove_views and cfg.world_objects and self._records(world.mirror_key(self.bus.robot)):
+            self._moving_keys = world.moving_keys(self.bus.robot)
+            self._world_thread = threading.Thread(target=self._ask_world, name="record:world", daemon=True)
+            self._world_thread.start()
         self._writer_thread = threading.Thread(target=self._write_loop, name="record:writer", daemon=True)
         self._writer_thread.start()
         self.log.info("recording %s to %s", cfg.key_expr, cfg.output)
+
+    def _records(self, key: str) -> bool:
+        """Whether ``key_expr`` takes messages on ``key``."""
+        return zenoh.KeyExpr(self.config.key_expr).intersects(zenoh.KeyExpr(key))
+
+    def _ask_world(self) -> None:
+        """``sim/ground_truth`` until the sim answers once (the world as the log begins), then after
+        each motion, gripper or reset; the sim's copy of the reply is recorded like any message, and
+        its view is ``/world/objects``."""
+        robot = self.bus.robot
+        while not world.ask(self.session, robot, timeout_s=WORLD_TIMEOUT_S):
+            if self._stopping.wait(WORLD_RETRY_S):
+                return
+        while not self._stopping.is_set():
+            if self._moved.wait(WORLD_RETRY_S):
+                self._moved.clear()  # before asking: a motion ending meanwhile asks once more
+                world.ask(self.session, robot, timeout_s=WORLD_TIMEOUT_S)
 
     def _write_loop(self) -> None:
         channel = self._subscriber.handler
@@ -170,6 +205,8 @@ class RecorderService(Service):
                     self._per_key[key] = self._per_key.get(key, 0) + 1
                 except Exception:  # a full disk must not stop the service from answering
                     self.log.exception("could not record a message on %s", key)
+            if key in self._moving_keys:
+                self._moved.set()
 
     @handles(STATUS)
     def status(self, _request: StatusRequest) -> StatusReply:
@@ -178,6 +215,7 @@ class RecorderService(Service):
             return StatusReply(output=self.config.output, recorded=self.recorded, per_key=dict(self._per_key))
 
     def stop(self) -> None:
+        self._stopping.set()
         with contextlib.suppress(zenoh.ZError):
             self._subscriber.undeclare()
         self._writer_thread.join(timeout=0.5)

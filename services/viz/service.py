@@ -35,9 +35,8 @@ import foxglove
 import zenoh
 from foxglove.websocket import ServerListener
 
-from services.bus import keys
+from services.bus import world
 from services.bus.config import from_mapping
-from services.bus.schemas import sim as sim_msg
 from services.bus.service import Service, run_service
 from services.errors import InvalidRequestError
 from services.viz import common as c
@@ -212,15 +211,10 @@ class VizService(Service):
         return channel
 
     def _poll_world(self) -> None:
-        key = keys.key(self.bus.robot, sim_msg.GROUND_TRUTH.service, sim_msg.GROUND_TRUTH.name)
         period = self.config.world_poll_s
         while not self._done.wait(period):
-            if not self._listener.watched(c.WORLD_OBJECTS):
-                continue
-            # The sim mirrors the reply on .../ground_truth/reply, which _on_sample converts.
-            with contextlib.suppress(zenoh.ZError):
-                for _reply in self.session.get(key, payload=b"{}", timeout=2.0):
-                    pass
+            if self._listener.watched(c.WORLD_OBJECTS):  # the reply's copy comes through _on_sample
+                world.ask(self.session, self.bus.robot, timeout_s=2.0)
 
     def stop(self) -> None:
         self._done.set()
