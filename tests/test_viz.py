@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -267,17 +268,12 @@ def test_plans_map_cameras_and_text_become_foxglove_messages():
     ).schema_name == ("foxglove.FrameTransforms")
 
 
-def test_a_recorded_log_is_served_to_foxglove(tmp_path):
-    """``humanoid replay FILE --foxglove``: the log's channels, advertised and played to a viewer."""
-    import threading
-
+def _joint_state_log(path: Path, heartbeats: bool = False) -> Path:
+    """An MCAP log (with the Foxglove views) of 20 joint states 50 ms apart, the base 1 cm further in x
+    each (``heartbeats``: a sim heartbeat beside each); ``path``."""
     from services.bus.mcaplog import LogWriter
-    from services.viz.player import serve_log
-    from services.viz.wsclient import FoxgloveClient
-    from tests.conftest import free_port
 
     robot = load_robot("hrp2_like")
-    path = tmp_path / "log.mcap"
     writer = LogWriter(path, views=Converter().views)
     t = time.time_ns()
     for i in range(20):
@@ -285,7 +281,21 @@ def test_a_recorded_log_is_served_to_foxglove(tmp_path):
         q[0] = 0.01 * i
         frame = encode(sim_msg.JointState(sim_time_s=0.005 * i, q=q, v=np.zeros(robot.nv)))
         writer.write("hrp/hrp2/sim/joint_state", frame, t + i * 50_000_000)
+        if heartbeats:
+            writer.write("hrp/hrp2/sim/heartbeat", b"{}", t + i * 50_000_000)
     writer.close()
+    return path
+
+
+def test_a_recorded_log_is_served_to_foxglove(tmp_path):
+    """``humanoid replay FILE --foxglove``: the log's channels, advertised and played to a viewer."""
+    import threading
+
+    from services.viz.player import serve_log
+    from services.viz.wsclient import FoxgloveClient
+    from tests.conftest import free_port
+
+    path = _joint_state_log(tmp_path / "log.mcap")
     port = free_port()
     ready = threading.Event()
     player = threading.Thread(
@@ -320,23 +330,12 @@ def test_a_log_served_to_foxglove_from_a_start_time_and_left_by_its_viewer(tmp_p
     play; a viewer that unsubscribes and leaves raises nothing in the server's callbacks."""
     import threading
 
-    from services.bus.mcaplog import LogWriter
     from services.bus.replay import key_filter
     from services.viz.player import serve_log
     from services.viz.wsclient import FoxgloveClient
     from tests.conftest import free_port
 
-    robot = load_robot("hrp2_like")
-    path = tmp_path / "log.mcap"
-    writer = LogWriter(path, views=Converter().views)
-    t = time.time_ns()
-    for i in range(20):
-        q = robot.q_half_sitting.copy()
-        q[0] = 0.01 * i
-        frame = encode(sim_msg.JointState(sim_time_s=0.005 * i, q=q, v=np.zeros(robot.nv)))
-        writer.write("hrp/hrp2/sim/joint_state", frame, t + i * 50_000_000)
-        writer.write("hrp/hrp2/sim/heartbeat", b"{}", t + i * 50_000_000)
-    writer.close()
+    path = _joint_state_log(tmp_path / "log.mcap", heartbeats=True)
     port = free_port()
     ready = threading.Event()
     player = threading.Thread(
