@@ -287,29 +287,37 @@ _PUT_LOOK_Q = [
 ]  # fmt: skip
 
 
-def test_the_table_behind_the_robots_own_hand_is_mapped_where_it_is(models):
-    """Fetch seed 0's put: from 1 m, the gripper and the ball hide the table's near right leg; the
-    gripper's contour (not a learned colour) was taken as the table's edge and the table was mapped
-    1.47 m long, its centre 0.22 m toward the robot (the put then lowered the ball beside it). The
-    robot's own links, drawn from its model at q (services/perception/own_body.py), are an occluder."""
-    from services.perception.own_body import OwnBody
+def _put_look(seed: int, q_list: list[float]):
+    """A put's look at the table, rendered: ball_fetch ``seed`` with the robot at ``q_list`` and the
+    orange ball in its right hand; ``(robot, q, left, right, stereo, table)``: the model, q, the wide
+    head pair (BGR, 640 x 480), its stereo geometry and the table's ground truth."""
     from sim.world import World
 
-    with World(ROBOT, "ball_fetch", seed=0) as w:
+    with World(ROBOT, "ball_fetch", seed=seed) as w:
         robot = w.robot
-        q = robot.check_q(np.asarray(_PUT_LOOK_Q, dtype=float))
+        q = robot.check_q(np.asarray(q_list, dtype=float))
         w.pyrobot.reset(q)
         w.set_object_pose(
             "orange_ball",
             robot.frame_pose(q, robot.frames.right_grasp).act(robot.held_object_offset("right", 0.05)),
         )
         left, right = (cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in w.render("wide", 640, 480))
-        stereo = head_stereo(robot, q, "wide", 640, 480)
         table = w.layout.object("yellow_table")
-        own = OwnBody(robot)
-        masks = own.stereo_masks(q, stereo.rig.intrinsics, stereo.T_world_left_camera, stereo.rig.baseline_m)
-        seen = locate_object(models, "yellow_table", stereo, left, right)
-        fp = locate_object(models, "yellow_table", stereo, left, right, own_body=own, q=q).footprint
+    return robot, q, left, right, head_stereo(robot, q, "wide", 640, 480), table
+
+
+def test_the_table_behind_the_robots_own_hand_is_mapped_where_it_is(models):
+    """Fetch seed 0's put: from 1 m, the gripper and the ball hide the table's near right leg; the
+    gripper's contour (not a learned colour) was taken as the table's edge and the table was mapped
+    1.47 m long, its centre 0.22 m toward the robot (the put then lowered the ball beside it). The
+    robot's own links, drawn from its model at q (services/perception/own_body.py), are an occluder."""
+    from services.perception.own_body import OwnBody
+
+    robot, q, left, right, stereo, table = _put_look(0, _PUT_LOOK_Q)
+    own = OwnBody(robot)
+    masks = own.stereo_masks(q, stereo.rig.intrinsics, stereo.T_world_left_camera, stereo.rig.baseline_m)
+    seen = locate_object(models, "yellow_table", stereo, left, right)
+    fp = locate_object(models, "yellow_table", stereo, left, right, own_body=own, q=q).footprint
     # the fixed finger (a box 13.5 cm down the wrist link, 7 cm aside) is drawn
     palm = robot.frame_pose(q, "RARM_LINK5").act(np.array([0.0, 0.0725, -0.135]))
     hand = stereo.rig.intrinsics.project(np.linalg.inv(stereo.T_world_left_camera)[:3] @ np.append(palm, 1.0))
@@ -339,20 +347,9 @@ def test_a_table_running_out_of_the_image_bottom_behind_the_hand_is_mapped_its_s
     different legs. Those rows were kept (:func:`vision.footprint._consistent` at the end of the rows)
     and the table was mapped 1.46 m long, 0.21 m toward the robot."""
     from services.perception.own_body import OwnBody
-    from sim.world import World
 
-    with World(ROBOT, "ball_fetch", seed=40) as w:
-        robot = w.robot
-        q = robot.check_q(np.asarray(_PUT_LOOK_Q_SEED40, dtype=float))
-        w.pyrobot.reset(q)
-        w.set_object_pose(
-            "orange_ball",
-            robot.frame_pose(q, robot.frames.right_grasp).act(robot.held_object_offset("right", 0.05)),
-        )
-        left, right = (cv2.cvtColor(im.rgb, cv2.COLOR_RGB2BGR) for im in w.render("wide", 640, 480))
-        stereo = head_stereo(robot, q, "wide", 640, 480)
-        table = w.layout.object("yellow_table")
-        found = locate_object(models, "yellow_table", stereo, left, right, own_body=OwnBody(robot), q=q)
+    robot, q, left, right, stereo, table = _put_look(40, _PUT_LOOK_Q_SEED40)
+    found = locate_object(models, "yellow_table", stereo, left, right, own_body=OwnBody(robot), q=q)
     assert found.position_camera[2] > 1.0  # near, but a footprint is made
     fp = found.footprint
     assert fp is not None
