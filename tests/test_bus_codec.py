@@ -60,6 +60,7 @@ def test_frame_kinds_and_summaries():
     assert frame_kind(binary) == "hrpb"
     assert frame_kind(b'{"a": 1}') == "json"
     assert frame_kind(b"") == frame_kind(b"{broken") == frame_kind(os.urandom(8) + b"x") == "octets"
+    assert frame_kind(b'{"\xff\xfe": 1}') == "octets"  # invalid UTF-8 in a string (it raised)
     assert summarize(binary)["left"] == "<ndarray uint8 (48, 64, 3)>"
     assert summarize(b"\x00\x01") == "<2 bytes: 0001>"
     doc, refs = parse_frame(binary)

@@ -34,7 +34,7 @@ def frame_kind(data: bytes | memoryview) -> str:
         try:
             msgspec.json.decode(view)
             return "json"
-        except msgspec.DecodeError:
+        except (msgspec.DecodeError, UnicodeDecodeError):  # a string with bytes that are not UTF-8
             return "octets"
     first, last = bytes(view[:1]), bytes(view[-1:])
     return "json" if (first, last) in ((b"{", b"}"), (b"[", b"]")) else "octets"
