@@ -11,7 +11,9 @@ endpoints"):
   ``{"__nd__": [offset, nbytes], "dtype": "<f8", "shape": [...]}`` in place of each array (arrays may
   also be written as JSON lists); zenoh's encoding and attachment of a query are not read;
 * the answer is one zenoh reply: an ok reply whose payload is a frame of the same two kinds, or an
-  error reply whose payload is ``ErrorInfo`` JSON ``{"code", "message", "details"}``.
+  error reply whose payload is ``ErrorInfo`` JSON ``{"code", "message", "details"}``; the reply's zenoh
+  encoding (and every published sample's) names the kind: ``application/json`` for plain JSON,
+  ``application/octet-stream;hrpb`` for a binary frame.
 
 Used by ``tests/test_fuzz.py`` (the stranger's tests share its stack).
 """
@@ -28,6 +30,9 @@ import numpy as np
 import zenoh
 
 MAGIC = b"HRPB"
+#: The zenoh encoding labels of the two frame kinds (services/bus/README "Calling an endpoint").
+JSON_LABEL = "application/json"
+HRPB_LABEL = "application/octet-stream;hrpb"
 #: What zenoh itself puts in an error reply when a query's timeout passes without an answer.
 ZENOH_TIMEOUT = b"Timeout"
 
@@ -74,6 +79,11 @@ def frame(doc: dict[str, Any], arrays: dict[str, np.ndarray] | None = None) -> b
     return MAGIC + struct.pack("<I", len(head)) + head + b"".join(blobs)
 
 
+def label_of(raw: bytes) -> str:
+    """The encoding label a frame of the bus carries (the README), from its first bytes."""
+    return HRPB_LABEL if raw[:4] == MAGIC else JSON_LABEL
+
+
 def unframe(raw: bytes) -> Any:
     """A reply frame as JSON values, each array reference replaced by its numpy array."""
     if raw[:4] != MAGIC:
@@ -104,6 +114,7 @@ class Answer:
     body: Any = None  # the ok reply, unframed
     error: dict[str, Any] = field(default_factory=dict)  # the ErrorInfo of an error reply
     raw: bytes = b""
+    encoding: str = ""  # the reply's zenoh encoding label
 
     @property
     def code(self) -> str:
@@ -137,9 +148,9 @@ def call(
     for reply in session.get(key, **options):
         if reply.ok is not None:
             raw = reply.ok.payload.to_bytes()
-            return Answer("ok", body=unframe(raw), raw=raw)
+            return Answer("ok", body=unframe(raw), raw=raw, encoding=str(reply.ok.encoding))
         raw = reply.err.payload.to_bytes()
         if raw == ZENOH_TIMEOUT:
             break
-        return Answer("error", error=json.loads(raw), raw=raw)
+        return Answer("error", error=json.loads(raw), raw=raw, encoding=str(reply.err.encoding))
     return Answer("none")

@@ -374,6 +374,8 @@ def test_a_stranger_forms_each_request_from_the_docs_and_malformed_ones_are_name
 
     answer = documented()
     assert answer.code != "invalid_request", f"the docs did not let a stranger call {path}: {answer}"
+    # the reply's zenoh encoding names its frame (a reader need not look at the bytes)
+    assert answer.encoding == stranger_client.label_of(answer.raw), f"{path}: {answer.encoding!r}"
     assert answer.code in STRANGER_TYPED | {expected_ok}, f"{path}: {answer}"
     if path != "diag/raise":
         assert answer.code == "ok" or path in STRANGER_EXPENSIVE, f"{path}: {answer}"
@@ -397,6 +399,7 @@ def test_a_stranger_forms_each_request_from_the_docs_and_malformed_ones_are_name
         assert bad.code == "invalid_request", f"{path}, {what}: {bad}"
         assert word.lower() in bad.message.lower(), f"{path}, {what}: the message does not say it: {bad}"
         assert len(bad.raw) < 4096, f"{path}, {what}: a {len(bad.raw)}-byte error reply echoes the payload"
+        assert bad.encoding == stranger_client.JSON_LABEL, f"{path}, {what}: labelled {bad.encoding!r}"
     empty = stranger_client.call(session, key, b"", REPLY_TIMEOUT_S)  # as {} (the README)
     assert empty.kind == "error" or empty.kind == "ok", f"{path}, empty payload: {empty}"
     if empty.code == "invalid_request":
@@ -444,7 +447,8 @@ def test_a_stranger_calls_at_once_and_every_call_is_answered(stranger):
 
 def test_a_stranger_asking_the_impossible_gets_infeasible_with_what_was_reached(stranger):
     """Goals no plan meets, formed from the READMEs: a typed ``infeasible`` (or ``timeout``) naming what
-    was reached, within the request's budget (loosely: the machine is shared), never a hang."""
+    was reached; a timeout is the request's own budget running out (its ``budget_s``, where it stopped),
+    never a hang. (How soon after the budget it answers is measured by ``scripts/bench budgets``.)"""
     session, robot, procs, requests = stranger
     if "sim" not in procs:
         pytest.skip("no sim here")
@@ -483,16 +487,14 @@ def test_a_stranger_asking_the_impossible_gets_infeasible_with_what_was_reached(
     for path, doc in goals.items():
         if path.split("/")[0] not in procs:
             continue
-        started = time.monotonic()
         answer = stranger_client.call(
             session, f"hrp/{robot}/{path}", json.dumps(doc).encode(), REPLY_TIMEOUT_S
         )
-        took = time.monotonic() - started
         assert answer.code in ("infeasible", "timeout"), f"{path}: {answer}"
-        assert answer.message and answer.error.get("details"), (
-            f"{path}: no details of what was reached: {answer}"
-        )
-        assert took <= budget_s + LOOSE_MARGIN_S, f"{path}: answered after {took:.1f} s: {answer}"
+        details = answer.error.get("details")
+        assert answer.message and details, f"{path}: no details of what was reached: {answer}"
+        if answer.code == "timeout":  # the request's own budget ended it (not a default, not a hang)
+            assert details.get("budget_s") == budget_s and details.get("stage"), f"{path}: {details}"
 
 
 def test_a_stranger_who_does_not_know_the_robot_name_queries_with_a_wildcard(stranger):
@@ -509,33 +511,84 @@ def test_a_stranger_who_does_not_know_the_robot_name_queries_with_a_wildcard(str
             assert bad.code == "invalid_request", f"hrp/*/{path}: {bad}"
 
 
+def test_a_stranger_tells_each_published_sample_kind_by_its_encoding_label(stranger):
+    """Samples carry the replies' labels: diag's heartbeat (plain JSON), its stereo frames (binary
+    frames) and the copies of a diag/stream request and reply, read by a raw zenoh subscriber."""
+    session, robot, procs, requests = stranger
+    if "diag" not in procs:
+        pytest.skip("no diag here")
+    seen: dict[str, tuple[str, bytes]] = {}
+
+    def on_sample(sample) -> None:  # zenoh's thread: only a dict update
+        seen.setdefault(str(sample.key_expr), (str(sample.encoding), sample.payload.to_bytes()[:4]))
+
+    want = {f"hrp/{robot}/diag/{name}" for name in ("heartbeat", "frames", "stream/request", "stream/reply")}
+    subscriber = session.declare_subscriber(f"hrp/{robot}/diag/**", on_sample)
+    try:
+        stream = stranger_client.frame(*requests["diag/stream"])
+        deadline = time.monotonic() + 30.0  # a hang guard: the assertion below names what is missing
+        while not want <= seen.keys() and time.monotonic() < deadline:
+            answer = stranger_client.call(session, f"hrp/{robot}/diag/stream", stream, REPLY_TIMEOUT_S)
+            assert answer.kind == "ok", answer
+            time.sleep(0.1)
+    finally:
+        subscriber.undeclare()
+    assert want <= seen.keys(), f"not seen: {sorted(want - seen.keys())}"
+    labels = {key: label for key, (label, _) in seen.items()}
+    assert labels[f"hrp/{robot}/diag/frames"] == stranger_client.HRPB_LABEL, labels
+    assert labels[f"hrp/{robot}/diag/heartbeat"] == stranger_client.JSON_LABEL, labels
+    for key, (label, head) in seen.items():
+        assert label == stranger_client.label_of(head), f"{key}: labelled {label!r}"
+
+
 def test_a_flooded_endpoint_refuses_at_once_and_its_service_serves_its_other_endpoints(stranger):
     """More requests than an endpoint's queue holds: the extra ones get ``unavailable`` (busy) at once, and
     the service's other endpoints answer meanwhile. (A full zenoh channel held zenoh's delivery to the
-    whole service: the echo came only once the flood had drained below the queue's size.)"""
+    whole service: the echo came only once the flood had drained below the queue's size.) Every answer
+    is counted in the service's heartbeat, the refusals made in zenoh's threads included."""
     session, robot, procs, _requests = stranger
     if "diag" not in procs:
         pytest.skip("no diag here")
     slow = json.dumps({"count": 100_000, "width": 8, "height": 8, "time_budget_s": 0.1}).encode()
-    extra = 24
-    flood = 64 + 1 + extra  # the queue (QUEUE_CAPACITY), the one being served, and more
-    done = []
+    flood = 64 + 1 + 24  # the queue (QUEUE_CAPACITY), the one being served, and more
+    done: list[str] = []  # the codes, in the order they came
+    failed: list[int] = []  # diag's heartbeats' requests_failed, in order
 
     def one(_i):
         answer = stranger_client.call(session, f"hrp/{robot}/diag/stream", slow, REPLY_TIMEOUT_S)
         done.append(answer.code)
         return answer
 
-    with ThreadPoolExecutor(max_workers=flood) as pool:
-        answers = pool.map(one, range(flood))
-        time.sleep(0.3)
-        echo = stranger_client.call(session, f"hrp/{robot}/diag/echo", b'{"text": "still here"}', 30.0)
-        served_before_echo = sum(code != "unavailable" for code in list(done))
-        answers = list(answers)
+    def until(ready) -> None:  # a hang guard: the assertions below say what is wrong
+        deadline = time.monotonic() + 30.0
+        while not ready() and time.monotonic() < deadline:
+            time.sleep(0.01)
+
+    beat = session.declare_subscriber(
+        f"hrp/{robot}/diag/heartbeat",
+        lambda sample: failed.append(json.loads(sample.payload.to_bytes())["requests_failed"]),
+    )
+    try:
+        until(lambda: failed)
+        failed_before = failed[-1]
+        with ThreadPoolExecutor(max_workers=flood) as pool:
+            answers = pool.map(one, range(flood))
+            until(lambda: "unavailable" in done)  # the queue is full now
+            echo = stranger_client.call(session, f"hrp/{robot}/diag/echo", b'{"text": "still here"}', 30.0)
+            streams_answered_at_echo = sum(code != "unavailable" for code in list(done))
+            answers = list(answers)
+        until(lambda: failed[-1] >= failed_before + flood)
+    finally:
+        beat.undeclare()
     assert echo.kind == "ok" and echo.body["text"] == "still here", echo
-    # ordering, not timing: the echo came before the flood drained below the queue's size
-    assert served_before_echo < extra, f"diag/echo answered only after {served_before_echo} streams"
     codes = [a.code for a in answers]
     busy = [a for a in answers if a.code == "unavailable"]
     assert busy and set(codes) <= {"timeout", "unavailable"}, codes
     assert all(a.error["details"]["reason"] == "busy" and "busy" in a.message for a in busy), busy[0]
+    # ordering, not timing: the echo was answered while streams the endpoint had taken were still queued
+    accepted = flood - len(busy)
+    assert streams_answered_at_echo < accepted, (
+        f"diag/echo answered only after all {accepted} queued streams (the flood held the service)"
+    )
+    # every answer counted (all failed: busy or over their budget), none lost between threads
+    assert failed[-1] - failed_before == flood, (failed_before, failed[-1], flood)

@@ -20,7 +20,7 @@ import threading
 
 import zenoh
 
-from services.bus import keys
+from services.bus import encodings, keys
 from services.bus.codec import encode
 from services.bus.schemas.common import LogLine
 
@@ -85,7 +85,7 @@ class BusLogHandler(logging.Handler):
             while self._queue:
                 line = self._queue.popleft()
                 try:
-                    self._publisher.put(encode(line))
+                    self._publisher.put(encode(line), encoding=encodings.JSON)
                     self.published += 1
                 except zenoh.ZError:
                     return

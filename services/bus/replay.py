@@ -26,7 +26,7 @@ import msgspec
 import numpy as np
 import zenoh
 
-from services.bus import keys
+from services.bus import encodings, keys
 from services.bus.codec import decode
 from services.bus.mcaplog import LogMessage, LogReader, message_type_for_key
 from services.bus.schemas.common import ErrorInfo
@@ -103,7 +103,7 @@ def replay(
             if pub is None:
                 pub = publishers[msg.key] = session.declare_publisher(msg.key)
             attachment = request_id_bytes(msg.sequence) if msg.sequence and _is_mirror(msg.key) else None
-            pub.put(msg.data, attachment=attachment)
+            pub.put(msg.data, attachment=attachment, encoding=encodings.of_kind(msg.encoding))
             stats.published += 1
             stats.per_key[msg.key] += 1
             if on_message is not None:
@@ -164,7 +164,8 @@ def _resend(
     session: zenoh.Session, endpoint: str, request: LogMessage, recorded: LogMessage | None, timeout_s: float
 ) -> RequestOutcome:
     rid = request.sequence
-    replies = list(session.get(endpoint, payload=request.data, timeout=timeout_s))
+    label = encodings.of_kind(request.encoding)
+    replies = list(session.get(endpoint, payload=request.data, encoding=label, timeout=timeout_s))
     if not replies:
         service = _service_of(endpoint)
         return RequestOutcome(

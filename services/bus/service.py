@@ -51,7 +51,7 @@ from typing import Any, ClassVar
 
 import zenoh
 
-from services.bus import keys
+from services.bus import encodings, keys
 from services.bus.codec import decode, decode_request, encode, to_builtins
 from services.bus.config import BusConfig, load_bus_config, load_section
 from services.bus.schemas.common import ErrorInfo, Heartbeat
@@ -155,8 +155,21 @@ class Service:
 
 @dataclass
 class _EndpointStats:
+    """Requests one endpoint answered, for the heartbeat. Counted from the endpoint's worker and from
+    zenoh's callback threads (a busy refusal, a ``blocking=False`` handler) at once: under ``lock``,
+    so that no increment is lost."""
+
     served: int = 0
     failed: int = 0
+    lock: threading.Lock = dataclasses.field(default_factory=threading.Lock, repr=False, compare=False)
+
+    def count(self, ok: bool) -> None:
+        """One more request answered: served (``ok``) or failed."""
+        with self.lock:
+            if ok:
+                self.served += 1
+            else:
+                self.failed += 1
 
 
 class _Mirror:
@@ -177,8 +190,8 @@ class _Mirror:
     def matching(self) -> bool:
         return self._flag.matching
 
-    def put(self, payload: bytes, attachment: bytes) -> None:
-        self._pub.put(payload, attachment=attachment)
+    def put(self, payload: bytes, attachment: bytes, encoding: zenoh.Encoding) -> None:
+        self._pub.put(payload, attachment=attachment, encoding=encoding)
 
     def undeclare(self) -> None:
         self._flag.undeclare()
@@ -256,7 +269,10 @@ class _Runtime:
             while (query := pending.get()) is not None:  # None: the service stops
                 with lock:
                     depth[0] -= 1
-                serve_one(query)
+                try:
+                    serve_one(query)
+                except Exception:  # a bug after the reply (its copies): the endpoint serves on
+                    svc.log.error("%s: after the reply:\n%s", spec.path, traceback.format_exc())
 
         self._start_worker(spec.path, work)
 
@@ -266,11 +282,13 @@ class _Runtime:
             f"{spec.path} is busy: {QUEUE_CAPACITY} requests are waiting for it; try again later",
             {"reason": REASON_BUSY, "waiting": QUEUE_CAPACITY},
         )
+        # zenoh's callback thread: replying to the query in hand does not wait (as a blocking=False
+        # handler's reply); what CONVENTIONS forbids there is waiting, or calling another endpoint
         with contextlib.suppress(zenoh.ZError):
-            query.reply_err(frame)
+            query.reply_err(frame, encoding=encodings.JSON)
         with contextlib.suppress(zenoh.ZError):
             query.drop()
-        stats.failed += 1
+        stats.count(ok=False)
 
     def _serve_one(
         self,
@@ -287,25 +305,22 @@ class _Runtime:
             if ok:
                 # the endpoint's own key, not the query's: a query may name it with wildcards
                 # (``hrp/*/sim/state``), and zenoh refuses a reply on a key with wildcards
-                query.reply(key, frame)
+                query.reply(key, frame, encoding=encodings.of_frame(frame))
             else:
-                query.reply_err(frame)
+                query.reply_err(frame, encoding=encodings.JSON)
         except zenoh.ZError as exc:
             self.service.log.warning("could not reply to a %s request: %s", spec.path, exc)
         finally:
             with contextlib.suppress(zenoh.ZError):
                 query.drop()  # the final message: the caller stops waiting now
-        if ok:
-            stats.served += 1
-        else:
-            stats.failed += 1
+        stats.count(ok)
         mirror_request, mirror_reply, mirror_error = mirrors
         outcome = mirror_reply if ok else mirror_error
         if mirror_request.matching or outcome.matching:
             rid = request_id_bytes(self._ids.next())
             with contextlib.suppress(zenoh.ZError):
-                mirror_request.put(raw, rid)
-                outcome.put(frame, rid)
+                mirror_request.put(raw, rid, encodings.of_bytes(raw))
+                outcome.put(frame, rid, encodings.of_frame(frame))
 
     def _handle(self, spec: EndpointSpec, handler: Callable[[Any], Any], raw: bytes) -> tuple[bool, bytes]:
         """Run one request: ``(True, reply frame)`` or ``(False, error frame)``; never raises."""
@@ -380,7 +395,7 @@ class _Runtime:
             )
             seq += 1
             try:
-                pub.put(encode(beat))
+                pub.put(encode(beat), encoding=encodings.JSON)
             except zenoh.ZError:
                 return
             if self.stopping.wait(HEARTBEAT_PERIOD_S):
@@ -407,7 +422,7 @@ class _Runtime:
                     waiting = pending.get_nowait()
                     if isinstance(waiting, zenoh.Query):  # its one reply: not served (samples: dropped)
                         with contextlib.suppress(zenoh.ZError):
-                            waiting.reply_err(stopping)
+                            waiting.reply_err(stopping, encoding=encodings.JSON)
                         with contextlib.suppress(zenoh.ZError):
                             waiting.drop()
             pending.put(None)

@@ -12,7 +12,7 @@ from typing import Any, TypeVar
 
 import zenoh
 
-from services.bus import keys
+from services.bus import encodings, keys
 from services.bus.codec import decode, encode
 from services.bus.config import BusConfig
 from services.bus.schemas.common import ErrorInfo
@@ -137,7 +137,8 @@ class TypedPublisher:
     def put(self, msg: Any) -> None:
         if not isinstance(msg, self.spec.message):
             raise TypeError(f"{self.key} carries {self.spec.message.__name__}, not {type(msg).__name__}")
-        self._pub.put(encode(msg))
+        frame = encode(msg)
+        self._pub.put(frame, encoding=encodings.of_frame(frame))
 
     def undeclare(self) -> None:
         if self._matching is not None:
@@ -212,7 +213,8 @@ class Client:
         if key is None:
             key = self._keys[(service, name)] = keys.key(self.robot, service, name)
         started = time.monotonic()
-        replies = self.session.get(key, payload=payload, timeout=timeout)
+        label = encodings.of_frame(payload)
+        replies = self.session.get(key, payload=payload, encoding=label, timeout=timeout)
         for reply in replies:
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
