@@ -287,6 +287,18 @@ def _joint_state_log(path: Path, heartbeats: bool = False) -> Path:
     return path
 
 
+def _base_xs(client, n: int) -> list[float]:
+    """The base's x [m, mm rounded] in the next ``n`` ``/tf`` messages a viewer subscribed to receives."""
+    FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_bytes())
+    xs = []
+    while len(xs) < n:
+        got = client.receive(5.0)
+        assert got is not None
+        transforms = FrameTransforms.FromString(got.data).transforms
+        xs.append(round(next(tf for tf in transforms if tf.parent_frame_id == "world").translation.x, 3))
+    return xs
+
+
 def test_a_recorded_log_is_served_to_foxglove(tmp_path):
     """``humanoid replay FILE --foxglove``: the log's channels, advertised and played to a viewer."""
     import threading
@@ -309,17 +321,7 @@ def test_a_recorded_log_is_served_to_foxglove(tmp_path):
         with FoxgloveClient(f"ws://127.0.0.1:{port}") as client:
             assert client.wait_for_topics([c.TF, c.ROBOT, "hrp/hrp2/sim/joint_state"])
             client.subscribe([c.TF])
-            FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_bytes())
-            xs = []
-            while len(xs) < 20:
-                got = client.receive(5.0)
-                assert got is not None
-                base = next(
-                    tf
-                    for tf in FrameTransforms.FromString(got.data).transforms
-                    if tf.parent_frame_id == "world"
-                )
-                xs.append(round(base.translation.x, 3))
+            xs = _base_xs(client, 20)
     finally:
         player.join(timeout=20)
     assert xs == [round(0.01 * i, 3) for i in range(20)]
@@ -357,15 +359,7 @@ def test_a_log_served_to_foxglove_from_a_start_time_and_left_by_its_viewer(tmp_p
             assert client.wait_for_topics([c.TF, "hrp/hrp2/sim/joint_state"])
             assert c.ROBOT not in client.topics() and "hrp/hrp2/sim/heartbeat" not in client.topics()
             client.subscribe([c.TF])
-            FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_bytes())
-            xs = []
-            while len(xs) < 10:
-                got = client.receive(5.0)
-                assert got is not None
-                transforms = FrameTransforms.FromString(got.data).transforms
-                xs.append(
-                    round(next(tf for tf in transforms if tf.parent_frame_id == "world").translation.x, 3)
-                )
+            xs = _base_xs(client, 10)
     finally:
         player.join(timeout=20)
     assert xs == [round(0.01 * i, 3) for i in range(10, 20)]
