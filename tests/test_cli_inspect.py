@@ -73,6 +73,7 @@ def test_graph_from_schemas_and_source() -> None:
     assert {"sim/execute", "perception/locate", "navigation/goto"} <= set(nodes["supervisor"].calls)
     assert nodes["perception"].calls == ["sim/render", "sim/state"]
     assert nodes["record"].subscribes == ["**"]
+    assert nodes["record"].calls == ["sim/ground_truth"]  # what is there, for the log's /world/objects
     assert nodes["viz"].calls == ["sim/ground_truth"]  # the live view's world (was: no edge at all)
     assert all(n.alive is None for n in nodes.values())
     dot = to_dot(nodes)

@@ -32,6 +32,7 @@ from services.bus import world
 from services.bus.config import from_mapping
 from services.bus.mcaplog import LogWriter
 from services.bus.schemas.record import STATUS, StatusReply, StatusRequest
+from services.bus.schemas.sim import GROUND_TRUTH
 from services.bus.service import Service, handles, run_service
 from services.bus.session import request_id_from
 from services.errors import InvalidRequestError
@@ -170,13 +171,13 @@ class RecorderService(Service):
         each motion, gripper or reset; the sim's copy of the reply is recorded like any message, and
         its view is ``/world/objects``."""
         robot = self.bus.robot
-        while not world.ask(self.session, robot, timeout_s=WORLD_TIMEOUT_S):
+        while not world.ask(self.session, robot, GROUND_TRUTH, timeout_s=WORLD_TIMEOUT_S):
             if self._stopping.wait(WORLD_RETRY_S):
                 return
         while not self._stopping.is_set():
             if self._moved.wait(WORLD_RETRY_S):
                 self._moved.clear()  # before asking: a motion ending meanwhile asks once more
-                world.ask(self.session, robot, timeout_s=WORLD_TIMEOUT_S)
+                world.ask(self.session, robot, GROUND_TRUTH, timeout_s=WORLD_TIMEOUT_S)
 
     def _write_loop(self) -> None:
         channel = self._subscriber.handler

@@ -19,27 +19,27 @@ import zenoh
 
 from services.bus import keys
 from services.bus.schemas import sim as sim_msg
+from services.bus.spec import EndpointSpec
 
 #: The sim's endpoints after whose answer the world may have changed: a motion, the gripper, a reset.
 MOVING = (sim_msg.EXECUTE, sim_msg.GRIPPER, sim_msg.RESET)
 
 
-def ground_truth_key(robot: str) -> str:
-    """The ``sim/ground_truth`` endpoint's key."""
-    return keys.key(robot, sim_msg.GROUND_TRUTH.service, sim_msg.GROUND_TRUTH.name)
-
-
 def mirror_key(robot: str) -> str:
-    """The key of the copy of its reply, which the converters read."""
+    """The key of the copy of ``sim/ground_truth``'s reply, which the converters read."""
     return keys.reply_mirror(robot, sim_msg.GROUND_TRUTH.service, sim_msg.GROUND_TRUTH.name)
 
 
-def ask(session: zenoh.Session, robot: str, timeout_s: float) -> bool:
-    """One ``sim/ground_truth`` request (its reply reaches the subscribers of :func:`mirror_key`);
-    whether the sim answered within ``timeout_s`` [s] (no sim: False at once)."""
+def ask(session: zenoh.Session, robot: str, spec: EndpointSpec, timeout_s: float) -> bool:
+    """One request to ``spec`` (:data:`~services.bus.schemas.sim.GROUND_TRUTH`, named by the caller:
+    ``humanoid graph`` reads a service's calls from the specs its source names), whose reply reaches
+    the subscribers of :func:`mirror_key`; whether the sim answered within ``timeout_s`` [s] (no sim:
+    False at once)."""
+    if spec is not sim_msg.GROUND_TRUTH:
+        raise ValueError(f"the world is asked of sim/ground_truth, not {spec.path}")
     answered = False
     with contextlib.suppress(zenoh.ZError):  # the session closing under a stopping service
-        for reply in session.get(ground_truth_key(robot), payload=b"{}", timeout=timeout_s):
+        for reply in session.get(keys.key(robot, spec.service, spec.name), payload=b"{}", timeout=timeout_s):
             answered = answered or reply.ok is not None
     return answered
 

@@ -37,6 +37,7 @@ from foxglove.websocket import ServerListener
 
 from services.bus import world
 from services.bus.config import from_mapping
+from services.bus.schemas.sim import GROUND_TRUTH
 from services.bus.service import Service, run_service
 from services.errors import InvalidRequestError
 from services.viz import common as c
@@ -214,7 +215,7 @@ class VizService(Service):
         period = self.config.world_poll_s
         while not self._done.wait(period):
             if self._listener.watched(c.WORLD_OBJECTS):  # the reply's copy comes through _on_sample
-                world.ask(self.session, self.bus.robot, timeout_s=2.0)
+                world.ask(self.session, self.bus.robot, GROUND_TRUTH, timeout_s=2.0)
 
     def stop(self) -> None:
         self._done.set()
