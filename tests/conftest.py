@@ -124,10 +124,16 @@ class BusHarness:
         return proc.returncode
 
     def close(self) -> None:
+        """Stop every service process, all at once (each gets SIGTERM first, then each is waited for as
+        :meth:`stop` does: they shut down side by side, not one after the other), then the hub."""
         from services.bus.session import close_session
 
         for proc in self.procs:
-            self.stop(proc)
+            if proc.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGTERM)
+        for proc in self.procs:
+            self.stop(proc)  # a second SIGTERM is ignored by a stopping service
         close_session(self.session)
 
 

@@ -67,6 +67,18 @@ def _walk(h) -> sim_msg.ExecuteReply:
     return h.client.call(sim_msg.EXECUTE, sim_msg.ExecuteRequest(q=plan.q, hold_s=0.3), 120.0)
 
 
+def _walk_seen(got: list, end_x: float, FrameTransforms) -> bool:
+    """Whether a viewer's messages ``got`` hold the footsteps, what is there and, last of the
+    transforms, the base at ``end_x`` [m] (where the walk ended)."""
+    if not {c.WORLD_OBJECTS, c.PLAN_FOOTSTEPS} <= {m.topic for m in got}:
+        return False
+    last = next((m for m in reversed(got) if m.topic == c.TF), None)
+    if last is None:
+        return False
+    base = next(t for t in FrameTransforms.FromString(last.data).transforms if t.parent_frame_id == "world")
+    return abs(base.translation.x - end_x) < 0.02
+
+
 def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
     h, port, _viz = stack
     FrameTransforms = protobuf_class("foxglove.FrameTransforms", _schema_data("foxglove.FrameTransforms"))
@@ -91,13 +103,11 @@ def test_a_foxglove_client_sees_the_base_move_as_the_sim_does(stack):
             time.sleep(0.5)
             start = h.client.call(sim_msg.STATE, sim_msg.StateRequest(), 30.0).q
             result = _walk(h)
-            time.sleep(1.0)
-            # On a loaded machine the 1 Hz world poll may not have been answered yet: up to 10 s more.
-            deadline = time.monotonic() + 10.0
-            while time.monotonic() < deadline and not {c.WORLD_OBJECTS, c.PLAN_FOOTSTEPS} <= {
-                m.topic for m in list(got)
-            }:
-                time.sleep(0.1)
+            # Until the walk's end reached the viewer (its last transform, the footsteps, what is
+            # there): a hang guard of 11 s, the assertions below say what is missing.
+            deadline = time.monotonic() + 11.0
+            while time.monotonic() < deadline and not _walk_seen(list(got), result.q[0], FrameTransforms):
+                time.sleep(0.05)
         finally:
             stop.set()
             reader.join()
