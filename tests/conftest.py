@@ -81,6 +81,19 @@ class BusHarness:
         self.wait_alive(name or module.rsplit(".", 1)[-1], proc, timeout_s)
         return proc
 
+    def spawn_services(
+        self, services: dict[str, tuple[str, ...]], timeout_s: float = 60.0
+    ) -> dict[str, subprocess.Popen[bytes]]:
+        """Several services at once: ``{name: (module, *args)}`` all started, then each waited for
+        until alive (their start-ups overlap instead of queueing: a module's stack starts faster)."""
+        procs = {
+            name: self.spawn(["-m", module, *self.bus_args(), "--log-level", "WARNING", *args])
+            for name, (module, *args) in services.items()
+        }
+        for name, proc in procs.items():
+            self.wait_alive(name, proc, timeout_s)
+        return procs
+
     def spawn_script(
         self, path: str | Path, *args: str, name: str, timeout_s: float = 30.0, **kwargs
     ) -> subprocess.Popen[bytes]:

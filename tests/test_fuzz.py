@@ -49,11 +49,9 @@ def stack(module_bus_harness, tmp_path_factory):
     services = sorted({spec.service for spec in ENDPOINTS if spec.service in found})
     scene_dir = module_bus_harness.scene_dir = tmp_path_factory.mktemp("scenes")
     extra = {"sim": ("--scene-dir", str(scene_dir))}
-    procs = {}
-    for name in services:
-        procs[name] = module_bus_harness.spawn_service(
-            found[name].module, *extra.get(name, ()), name=name, timeout_s=120
-        )
+    procs = module_bus_harness.spawn_services(
+        {name: (found[name].module, *extra.get(name, ())) for name in services}, timeout_s=120
+    )
     q_ref = reference_q(module_bus_harness.session, module_bus_harness.bus.robot) if "sim" in procs else ()
     return module_bus_harness, procs, q_ref
 

@@ -48,14 +48,18 @@ def log_path(tmp_path_factory):
 @pytest.fixture(scope="module")
 def stack(module_bus_harness, log_path):
     h = module_bus_harness
-    h.spawn_service("services.bus.recorder", "--output", str(log_path), name="record")
-    # a scene with objects (for /world/objects), none on the walk's way: the disk starts 0.7 m ahead
-    h.spawn_service("sim.service", "--scene", "footsteps_reach", name="sim", timeout_s=60)
-    h.spawn_service("services.walking.service", name="walking", timeout_s=60)
-    h.spawn_service("services.bus.diag", name="diag")
     port = free_port()
-    viz = h.spawn_service("services.viz.service", "--port", str(port), name="viz", timeout_s=60)
-    return h, port, viz
+    procs = h.spawn_services(
+        {
+            "record": ("services.bus.recorder", "--output", str(log_path)),
+            # a scene with objects (for /world/objects), none on the walk's way: the disk starts 0.7 m ahead
+            "sim": ("sim.service", "--scene", "footsteps_reach"),
+            "walking": ("services.walking.service",),
+            "diag": ("services.bus.diag",),
+            "viz": ("services.viz.service", "--port", str(port)),
+        }
+    )
+    return h, port, procs["viz"]
 
 
 def _walk(h) -> sim_msg.ExecuteReply:
