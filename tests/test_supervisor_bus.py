@@ -25,10 +25,14 @@ from supervisor.script import parse_script
 def stack(module_bus_harness, tmp_path_factory):
     h = module_bus_harness
     h.scene_dir = tmp_path_factory.mktemp("scenes")  # scenes the tests write; sim/reset loads them by name
-    h.spawn_service("sim.service", "--scene", "ball_fetch", "--scene-dir", str(h.scene_dir), name="sim")
-    h.spawn_service("services.perception.service", name="perception")
-    h.spawn_service("services.walking.service", name="walking")
-    h.spawn_service("services.footsteps.service", name="footsteps")
+    h.spawn_services(
+        {
+            "sim": ("sim.service", "--scene", "ball_fetch", "--scene-dir", str(h.scene_dir)),
+            "perception": ("services.perception.service",),
+            "walking": ("services.walking.service",),
+            "footsteps": ("services.footsteps.service",),
+        }
+    )
     return h
 
 
