@@ -236,6 +236,14 @@ def test_same_request_same_path() -> None:
     plan_path(scene, BODY, start, goal, PlannerConfig(planner="rrt", seed=8))
     b = plan_path(scene, BODY, start, goal, config)
     assert np.array_equal(a.waypoints, b.waypoints)
+    # BIT* improving for a number of its batches instead of a wall-clock window (Fig. 10's example):
+    # the same path whatever the load, and the short one (its first solution loops: 8.13 m)
+    config = PlannerConfig(optimize_batches=2, time_budget_s=10.0)
+    a, b = (plan_path(scene, BODY, start, ObjectGoal("yellow_table", 0.4), config) for _ in range(2))
+    assert np.array_equal(a.waypoints, b.waypoints)
+    assert a.length_m < 5.5
+    with pytest.raises(InvalidRequestError, match="optimize_batches"):
+        PlannerConfig(planner="rrtstar", optimize_batches=2)
 
 
 # ------------------------------------------------------------------------------------------------- goals

@@ -343,6 +343,27 @@ def test_zmp_reference_and_planned_zmp_stay_inside_the_support_polygon(robot):
         assert planned.max() <= -0.010, (name, planned.max())
 
 
+def test_the_start_transient_of_the_preview_control_shrinks_with_the_lead_in():
+    """From rest, the preview controller pushes the ZMP away from the first support as soon as its
+    window sees the first transfer (walking README, "Paper vs here"): the planned ZMP's largest deviation
+    from its reference before the transfer falls with the standing lead-in (hrp2_like, measured 88, 14,
+    0.8 mm for 0.6, 1.0, 1.6 s) and stays inside the double-support polygon."""
+    robot = load_robot("hrp2_like")
+    seq = _walks(robot)["straight"]
+    c0 = robot.com(robot.q_half_sitting)
+    # the double-support polygon's outer edge in y (the soles side by side)
+    outer_y = abs(robot.sole_pose(robot.q_half_sitting, "left").translation[1]) + 0.5 * robot.sole_size_m[1]
+    deviation = []
+    for hold in (0.6, 1.0, 1.6):
+        timing = WalkTiming(initial_hold_s=hold)
+        p = plan_pattern(seq, timing, PatternOptions(), initial_com_m=c0)
+        before = slice(0, round(hold / DT))
+        deviation.append(float(np.abs(p.zmp_planned_m[before] - p.zmp_ref_m[before]).max()))
+        assert np.abs(p.zmp_planned_m[before, 1]).max() < outer_y - 0.05
+    assert deviation[0] > deviation[1] > deviation[2]
+    assert deviation[2] < 0.002
+
+
 def test_pattern_feet_and_com_end_where_planned(robot):
     bounds = FootstepBounds.from_robot(robot)
     c0 = robot.com(robot.q_half_sitting)

@@ -180,8 +180,8 @@ class FootstepSequence:
 
 @dataclass(frozen=True)
 class FootstepBounds:
-    """Admissible pose of the left sole in the right sole frame (footstep paper §4-5; the right sole in
-    the left sole frame is mirrored: dy and dtheta change sign) [m, rad], and the sole rectangle
+    """Admissible pose of the left sole in the right sole frame (footstep paper §3.3, values of §4; the
+    right sole in the left sole frame is mirrored: dy and dtheta change sign) [m, rad], and the sole rectangle
     (length along the sole x, width) [m] that must not overlap the other one. The defaults are HRP-2's
     (the paper's bounds and a 0.24 x 0.14 m sole); a robot's own are ``robot.params.footstep_bounds``
     (:meth:`from_robot`)."""

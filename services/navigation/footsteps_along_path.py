@@ -5,7 +5,7 @@ dynamic walking pattern generator" ("Coupling the Motion Planner with Perception
 `001_771c0ce3779b0683.txt`). The pattern generator (``services/walking``) consumes footsteps; this module
 places them: the feet alternate, each landing on the path at arc length s_k, offset by half the feet
 spacing along the path normal, with the path heading as yaw. The step length adapts to curvature (at
-most ``max_turn_per_step_rad`` of path heading per step) and to the bounds of section 5 of the footstep
+most ``max_turn_per_step_rad`` of path heading per step) and to the bounds of section 4 of the footstep
 paper (left sole in the right sole frame: -0.22 < dx < 0.22 m, 0.07 < dy < 0.25 m, -0.1 < dtheta < pi/4,
 mirrored for the right foot): a landing outside them is retried with a shorter step.
 

@@ -59,8 +59,9 @@ class ReachingOptions:
     """Settings of :func:`services.reaching.planner.plan_reach`.
 
     Monitoring (Fig. 4 of the reaching paper):
-        manipulability_threshold: w = sqrt(det(J J^T)) (eq. 5) of the arm's translation Jacobian below
-            which the task counts as failing; ``None``: the robot's ``params.manipulability_threshold``.
+        manipulability_threshold: w = sqrt(det(J J^T)) (eq. 5) of the arm's Jacobian (its rows:
+            ``manipulability_of``) below which the task counts as failing; ``None``: the robot's
+            ``params.manipulability_threshold``.
         ee_error_threshold_m: distance [m] between the hand reference and the hand computed by the IK
             above which the task counts as failing; ``None``: ``params.ee_error_threshold_m``.
         joint_limit_margin_rad: an arm joint closer than this to a limit [rad] fails ``joint_limits``.

@@ -56,7 +56,7 @@ __all__ = [
 # ----------------------------------------------------------------------------------------------- generators
 
 DEFAULT_LIMITS = FootstepBounds()
-"""HRP-2's bounds (footstep paper §5) and sole: what the generators check by default. Pass
+"""HRP-2's bounds (footstep paper §4, the form of §3.3) and sole: what the generators check by default. Pass
 ``FootstepBounds.from_robot(robot)`` for another robot, or ``limits=None`` for the raw geometry."""
 MAX_SPLIT_FACTOR = 8
 """The generators try up to this many times the requested number of steps before giving up."""

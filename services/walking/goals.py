@@ -6,7 +6,7 @@ A goal is relative to the robot's stance now (the soles measured on ``q_start``)
 * :func:`walk_to_steps`: the mid-feet frame to a pose (dx, dy, dyaw) in the starting mid-feet frame,
   stepping forward, sideways and turning together (or, when that crosses the feet, walking there and
   then turning on the spot), the feet side by side at the end, each step as long as the bounds allow
-  (footstep paper 000 §5 bounds, :func:`~services.walking.footsteps.fit_to_bounds`);
+  (footstep paper 000 §4 bounds, :func:`~services.walking.footsteps.fit_to_bounds`);
 * :func:`turn_steps`: a turn on the spot by an angle (:func:`~services.walking.footsteps.turn_in_place`),
   a staggered stance (one foot ahead after a reaching step) squared up first (:func:`square_up`);
 * :func:`square_up`: the one step that brings the rear foot beside the front one.
@@ -40,7 +40,7 @@ from services.model.ground import (
 )
 from services.walking.footsteps import fit_to_bounds, footsteps_along_mid_poses, turn_in_place
 
-#: Largest yaw of one pair of turning steps [rad]: the opening foot's bound is pi/4 (footstep paper §5).
+#: Largest yaw of one pair of turning steps [rad]: the opening foot's bound is pi/4 (footstep paper §4).
 TURN_PER_PAIR_RAD = 0.98 * math.pi / 4
 #: Feet further apart than this along the heading [m], or turned apart by more [rad], are squared up
 #: before a turn on the spot (whose steps are made for a square stance).
