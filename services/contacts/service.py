@@ -41,16 +41,19 @@ from services.contacts.sets import Contact, ContactSet
 from services.errors import InvalidRequestError
 from services.model import RobotModel, load_robot
 from services.model.options import add_model_argument, with_model
-from sim.scene import layout, load_scene
+from sim.scene import find_scene, layout, load_scene
 
 SEARCH_SHARE = 0.7  # of the request's time budget for the search; the rest for the interpolation
 
 
 @dataclass(frozen=True)
 class ContactsConfig:
-    """Options of the service: the robot model (only ``hrp2_like`` has contact spots)."""
+    """Options of the service: the robot model (only ``hrp2_like`` has contact spots) and more folders
+    of scene files ``<name>.yaml`` a request may name (after ``sim/scenes``; the same as the sim's
+    ``scene_dirs``, so that the planner sees the layouts the sim simulates)."""
 
     model: str = "hrp2_like"
+    scene_dirs: tuple[str, ...] = ()
 
 
 class ContactsService(Service):
@@ -62,10 +65,22 @@ class ContactsService(Service):
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
         add_model_argument(parser)
+        parser.add_argument(
+            "--scene-dir",
+            action="append",
+            default=[],
+            help="a folder of more scenes <name>.yaml that requests may name (repeatable)",
+        )
 
     @classmethod
     def configure(cls, config: ContactsConfig, args: argparse.Namespace) -> ContactsConfig:
+        if args.scene_dir:
+            config = replace(config, scene_dirs=(*config.scene_dirs, *args.scene_dir))
         return with_model(config, args.model)
+
+    def _scene(self, name: str) -> str:
+        """The file of the scene a request names (``sim/scenes``, then ``scene_dirs``; not_found)."""
+        return str(find_scene(name, self.config.scene_dirs))
 
     def start(self) -> None:
         self.robot = load_robot(self.config.model)
@@ -81,7 +96,7 @@ class ContactsService(Service):
             return self._plan(request)
 
     def _plan(self, request: msg.PlanRequest) -> msg.PlanReply:
-        problem = to_problem(request)
+        problem = replace(to_problem(request), scene=self._scene(request.scene))
         request_id = f"{request.scene}@{time.time():.3f}"
 
         def progress(kind: str, node: Node, generated: int, expanded: int, elapsed: float) -> None:
@@ -137,7 +152,7 @@ class ContactsService(Service):
         contact spot of the robot, the arms' limb-load bound on or off, reproducible; cached)."""
         key = (scene, limb_load)
         if key not in self._generators:
-            env = environment_of(layout(load_scene(scene)))
+            env = environment_of(layout(load_scene(self._scene(scene))))
             self._generators[key] = execution_generator(self.robot, env, limb_load)
         return self._generators[key]
 
@@ -183,7 +198,12 @@ def to_problem(request: msg.PlanRequest) -> PlanProblem:
         scene=request.scene,
         q_start=np.asarray(request.q_start, float).reshape(-1),
         start_pairs=tuple((a, b) for a, b in request.start_contacts),
-        goal=Goal(request.goal_axis, request.goal_value_m, tuple((a, b) for a, b in request.final_contacts)),
+        goal=Goal(
+            request.goal_axis,
+            request.goal_value_m,
+            tuple((a, b) for a, b in request.final_contacts),
+            -1.0 if request.goal_below else 1.0,
+        ),
         key_postures=keys,
         spots=None if request.spots is None else tuple(request.spots),
         surfaces=None if request.surfaces is None else tuple(request.surfaces),
