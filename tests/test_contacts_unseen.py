@@ -119,3 +119,47 @@ def test_an_impossible_or_starved_request_is_refused_typed_with_its_residual(
 def test_the_service_survived_every_case(stack) -> None:
     harness, proc, _, _ = stack
     assert proc.poll() is None and "contacts" in harness.client.alive_services()
+
+
+def test_the_search_is_the_same_when_the_whole_layout_turns(family, tmp_path) -> None:
+    """f_T's F in the start's heading frame, the floor's frame the robot's, T made from the layout:
+    the chair scene turned by 90 degrees and moved grows the same first six nodes (four removals, then
+    a hand on the table; contacts in their surfaces' frames, f_T values) as the shipped one (in world
+    coordinates F's log3 made them differ from the first addition on)."""
+    import math
+
+    import yaml
+
+    from services.contacts import chair_egress
+    from services.contacts.planner import PlanProblem, build
+    from services.contacts.search import ContactPlanner, Goal, SearchConfig
+
+    doc = family.turned(family.base_doc(), math.pi / 2, 1.3, -0.7, "cu_turned")
+    (tmp_path / "cu_turned.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    side = family.left_goal(doc)
+    robot = load_robot("hrp2_like")
+    grown = []
+    for path, goal in (
+        ("chair_egress", Goal("y", 0.6, chair_egress.FINAL_PAIRS)),
+        (
+            str(tmp_path / "cu_turned.yaml"),
+            Goal(side["goal_axis"], side["goal_value_m"], chair_egress.FINAL_PAIRS, -1.0),
+        ),
+    ):
+        q0 = start_configuration(robot, layout(load_scene(path)))
+        problem = PlanProblem(
+            scene=path,
+            q_start=q0,
+            start_pairs=chair_egress.START_PAIRS,
+            goal=goal,
+            pairs=chair_egress.PAIRS,
+            search=SearchConfig(max_nodes=6),
+            interpolation=None,
+        )
+        gen, trajectory, start, pairs = build(robot, problem)
+        planner = ContactPlanner(gen, trajectory, goal, pairs, problem.search)
+        planner.plan(start, q0)
+        grown.append(planner.nodes)
+    assert side["goal_below"] and len(grown[0]) == 6
+    assert [n.change for n in grown[0]] == [n.change for n in grown[1]]
+    assert [n.f for n in grown[0]] == pytest.approx([n.f for n in grown[1]], abs=1e-4)
