@@ -31,6 +31,11 @@ CASES = (
     "final_not_allowed",
     "max_nodes_1",
     "budget_50ms",
+    "start_not_balanced",
+    "start_spot_twice",
+    "quat_zero",
+    "joint_past_limit",
+    "goal_met_max_nodes_1",
 )
 
 
@@ -64,7 +69,9 @@ def _ask(stack, family, name: str):
     path = find_scene(case.scene, [folder])
     q0 = start_configuration(load_robot("hrp2_like"), layout(load_scene(path)))
     request = msg.PlanRequest(
-        scene=case.scene, q_start=q0, **{"start_contacts": family.SEATED, **case.request}
+        scene=case.scene,
+        q_start=family.start_q(case, q0),
+        **{"start_contacts": family.SEATED, **case.request},
     )
     t0 = time.monotonic()
     try:
@@ -113,6 +120,31 @@ def test_an_impossible_or_starved_request_is_refused_typed_with_its_residual(
     assert family.answer_problems(case, answer.code, answer.details) == []
     assert answer.details["residual_m"] > 0.0
     assert took < case.request["time_budget_s"] + 5.0  # the budget and one posture generation, not a hang
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("name", "field"),
+    [
+        ("start_not_balanced", "start_contacts"),
+        ("start_spot_twice", "start_contacts"),
+        ("quat_zero", "q_start"),
+        ("joint_past_limit", "q_start"),
+    ],
+)
+def test_a_start_that_is_not_feasible_is_an_invalid_request_naming_its_field(
+    stack, family, name, field
+) -> None:
+    _, _, _, answer, _ = _ask(stack, family, name)
+    assert isinstance(answer, HumanoidError) and answer.code == "invalid_request", answer
+    assert answer.details.get("field") == field, answer
+
+
+@pytest.mark.integration
+def test_a_start_that_already_meets_the_goal_is_a_one_set_plan_even_with_max_nodes_1(stack, family) -> None:
+    *_, reply, _ = _ask(stack, family, "goal_met_max_nodes_1")
+    assert not isinstance(reply, HumanoidError), reply
+    assert reply.changes == ["start"] and reply.nodes_generated == 0
 
 
 @pytest.mark.integration

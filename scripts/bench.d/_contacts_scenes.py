@@ -6,7 +6,9 @@ table far out of reach, beside the chair or absent, a box in the way to the goal
 or inside the table, a final contact no pair allows, and odd but valid payloads (a budget of 50 ms or
 of 600 s with few nodes, ``max_nodes`` 1, ``pairs`` empty). Each case says what kind of answer is
 right: ``plan`` (a plan whose contacts and postures check out), ``refused`` (a typed ``infeasible``
-or ``timeout``, ``details["reason"]`` one of the schema's reasons, with ``residual_m``) or ``either``.
+or ``timeout``, ``details["reason"]`` one of the schema's reasons, with ``residual_m``), ``invalid``
+(``invalid_request``: a start that is not feasible, a spoiled ``q_start``, a surface the layout lacks)
+or ``either``.
 
 ``verify_plan`` checks a reply without the planner's code: each contact's spot (pinocchio forward
 kinematics) on the surface named (the scene's top as ``sim.parts`` builds it), each witness clear of
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +54,17 @@ class Case:
     doc: dict[str, Any] | None = None
     execute: bool = False
     note: str = ""
-    tags: tuple[str, ...] = field(default=())
+    q_edit: str = ""  # "quat_zero" / "joint_past_limit": q_start spoiled (see start_q)
+
+
+def start_q(case: Case, q0: np.ndarray) -> np.ndarray:
+    """The case's ``q_start``: the scene's start ``q0``, spoiled as ``case.q_edit`` says."""
+    q = np.array(q0, float)
+    if case.q_edit == "quat_zero":
+        q[3:7] = 0.0
+    elif case.q_edit == "joint_past_limit":
+        q[7] = 9.0
+    return q
 
 
 def base_doc() -> dict[str, Any]:
@@ -274,6 +286,23 @@ def cases(quick: bool = False) -> list[Case]:
             note="no contact may be added: the tree is exhausted",
         )
     )
+    # payloads a client may get wrong: typed invalid_request naming the field
+    for name, extra, edit, note in (
+        ("start_not_balanced", {"start_contacts": SEATED[:1]}, "", "seated, declared on the left sole alone"),
+        ("start_spot_twice", {"start_contacts": [*SEATED, SEATED[0]]}, "", "a start spot given twice"),
+        ("quat_zero", {}, "quat_zero", "q_start's quaternion all zeros (crashed the search: internal)"),
+        ("joint_past_limit", {}, "joint_past_limit", "q_start with a joint at 9 rad"),
+    ):
+        out.append(Case(name, "chair_egress", {**fast, **extra}, "invalid", q_edit=edit, note=note))
+    out.append(
+        Case(
+            "goal_met_max_nodes_1",
+            "chair_egress",
+            {**fast, "final_contacts": SEATED, "goal_axis": "z", "goal_value_m": -1.0, "max_nodes": 1},
+            "plan",
+            note="max_nodes 1, the start already the goal: a one-set plan (was max_nodes)",
+        )
+    )
     if quick:
         return out
     out.append(
@@ -402,7 +431,7 @@ def cases(quick: bool = False) -> list[Case]:
             "no_table_surface",
             bare["name"],
             {**fast, "surfaces": ["floor", TOP]},
-            "refused",
+            "invalid",
             bare,
             note="a surface the layout does not have (invalid_request)",
         )
@@ -634,7 +663,9 @@ class PlanChecker:
 def answer_problems(case: Case, code: str, details: dict[str, Any]) -> list[str]:
     """What is wrong with a refusal of ``case`` (code, details): [] when it is typed as documented."""
     if code == "invalid_request":
-        return [] if case.name == "no_table_surface" else [f"invalid_request for a valid request: {details}"]
+        return [] if case.expect == "invalid" else [f"invalid_request for a valid request: {details}"]
+    if case.expect == "invalid":
+        return [f"{code} where invalid_request was due"]
     if code not in ("infeasible", "timeout"):
         return [f"code {code}"]
     if details.get("reason") not in REASONS:

@@ -306,7 +306,7 @@ def run_scenes(names: str) -> int:
                 path = find_scene(case.scene, [folder])
                 q0 = start_configuration(robot, layout(load_scene(path)))
                 fields = {"start_contacts": family_module.SEATED, **case.request}
-                request = msg.PlanRequest(scene=case.scene, q_start=q0, **fields)
+                request = msg.PlanRequest(scene=case.scene, q_start=family_module.start_q(case, q0), **fields)
                 row = {
                     "case": case.name,
                     "scene": case.scene,

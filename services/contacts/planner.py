@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 from services import budget
 from services.bus.schemas import contacts as msg
@@ -31,6 +32,7 @@ MAX_KEY_POSTURES = 1000  # postures of the rough trajectory T a request may give
 # stretched leg or arm with its lean; HRP-2's waist stands 0.65-0.75 m over its soles): goals farther
 # are refused before the search [m]
 WAIST_REACH_M = {"x": 0.8, "y": 0.8, "z": 1.0}
+JOINT_TOLERANCE_RAD = 1e-3  # q_start's joints may be this far past their limits (measured) [rad]
 
 
 @dataclass(frozen=True)
@@ -74,16 +76,13 @@ def build(
     robot: RobotModel, problem: PlanProblem
 ) -> tuple[PostureGenerator, RoughTrajectory, ContactSet, list[tuple[str, str]]]:
     """Validate the problem and make the posture generator, T, the start set and the allowed pairs."""
-    q_start = np.asarray(problem.q_start, float).reshape(-1)
-    if q_start.shape != (robot.nq,) or not np.all(np.isfinite(q_start)):
-        raise InvalidRequestError(
-            f"q_start must have nq={robot.nq} finite values for {robot.name}, got shape {q_start.shape}"
-        )
-    env = environment_of(layout(load_scene(problem.scene)))
+    q_start = start_configuration(robot, problem.q_start)
+    scene = load_scene(problem.scene)
+    env = environment_of(layout(scene))
     all_spots = robot_spots(robot)
     surfaces = [s.name for s in env.select(problem.surfaces)]
     if problem.pairs is not None:
-        pairs = [(str(a), str(b)) for a, b in problem.pairs]
+        pairs = list(dict.fromkeys((str(a), str(b)) for a, b in problem.pairs))  # once each, in order
     else:
         names = problem.spots or tuple(s.name for s in all_spots)
         pairs = [(s, e) for s in names for e in surfaces]
@@ -95,8 +94,15 @@ def build(
             raise InvalidRequestError(f"unknown contact spot {spot!r}; spots: {sorted(known_spots)}")
         if surface not in known_surfaces:
             raise InvalidRequestError(
-                f"unknown surface {surface!r}; surfaces of {problem.scene}: {sorted(known_surfaces)}"
+                f"unknown surface {surface!r}; surfaces of {scene.name}: {sorted(known_surfaces)}"
             )
+    start_spots = [spot for spot, _ in problem.start_pairs]
+    if not start_spots or len(set(start_spots)) != len(start_spots):
+        raise InvalidRequestError(
+            "start_contacts must name the contacts holding the robot at q_start, each spot once (§2.2: "
+            f"a feasible starting set), got {[list(p) for p in problem.start_pairs]}",
+            {"field": "start_contacts"},
+        )
     gen = PostureGenerator(robot, env, spots, posture_config(problem.limb_load))
     start = []
     for spot, surface in problem.start_pairs:
@@ -111,6 +117,14 @@ def build(
                 {"field": "start_contacts", "spot": spot, "surface": surface},
             )
         start.append(contact_at(gen.spots[spot], surface, env, T))
+    com = pin.centerOfMass(gen.model, gen.data, q_start)
+    if not gen.stable_at(tuple(start), com):
+        raise InvalidRequestError(
+            f"the start contacts {[list(p) for p in problem.start_pairs]} do not hold the robot statically "
+            f"at q_start (no contact forces in their friction cones balance its weight at the CoM "
+            f"({com[0]:.3f}, {com[1]:.3f}, {com[2]:.3f}) m; §2.2: the search starts from a feasible set)",
+            {"field": "start_contacts"},
+        )
     reachable(robot, env, problem.goal, pairs, problem.start_pairs)
     budget.check("the set-up (scene, posture generator, start contacts), before the key postures")
     if problem.key_postures is not None:
@@ -129,6 +143,38 @@ def build(
     keys[0] = q_start
     trajectory = RoughTrajectory(gen.model, keys, k=problem.slope_k)
     return gen, trajectory, tuple(start), pairs
+
+
+def start_configuration(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """``q_start`` checked (InvalidRequestError naming what is wrong): nq finite values, a base
+    quaternion that is a rotation (normalized here: any non-zero length is accepted), every joint within
+    its limits (:data:`JOINT_TOLERANCE_RAD`)."""
+    q = np.asarray(q, float).reshape(-1)
+    if q.shape != (robot.nq,) or not np.all(np.isfinite(q)):
+        raise InvalidRequestError(
+            f"q_start must have nq={robot.nq} finite values for {robot.name}, got shape {q.shape}",
+            {"field": "q_start"},
+        )
+    norm = float(np.linalg.norm(q[3:7]))
+    if norm < 1e-6:
+        raise InvalidRequestError(
+            f"q_start's base quaternion q[3:7] = {q[3:7].tolist()} is not a rotation (zero length)",
+            {"field": "q_start"},
+        )
+    q = q.copy()
+    if abs(norm - 1.0) > 1e-9:
+        q[3:7] /= norm
+    lower, upper = robot.model.lowerPositionLimit[7:], robot.model.upperPositionLimit[7:]
+    outside = np.flatnonzero((q[7:] < lower - JOINT_TOLERANCE_RAD) | (q[7:] > upper + JOINT_TOLERANCE_RAD))
+    if outside.size:
+        i = int(outside[0])
+        name = next(n for n in robot.joint_names if robot.joint_index(n).idx_q == 7 + i)
+        raise InvalidRequestError(
+            f"q_start puts {name} at {q[7 + i]:.3f} rad, outside its limits "
+            f"[{lower[i]:.3f}, {upper[i]:.3f}] rad ({outside.size} joint(s) outside)",
+            {"field": "q_start", "joint": name},
+        )
+    return q
 
 
 def default_key_postures(
@@ -202,7 +248,7 @@ def plan(robot: RobotModel, problem: PlanProblem, progress: ProgressHook | None 
         exc.details.setdefault("residual_m", problem.goal.residual_m(np.asarray(problem.q_start, float)))
         raise
     planner = ContactPlanner(gen, trajectory, problem.goal, pairs, problem.search, progress)
-    result = planner.plan(start, problem.q_start)
+    result = planner.plan(start, trajectory.keys[0])  # q_start as checked (its quaternion normalized)
     if result.status != "reached":
         details = partial_details(result, problem.goal)
         where = (

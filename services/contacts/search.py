@@ -361,12 +361,13 @@ class ContactPlanner:
         goal_node: Node | None = None
         while self._heap:
             spent = self._timed_out()
-            if spent:
-                status, message = "timeout", spent
-                break
-            if len(self.nodes) >= cfg.max_nodes:
-                status, message = "max_nodes", f"{cfg.max_nodes} nodes generated"
-                break
+            if spent or len(self.nodes) >= cfg.max_nodes:
+                top = self.nodes[self._heap[0][3]]
+                if not self.goal.reached(top.contacts, top.q):  # else the best leaf is the goal: take it
+                    status, message = (
+                        ("timeout", spent) if spent else ("max_nodes", f"{cfg.max_nodes} nodes generated")
+                    )
+                    break
             _, _, _, index, stream = heapq.heappop(self._heap)
             node = self.nodes[index]
             node.expanded = True
