@@ -9,10 +9,14 @@ the measured configuration (executing set by set, ``closed_loop.py``), within it
 ``time_budget_s`` (``timeout`` naming the step reached: the witness's regeneration or the
 interpolation's posture, re-planning try or collision check). Every node selected during the
 search is published on ``contacts/progress``.
-Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` of the wrong
-size, a start contact that does not hold at ``q_start``), ``infeasible`` (the search tree was exhausted,
-or an interpolation step failed; ``details`` has the best set reached and why), ``timeout`` (the time or
-node budget was spent; ``details`` has the partial plan: sets, changes, witnesses). ``time_budget_s``
+Scenes are named (``sim/scenes``, then the config's ``scene_dirs``: the layouts the sim simulates).
+Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` not a
+configuration within the joint limits, a start that is not a feasible set: a contact that does not hold
+at ``q_start``, a spot twice, the robot not statically balanced on them; ``details.field``),
+``infeasible`` (``details.reason``: ``final_contact_not_allowed`` or ``goal_out_of_reach`` before any
+search, ``tree_exhausted`` after it, with the best set reached; or an interpolation step that failed),
+``timeout`` (``details.reason`` ``no_path_within_budget``: the time or node budget was spent; the
+partial plan: sets, changes, witnesses); every refusal of a goal carries ``residual_m``. ``time_budget_s``
 bounds the whole request (set-up, search, interpolation with its re-planning and collision checks):
 the reply comes within it plus the longest step between two checks (one posture generation).
 """
