@@ -31,7 +31,7 @@ MAX_KEY_POSTURES = 1000  # postures of the rough trajectory T a request may give
 # how far the waist may be beyond a surface a final contact is on, horizontally and vertically (a
 # stretched leg or arm with its lean; HRP-2's waist stands 0.65-0.75 m over its soles): goals farther
 # are refused before the search [m]
-WAIST_REACH_M = {"x": 0.8, "y": 0.8, "z": 1.0}
+WAIST_REACH_M = {"x": 1.0, "y": 1.0, "z": 1.0}
 JOINT_TOLERANCE_RAD = 1e-3  # q_start's joints may be this far past their limits (measured) [rad]
 
 
