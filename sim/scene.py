@@ -35,6 +35,7 @@ are saturated and far apart in hue so that perception can learn Hue-Saturation h
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -516,3 +517,15 @@ def with_object(scene: SceneSpec, obj: ObjectSpec) -> SceneSpec:
     if obj.name in scene.names():
         raise InvalidRequestError(f"scene {scene.name} already has an object {obj.name!r}")
     return replace(scene, objects=(*scene.objects, obj))
+
+
+def find_scene(name: str, folders: Sequence[str | Path] = ()) -> Path:
+    """The file of the scene ``name`` (a name, never a path): ``sim/scenes`` first, then ``folders`` in
+    order (a service's ``scene_dirs``, e.g. layouts written by a benchmark). NotFoundError lists the
+    names available there."""
+    dirs = [SCENES_DIR, *(Path(f) for f in folders)]
+    for folder in dirs:
+        if (folder / f"{name}.yaml").is_file():
+            return folder / f"{name}.yaml"
+    names = sorted({p.stem for f in dirs if f.is_dir() for p in f.glob("*.yaml")})
+    raise NotFoundError(f"unknown scene {name!r}; available scenes: {', '.join(names)}", {"field": "scene"})

@@ -13,7 +13,16 @@ plan found (bench/out/contacts_plan.npz: ``humanoid scenario chair-egress --plan
 wall clock, which on a loaded machine also counts the other processes' turns; both are reported
 (``plan_s``, ``plan_cpu_s``).
 
-Usage: scripts/bench contacts [--budget S] [--cpu] [--n N] [--skip-off] [--limb-load] [--help]
+``--scenes [NAMES]``: instead, the family of layouts and payloads the tests had not used
+(``_contacts_scenes.py``: the chair scene moved, turned, other heights, the table far, beside or absent, a
+box in the way, goals out of reach, odd budgets and node caps), each sent to ``contacts/plan`` over the
+bus of a real stack (sim + contacts, the generated scenes in both services' ``scene_dirs``); every plan
+checked independently (contacts on their surfaces, no collision in pybullet's shapes, static balance by
+an LP), the short ones played with ``sim/execute``; every refusal checked typed (code, reason,
+``residual_m``), within its budget; the services' restarts counted. Writes
+bench/out/contacts_scenes.json.
+
+Usage: scripts/bench contacts [--budget S] [--cpu] [--n N] [--skip-off] [--limb-load] [--scenes [NAMES]]
 """
 
 from __future__ import annotations
@@ -201,7 +210,16 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="f_T's slope k (eq. 1; default the planner's 15, with the limb-load bound)",
     )
+    parser.add_argument(
+        "--scenes",
+        nargs="?",
+        const="all",
+        default=None,
+        help="the generated layouts and payloads over the bus (all, or NAME,NAME; see _contacts_scenes.py)",
+    )
     args = parser.parse_args(argv)
+    if args.scenes is not None:
+        return run_scenes(args.scenes)
     load = Path("/proc/loadavg").read_text().split()[:3]
     limb_load = args.limb_load
     setting = {"limb_load": limb_load, "cpu": args.cpu, "slope_k": args.slope_k}
@@ -229,6 +247,153 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'paper':10s} {'reached':9s} {paper}")
     print("wrote", OUT, "load average", " ".join(load))
     return 0
+
+
+def _scenes_module():
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location(
+        "_contacts_scenes", Path(__file__).with_name("_contacts_scenes.py")
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["_contacts_scenes"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def run_scenes(names: str) -> int:
+    """``--scenes``: the generated family over the bus (see the module docstring)."""
+    import numpy as np
+
+    from services.bus.config import BusConfig
+    from services.bus.schemas import contacts as msg
+    from services.bus.schemas import sim
+    from services.bus.session import Client, open_session
+    from services.errors import HumanoidError
+    from services.model import load_robot
+    from sim.scene import find_scene, layout, load_scene
+    from sim.world import start_configuration
+    from supervisor.fetch import running_stack
+
+    family_module = _scenes_module()
+    family = family_module.cases()
+    if names != "all":
+        wanted = names.split(",")
+        unknown = sorted(set(wanted) - {c.name for c in family})
+        if unknown:
+            raise SystemExit(f"unknown cases {unknown}; known: {[c.name for c in family]}")
+        family = [c for c in family if c.name in wanted]
+    out_dir = OUT.parent / "contacts_scenes"
+    folder = family_module.write_scenes(family, out_dir / "scenes")
+    config = out_dir / "stack.yaml"
+    dirs = json.dumps([str(folder)])
+    config.write_text(f"sim:\n  scene_dirs: {dirs}\ncontacts:\n  scene_dirs: {dirs}\n")
+    robot = load_robot("hrp2_like")
+    bus = BusConfig().with_hub_port(_free_port())
+    load0 = Path("/proc/loadavg").read_text().split()[:3]
+    rows: list[dict] = []
+    with running_stack(
+        bus, services=("sim", "contacts"), log_dir=str(out_dir / "logs"), config_path=str(config)
+    ) as launcher:
+        first_pids = {name: c.pid for name, c in launcher.children.items()}
+        session = open_session(bus)
+        try:
+            client = Client(session, bus.robot)
+            client.wait_for(["sim", "contacts"], 120.0)
+            for case in family:
+                path = find_scene(case.scene, [folder])
+                q0 = start_configuration(robot, layout(load_scene(path)))
+                fields = {"start_contacts": family_module.SEATED, **case.request}
+                request = msg.PlanRequest(scene=case.scene, q_start=family_module.start_q(case, q0), **fields)
+                row = {
+                    "case": case.name,
+                    "scene": case.scene,
+                    "note": case.note,
+                    "expect": case.expect,
+                    "budget_s": request.time_budget_s,
+                    "max_nodes": request.max_nodes,
+                }
+                t0 = time.monotonic()
+                try:
+                    reply = client.call(msg.PLAN, request, timeout_s=request.time_budget_s + 120.0)
+                    row.update(
+                        answer="plan",
+                        sets=len(reply.sets),
+                        changes=list(reply.changes),
+                        nodes=reply.nodes_generated,
+                        motion_s=reply.q.shape[0] * reply.dt_s,
+                    )
+                    checker = family_module.PlanChecker(path)
+                    try:
+                        row["problems"] = checker.check(reply, q0)
+                    finally:
+                        checker.close()
+                except HumanoidError as exc:
+                    reply = None
+                    row.update(
+                        answer=exc.code,
+                        reason=exc.details.get("reason"),
+                        residual_m=exc.details.get("residual_m"),
+                        message=exc.message[:200],
+                        problems=family_module.answer_problems(case, exc.code, exc.details),
+                    )
+                row["reply_s"] = round(time.monotonic() - t0, 2)
+                if row["reply_s"] > request.time_budget_s + 5.0:
+                    row["problems"].append(
+                        f"replied {row['reply_s']} s for a {request.time_budget_s} s budget"
+                    )
+                if case.expect == "plan" and row["answer"] != "plan":
+                    row["problems"].append("no plan where one exists")
+                if reply is not None and case.execute and reply.q.shape[0]:
+                    client.call(sim.RESET, sim.ResetRequest(scene=case.scene), 120.0)
+                    supports = sorted({c.surface.split(".")[0] for s in reply.sets for c in s} - {"floor"})
+                    done = client.call(
+                        sim.EXECUTE,
+                        sim.ExecuteRequest(
+                            q=np.ascontiguousarray(reply.q), dt_s=reply.dt_s, supports=supports, hold_s=1.0
+                        ),
+                        timeout_s=600.0,
+                    )
+                    row["executed"] = done.outcome
+                    if done.outcome != "completed":
+                        row["problems"].append(f"executed: {done.outcome} ({done.message[:120]})")
+                row["loadavg"] = round(os.getloadavg()[0], 2)
+                rows.append(row)
+                print(
+                    f"{case.name:24s} {row['answer']:16s} {row.get('reason') or row.get('sets')!s:24s} "
+                    f"{row['reply_s']:7.1f} {row.get('executed', '-'):10s} {row['loadavg']:5.1f}  "
+                    f"{'; '.join(row['problems'])[:120]}",
+                    flush=True,
+                )
+            restarted = {n: c.attempt - 1 for n, c in launcher.children.items() if c.pid != first_pids[n]}
+        finally:
+            session.close()
+    report = {
+        "cases": rows,
+        "ok": sum(not r["problems"] for r in rows),
+        "n": len(rows),
+        "services_restarted": restarted,
+        "loadavg_at_start": load0,
+        "loadavg_at_end": Path("/proc/loadavg").read_text().split()[:3],
+        "cpu_count": os.cpu_count(),
+    }
+    out = OUT.with_name("contacts_scenes.json")
+    out.write_text(json.dumps(report, indent=2))
+    print(
+        f"{report['ok']}/{report['n']} cases check out; services restarted {restarted}; wrote {out}; "
+        f"load {' '.join(load0)} -> {' '.join(report['loadavg_at_end'])}"
+    )
+    return 0 if report["ok"] == report["n"] and not restarted else 1
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
 
 if __name__ == "__main__":

@@ -1,8 +1,9 @@
 """``humanoid scenario chair-egress``: the chair experiment of Escande et al. (§3) in one process: plan the
-contact sets from the seated robot of the ``chair_egress`` scene, printing every set as it is expanded,
-interpolate the motion (§3.3), play it in a pybullet world (DIRECT) and report whether the robot ends
-standing beside the table. (Over the bus, the same is the supervisor's ``stand_up`` action on a stack
-started with ``humanoid up`` and the sim in that scene.)"""
+contact sets from the seated robot of the ``chair_egress`` scene (or of any layout with the robot seated
+on a chair, ``--scene``, with its goal ``--goal-axis/--goal-value/--goal-below``), printing every set as
+it is expanded, interpolate the motion (§3.3), play it in a pybullet world (DIRECT) and report whether
+the robot ends standing beside the table. (Over the bus, the same is the supervisor's ``stand_up``
+action on a stack started with ``humanoid up`` and the sim in that scene.)"""
 
 from __future__ import annotations
 
@@ -33,6 +34,17 @@ def add_cli(subparsers: Any) -> None:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    p.add_argument(
+        "--scene",
+        default="chair_egress",
+        help="the scene (a name in sim/scenes or a .yaml path) with the robot seated on its chair "
+        "(default chair_egress; any layout: T is made from it)",
+    )
+    p.add_argument(
+        "--goal-axis", choices=("x", "y", "z"), default="y", help="the waist coordinate to pass (y)"
+    )
+    p.add_argument("--goal-value", type=float, default=0.6, help="the waist must pass this [m] (0.6)")
+    p.add_argument("--goal-below", action="store_true", help="pass the goal's coordinate downward")
     p.add_argument("--budget", type=float, default=300.0, help="search time budget [s] (300)")
     p.add_argument("--max-nodes", type=int, default=1000, help="nodes generated at most (1000)")
     p.add_argument("--no-best-first", action="store_true", help="generate every son (§2.8 off)")
@@ -70,7 +82,10 @@ def add_cli(subparsers: Any) -> None:
     p.set_defaults(func=cmd_scenario)
 
 
-SUPPORTS = ("chair", "table")  # objects any link may touch during the motion (sim/execute's supports)
+def supports_of(sets: list) -> tuple[str, ...]:
+    """The objects any link may touch during the motion (sim/execute's supports): the owners of the
+    plan's surfaces (``<object>.seat`` / ``<object>.top``), the floor aside."""
+    return tuple(sorted({c.surface.split(".")[0] for s in sets for c in s} - {"floor"}))
 
 
 def _closed_loop(
@@ -91,9 +106,11 @@ def _closed_loop(
 
     gen = execution_generator(robot, environment, limb_load)
 
+    supports = supports_of(sets)
+
     def play(q, dt, effort_scale, force_targets):
         executed = world.execute(
-            q, dt, supports=SUPPORTS, effort_scale=effort_scale, force_targets=force_targets
+            q, dt, supports=supports, effort_scale=effort_scale, force_targets=force_targets
         )
         return executed.outcome, executed.message
 
@@ -136,18 +153,20 @@ def check_arguments(args: argparse.Namespace) -> None:
 def cmd_scenario(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from services.contacts.chair_egress import FINAL_PAIRS
     from services.contacts.environment import environment_of
     from services.contacts.interpolate import InterpolationConfig
     from services.contacts.plan_file import load_plan, save_plan
     from services.contacts.planner import default_problem, plan
-    from services.contacts.search import Node, SearchConfig
+    from services.contacts.search import Goal, Node, SearchConfig
     from services.model import load_robot
     from sim.scene import layout, load_scene
     from sim.world import World, start_configuration
 
     check_arguments(args)
     robot = load_robot("hrp2_like")
-    q0 = start_configuration(robot, layout(load_scene("chair_egress")))
+    q0 = start_configuration(robot, layout(load_scene(args.scene)))
+    goal = Goal(args.goal_axis, args.goal_value, FINAL_PAIRS, -1.0 if args.goal_below else 1.0)
 
     def progress(kind: str, node: Node, generated: int, expanded: int, elapsed: float) -> None:
         print(
@@ -159,6 +178,8 @@ def cmd_scenario(args: argparse.Namespace) -> int:
     problem = default_problem(
         robot,
         q0,
+        scene=args.scene,
+        goal=goal,
         search=SearchConfig(
             best_first_sons=not args.no_best_first, max_nodes=args.max_nodes, time_budget_s=args.budget
         ),
@@ -208,9 +229,9 @@ def cmd_scenario(args: argparse.Namespace) -> int:
         )
     if args.no_execute:
         return 0
-    with World(robot, "chair_egress") as world:
+    with World(robot, args.scene) as world:
         if motion is not None:  # --open-loop: the planned motion as is
-            executed = world.execute(motion.q, motion.dt_s, supports=SUPPORTS, hold_s=1.0)
+            executed = world.execute(motion.q, motion.dt_s, supports=supports_of(sets), hold_s=1.0)
             outcome, message = executed.outcome, executed.message
         else:
             outcome, message = _closed_loop(
@@ -229,7 +250,7 @@ def cmd_scenario(args: argparse.Namespace) -> int:
             outcome == "completed"
             and standing
             and not world.fallen()
-            and float(np.asarray(q)[1]) > problem.goal.value_m - 0.05
+            and goal.residual_m(np.asarray(q)) < 0.05
         )
     print("chair egress:", "succeeded" if ok else "failed")
     return 0 if ok else 1

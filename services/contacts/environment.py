@@ -108,10 +108,13 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
     ``<box>.top`` (static objects only: the planner does not handle moving objects, §3.1)."""
     friction = layout.scene.floor_friction if floor_friction is None else floor_friction
     rx, ry = layout.robot_xy
+    # the floor's frame is the robot's start frame (x ahead, y to its left): the search's stance rule
+    # (a left sole to the left of the right one, search.py) holds whichever way the layout turns it
+    heading = layout.robot_yaw_rad
     surfaces = [
         Surface(
             "floor",
-            _yaw_se3(0.0, (rx, ry, 0.0)),
+            _yaw_se3(heading, (rx, ry, 0.0)),
             (FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M),
             "floor",
             friction,
@@ -121,7 +124,7 @@ def environment_of(layout: Layout, floor_friction: float | None = None) -> Envir
     boxes = [
         Box(
             "floor",
-            _yaw_se3(0.0, (rx, ry, -0.5 * FLOOR_BOX_DEPTH_M)),
+            _yaw_se3(heading, (rx, ry, -0.5 * FLOOR_BOX_DEPTH_M)),
             np.array([FLOOR_HALF_SIZE_M + 1.0, FLOOR_HALF_SIZE_M + 1.0, 0.5 * FLOOR_BOX_DEPTH_M]),
             "floor",
         )

@@ -26,10 +26,20 @@ from services.errors import InvalidRequestError
 from services.ik import Task
 
 
-def base_point(q: np.ndarray) -> np.ndarray:
-    """The projection P' of a configuration onto F: (x, y, z [m], log3 of the base rotation [rad])."""
+def base_point(q: np.ndarray, R_ref: np.ndarray | None = None) -> np.ndarray:
+    """The projection P' of a configuration onto F: (x, y, z [m], log3 of the base rotation [rad]),
+    both expressed in a frame turned by ``R_ref`` (3x3; None: the world's)."""
     R = pin.Quaternion(np.asarray(q[3:7], dtype=float)).normalized().toRotationMatrix()
-    return np.concatenate((np.asarray(q[:3], dtype=float), pin.log3(R)))
+    p = np.asarray(q[:3], dtype=float)
+    if R_ref is not None:
+        p, R = R_ref.T @ p, R_ref.T @ R
+    return np.concatenate((p, pin.log3(R)))
+
+
+def heading_rotation(q: np.ndarray) -> np.ndarray:
+    """The rotation about the vertical by the heading (yaw) of the base of ``q`` (3x3)."""
+    R = pin.Quaternion(np.asarray(q[3:7], dtype=float)).normalized().toRotationMatrix()
+    return pin.rpy.rpyToMatrix(0.0, 0.0, float(pin.rpy.matrixToRpy(R)[2]))
 
 
 @dataclass(frozen=True)
@@ -80,7 +90,12 @@ class RoughTrajectory:
         self.model = model
         self.keys = keys
         self.k = float(k)
-        vertices = np.array([base_point(q) for q in keys])
+        # F's coordinates in the frame of the start's heading (§2.7 leaves F's frame open): log3 is not
+        # invariant when the whole layout turns (the chair facing +y gave other f_T values, hence another
+        # search, than the same scene facing +x); in the start's frame they do not depend on the layout's
+        # heading (the identity, bit for bit, for a start facing +x)
+        self.R_ref = heading_rotation(keys[0])
+        vertices = np.array([base_point(q, self.R_ref) for q in keys])
         lengths = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
         if np.any(lengths < 1e-6):
             raise InvalidRequestError(
@@ -118,8 +133,8 @@ class RoughTrajectory:
         i = min(int(u), self.keys.shape[0] - 2)
         f = u - i
         q = (1.0 - f) * self.keys[i] + f * self.keys[i + 1]
-        q[:3] = projection.point[:3]
-        q[3:7] = pin.Quaternion(pin.exp3(projection.point[3:])).coeffs()
+        q[:3] = self.R_ref @ projection.point[:3]
+        q[3:7] = pin.Quaternion(self.R_ref @ pin.exp3(projection.point[3:])).coeffs()
         return q
 
     def closest(self, q: np.ndarray) -> tuple[np.ndarray, Projection]:
@@ -129,7 +144,7 @@ class RoughTrajectory:
         if self._last_closest is not None and self._last_closest[0] == key:
             Q, projection = self._last_closest[1]
             return Q.copy(), projection
-        projection = self.project(base_point(q))
+        projection = self.project(base_point(q, self.R_ref))
         Q = self.configuration_at(projection)
         self._last_closest = (key, (Q, projection))
         return Q.copy(), projection
@@ -142,7 +157,7 @@ class RoughTrajectory:
 
     def progress(self, q: np.ndarray) -> float:
         """s' of q: how far along T' its base is (0 at the first key posture, ``length`` at the last)."""
-        return self.project(base_point(q)).s
+        return self.project(base_point(q, self.R_ref)).s
 
 
 def _round_corners(vertices: np.ndarray, lengths: np.ndarray, deviation: float) -> list[_Piece]:
@@ -216,8 +231,9 @@ class PotentialTask(Task):
         F = pin.difference(self.trajectory.model, Q, q)
         R_Q = pin.Quaternion(Q[3:7]).toRotationMatrix()
         slope = 0.5 * self.trajectory.k
-        F[:3] -= slope * R_Q.T.dot(projection.tangent[:3])
-        F[3:6] -= slope * R_Q.T.dot(projection.tangent[3:])
+        R_ref = self.trajectory.R_ref  # t' is in F's frame (the start's heading)
+        F[:3] -= slope * R_Q.T.dot(R_ref @ projection.tangent[:3])
+        F[3:6] -= slope * R_Q.T.dot(R_ref @ projection.tangent[3:])
         return F
 
     def compute_jacobian(self, q: np.ndarray, data: pin.Data) -> np.ndarray:

@@ -77,21 +77,27 @@ class SearchConfig:
 @dataclass(frozen=True)
 class Goal:
     """The end condition: the waist (base) coordinate ``axis`` ('x', 'y' or 'z') at least ``value_m``
-    (§3.1: "a coordinate the waist must exceed"), with exactly the contact pairs ``final_pairs`` (the
-    robot standing; empty: any set)."""
+    (§3.1: "a coordinate the waist must exceed"; ``sense`` -1: at most ``value_m``, the other way), with
+    exactly the contact pairs ``final_pairs`` (the robot standing; empty: any set)."""
 
     axis: str
     value_m: float
     final_pairs: tuple[tuple[str, str], ...] = ()
+    sense: float = 1.0  # +1: exceed value_m upward; -1: downward
 
     def __post_init__(self) -> None:
         if self.axis not in ("x", "y", "z"):
             raise InvalidRequestError(f"goal axis must be 'x', 'y' or 'z', got {self.axis!r}")
+        if self.sense not in (1.0, -1.0):
+            raise InvalidRequestError(f"goal sense must be +1 or -1, got {self.sense!r}")
+
+    def residual_m(self, q: np.ndarray) -> float:
+        """How far the waist of ``q`` is from exceeding the goal's coordinate [m] (<= 0: exceeded)."""
+        return self.sense * (self.value_m - float(q["xyz".index(self.axis)]))
 
     def reached(self, contacts: ContactSet, q: np.ndarray) -> bool:
-        coordinate = float(q["xyz".index(self.axis)])
         pairs_ok = not self.final_pairs or sorted(c.pair for c in contacts) == sorted(self.final_pairs)
-        return coordinate >= self.value_m and pairs_ok
+        return self.residual_m(q) <= 0.0 and pairs_ok
 
 
 @dataclass
@@ -355,12 +361,13 @@ class ContactPlanner:
         goal_node: Node | None = None
         while self._heap:
             spent = self._timed_out()
-            if spent:
-                status, message = "timeout", spent
-                break
-            if len(self.nodes) >= cfg.max_nodes:
-                status, message = "max_nodes", f"{cfg.max_nodes} nodes generated"
-                break
+            if spent or len(self.nodes) >= cfg.max_nodes:
+                top = self.nodes[self._heap[0][3]]
+                if not self.goal.reached(top.contacts, top.q):  # else the best leaf is the goal: take it
+                    status, message = (
+                        ("timeout", spent) if spent else ("max_nodes", f"{cfg.max_nodes} nodes generated")
+                    )
+                    break
             _, _, _, index, stream = heapq.heappop(self._heap)
             node = self.nodes[index]
             node.expanded = True

@@ -9,10 +9,14 @@ the measured configuration (executing set by set, ``closed_loop.py``), within it
 ``time_budget_s`` (``timeout`` naming the step reached: the witness's regeneration or the
 interpolation's posture, re-planning try or collision check). Every node selected during the
 search is published on ``contacts/progress``.
-Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` of the wrong
-size, a start contact that does not hold at ``q_start``), ``infeasible`` (the search tree was exhausted,
-or an interpolation step failed; ``details`` has the best set reached and why), ``timeout`` (the time or
-node budget was spent; ``details`` has the partial plan: sets, changes, witnesses). ``time_budget_s``
+Scenes are named (``sim/scenes``, then the config's ``scene_dirs``: the layouts the sim simulates).
+Failure codes: ``invalid_request`` (unknown scene, spot, surface or goal axis, ``q_start`` not a
+configuration within the joint limits, a start that is not a feasible set: a contact that does not hold
+at ``q_start``, a spot twice, the robot not statically balanced on them; ``details.field``),
+``infeasible`` (``details.reason``: ``final_contact_not_allowed`` or ``goal_out_of_reach`` before any
+search, ``tree_exhausted`` after it, with the best set reached; or an interpolation step that failed),
+``timeout`` (``details.reason`` ``no_path_within_budget``: the time or node budget was spent; the
+partial plan: sets, changes, witnesses); every refusal of a goal carries ``residual_m``. ``time_budget_s``
 bounds the whole request (set-up, search, interpolation with its re-planning and collision checks):
 the reply comes within it plus the longest step between two checks (one posture generation).
 """
@@ -41,16 +45,19 @@ from services.contacts.sets import Contact, ContactSet
 from services.errors import InvalidRequestError
 from services.model import RobotModel, load_robot
 from services.model.options import add_model_argument, with_model
-from sim.scene import layout, load_scene
+from sim.scene import find_scene, layout, load_scene
 
 SEARCH_SHARE = 0.7  # of the request's time budget for the search; the rest for the interpolation
 
 
 @dataclass(frozen=True)
 class ContactsConfig:
-    """Options of the service: the robot model (only ``hrp2_like`` has contact spots)."""
+    """Options of the service: the robot model (only ``hrp2_like`` has contact spots) and more folders
+    of scene files ``<name>.yaml`` a request may name (after ``sim/scenes``; the same as the sim's
+    ``scene_dirs``, so that the planner sees the layouts the sim simulates)."""
 
     model: str = "hrp2_like"
+    scene_dirs: tuple[str, ...] = ()
 
 
 class ContactsService(Service):
@@ -62,10 +69,22 @@ class ContactsService(Service):
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
         add_model_argument(parser)
+        parser.add_argument(
+            "--scene-dir",
+            action="append",
+            default=[],
+            help="a folder of more scenes <name>.yaml that requests may name (repeatable)",
+        )
 
     @classmethod
     def configure(cls, config: ContactsConfig, args: argparse.Namespace) -> ContactsConfig:
+        if args.scene_dir:
+            config = replace(config, scene_dirs=(*config.scene_dirs, *args.scene_dir))
         return with_model(config, args.model)
+
+    def _scene(self, name: str) -> str:
+        """The file of the scene a request names (``sim/scenes``, then ``scene_dirs``; not_found)."""
+        return str(find_scene(name, self.config.scene_dirs))
 
     def start(self) -> None:
         self.robot = load_robot(self.config.model)
@@ -81,7 +100,7 @@ class ContactsService(Service):
             return self._plan(request)
 
     def _plan(self, request: msg.PlanRequest) -> msg.PlanReply:
-        problem = to_problem(request)
+        problem = replace(to_problem(request), scene=self._scene(request.scene))
         request_id = f"{request.scene}@{time.time():.3f}"
 
         def progress(kind: str, node: Node, generated: int, expanded: int, elapsed: float) -> None:
@@ -137,7 +156,7 @@ class ContactsService(Service):
         contact spot of the robot, the arms' limb-load bound on or off, reproducible; cached)."""
         key = (scene, limb_load)
         if key not in self._generators:
-            env = environment_of(layout(load_scene(scene)))
+            env = environment_of(layout(load_scene(self._scene(scene))))
             self._generators[key] = execution_generator(self.robot, env, limb_load)
         return self._generators[key]
 
@@ -183,7 +202,12 @@ def to_problem(request: msg.PlanRequest) -> PlanProblem:
         scene=request.scene,
         q_start=np.asarray(request.q_start, float).reshape(-1),
         start_pairs=tuple((a, b) for a, b in request.start_contacts),
-        goal=Goal(request.goal_axis, request.goal_value_m, tuple((a, b) for a, b in request.final_contacts)),
+        goal=Goal(
+            request.goal_axis,
+            request.goal_value_m,
+            tuple((a, b) for a, b in request.final_contacts),
+            -1.0 if request.goal_below else 1.0,
+        ),
         key_postures=keys,
         spots=None if request.spots is None else tuple(request.spots),
         surfaces=None if request.surfaces is None else tuple(request.surfaces),

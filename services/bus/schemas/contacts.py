@@ -15,7 +15,20 @@ import numpy as np
 from msgspec import Meta
 
 from services.bus.limits import Angle, Coord, Gain, Name, NameLists, Names, SceneName
+from services.bus.schemas.navigation import REASON_NO_PATH_WITHIN_BUDGET
 from services.bus.spec import EndpointSpec, TopicSpec
+
+#: ``details["reason"]`` of ``contacts/plan``'s failures (with ``residual_m``, how far the best waist
+#: reached is from the goal's coordinate, and the partial plan when there is one):
+#: the time or node budget was spent before the goal (code ``timeout``: the search stopped on its own)
+NO_PATH_WITHIN_BUDGET = REASON_NO_PATH_WITHIN_BUDGET
+#: every leaf was expanded without reaching the goal (code ``infeasible``)
+REASON_TREE_EXHAUSTED = "tree_exhausted"
+#: the goal's coordinate lies beyond where the final contacts' surfaces let the waist be (``infeasible``,
+#: before any search)
+REASON_GOAL_OUT_OF_REACH = "goal_out_of_reach"
+#: a final contact is neither held at the start nor an allowed pair: no set can match (``infeasible``)
+REASON_FINAL_CONTACT_NOT_ALLOWED = "final_contact_not_allowed"
 
 
 class ContactMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
@@ -31,15 +44,18 @@ class ContactMsg(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_field
 
 class PlanRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
     """Plan from ``q_start`` (the robot's measured configuration) with the ``start_contacts`` holding there
-    (pairs [spot, surface]) until the waist coordinate ``goal_axis`` exceeds ``goal_value_m`` with exactly
-    the contacts ``final_contacts`` (empty: any). ``key_postures`` (k x nq) define the rough trajectory T
-    (§2.7); None: the scenario's default (the ``chair_egress`` scene only)."""
+    (pairs [spot, surface]) until the waist coordinate ``goal_axis`` exceeds ``goal_value_m`` (falls below
+    it with ``goal_below``) with exactly the contacts ``final_contacts`` (empty: any). ``key_postures``
+    (k x nq) define the rough trajectory T (§2.7); None: made from the layout when the robot starts
+    seated (a thigh on a seat: the chair scenario's T, ``chair_egress.key_postures``) or standing on
+    its soles (T straight to past the goal); otherwise ``invalid_request``."""
 
     scene: SceneName  # a scene of sim/scenes (its surfaces and obstacles are read from the scene file)
     q_start: np.ndarray  # (nq,) float64
     start_contacts: NameLists  # [[spot, surface], ...] in contact at q_start
     goal_axis: Name = "y"  # "x", "y" or "z"
     goal_value_m: Coord = 0.75
+    goal_below: bool = False  # the waist coordinate must fall below goal_value_m (not exceed it)
     final_contacts: NameLists = msgspec.field(
         default_factory=lambda: [["left_sole", "floor"], ["right_sole", "floor"]]
     )
