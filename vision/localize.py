@@ -21,6 +21,7 @@ import numpy as np
 
 from services import budget
 from services.bus.schemas.perception import (
+    REASON_AMBIGUOUS,
     REASON_HIDDEN_BY_OWN_BODY,
     REASON_NO_DISPARITY,
     REASON_NOT_IN_RIGHT_VIEW,
@@ -33,6 +34,7 @@ from vision.camshift import Detection, DetectionConfig, RotatedBox, Window, chec
 from vision.footprint import Footprint, footprint, outline_points
 from vision.hidden_ball import Circle, free_circle, touches
 from vision.histogram import ObjectModel, colour_mask, to_hsv
+from vision.parts import PARTS_SLACK_M, joined_through
 from vision.stereo import (
     StereoConfig,
     dense_disparity_median,
@@ -415,6 +417,56 @@ def _edges_point(
     return point_from_pixel_disparity(rig, left.centre_px[0], left.centre_px[1], disparity), disparity
 
 
+def _one_object_in_parts(
+    model: ObjectModel,
+    left_candidates: list[Detection],
+    bp_left: np.ndarray,
+    bp_right: np.ndarray,
+    frame: StereoFrame,
+    config: LocalizeConfig,
+    occluders: Sequence[ObjectModel],
+) -> tuple[Detection, Detection] | None:
+    """The left and right detections of ``model``'s object when its two best left candidates (called
+    ambiguous) are parts of it that an occluder in front separates (vision.parts): in each image the
+    pixels of its colour connected to a candidate through the other objects' or the robot's own pixels
+    (:func:`vision.parts.joined_through`), the left one holding both parts, matched as usual
+    (:func:`_match_right`), the parts' centres at the joined outline's depth (:func:`_edges_point`: the
+    centroids of parts hidden differently in each image do not correspond) within the catalogued floor
+    diagonal plus ``PARTS_SLACK_M``. None otherwise (ambiguous it stays: two objects of one colour, or a third
+    blob as strong)."""
+    det_cfg = config.detection
+    a, b = left_candidates[0], left_candidates[1]
+    others = [other for other in occluders if other.name != model.name]
+    own_left, own_right = frame.own_masks
+    left = joined_through(a, bp_left, _occluder_mask(frame, "left", others, det_cfg, own_left), det_cfg)
+    if left is None or not _inside(b.centre_px, left.window):
+        return None
+    occluder_right = _occluder_mask(frame, "right", others, det_cfg, own_right)
+    rights = [
+        joined_through(c, bp_right, occluder_right, det_cfg)
+        for c in detect_all(bp_right, model.name, det_cfg)
+    ]
+    try:
+        right = _match_right(left, [r for r in rights if r is not None], frame, config, bp_left, bp_right)
+        depth = float(_edges_point(left, right, bp_left, bp_right, frame.rig, det_cfg)[0][2])
+    except NotFoundError:
+        return None
+    k = frame.rig.intrinsics
+    spread = depth * float(
+        np.hypot((a.centre_px[0] - b.centre_px[0]) / k.fx, (a.centre_px[1] - b.centre_px[1]) / k.fy)
+    )
+    if spread > float(np.hypot(*model.floor_size_m)) + PARTS_SLACK_M:
+        return None
+    rest = [c for c in left_candidates[2:] if c.score >= det_cfg.ambiguity_ratio * left.score]
+    return None if rest else (left, right)
+
+
+def _inside(point_px: tuple[float, float], window: Window) -> bool:
+    return (
+        window[0] <= point_px[0] < window[0] + window[2] and window[1] <= point_px[1] < window[1] + window[3]
+    )
+
+
 def _occluder_mask(
     frame: StereoFrame,
     side: str,
@@ -445,13 +497,22 @@ def locate_in_frame(
     config = config or LocalizeConfig()
     det_cfg = config.detection
     bp_left = frame.back_projection(model, "left")
+    left_candidates = detect_all(bp_left, model.name, det_cfg)
+    bp_right, joined_right = None, None
     try:
-        left = check_unambiguous(detect_all(bp_left, model.name, det_cfg), det_cfg, f"'{model.name}'")
+        left = check_unambiguous(left_candidates, det_cfg, f"'{model.name}'")
     except NotFoundError as e:
         e.details.setdefault("object", model.name)
-        raise
-    bp_right = frame.back_projection(model, "right")
-    candidates = detect_all(bp_right, model.name, det_cfg)
+        if e.details.get("reason") != REASON_AMBIGUOUS or model.shape == "sphere" or not model.floor_size_m:
+            raise
+        bp_right = frame.back_projection(model, "right")
+        parts = _one_object_in_parts(model, left_candidates, bp_left, bp_right, frame, config, occluders)
+        if parts is None:
+            raise
+        left, joined_right = parts
+    if bp_right is None:
+        bp_right = frame.back_projection(model, "right")
+    candidates = [joined_right] if joined_right is not None else detect_all(bp_right, model.name, det_cfg)
     circles = None  # a ball's circles fitted off the robot's own pixels (vision.hidden_ball)
     try:
         right = _match_right(left, candidates, frame, config, bp_left, bp_right)
@@ -469,6 +530,10 @@ def locate_in_frame(
     rig = frame.rig
     method = config.stereo.method
     side_cut = bool({"left", "right"} & {*left.border_sides, *right.border_sides})
+    if method == "centroid" and joined_right is not None:
+        # Parts joined around an occluder: it hides different parts of them in each image, so the
+        # centroids do not correspond (a table behind a chair's back: 4.5 m for 3.0); the outer edges do.
+        method = "edges"
     if method == "centroid" and side_cut:
         # A silhouette cut by a side border moves the centroid differently in each image; a cut by the
         # top or bottom border removes the same rows from both (rectified), which the centroid tolerates.
