@@ -37,7 +37,7 @@ import numpy as np
 from services.model.ground import Rectangle
 from vision.camera import StereoRig
 from vision.camshift import Window
-from vision.stereo import silhouette_rows, to_world
+from vision.stereo import edge_rows, to_world
 
 #: Fewer matched outline points than this give no footprint.
 MIN_POINTS = 8
@@ -128,41 +128,31 @@ def outline_points(
     are seen (None: none); an edge within :data:`OCCLUDER_GAP_PX` of one in either image is dropped
     (module docstring).
     """
-    left = silhouette_rows(silhouette_left, window_left)
-    right = silhouette_rows(silhouette_right, window_right)
-    # An edge on a window's first or last column (the image's border or where the measurement window
-    # cut the silhouette: CamShift's box of a big object close by) is not the object's contour.
-    first_l, first_r = window_left[0], window_right[0]
-    last_l = min(window_left[0] + window_left[2], rig.intrinsics.width) - 1
-    last_r = min(window_right[0] + window_right[2], rig.intrinsics.width) - 1
-    rows = sorted(left.keys() & right.keys())
-
+    # Edges on a window's first or last column (the image's border or where the measurement window
+    # cut the silhouette: CamShift's box of a big object close by) are not the object's contour: 0.
+    edges = edge_rows(silhouette_left, window_left, silhouette_right, window_right, rig.intrinsics.width)
+    rows = [int(r) for r in edges.rows]
     hidden = 0
 
-    def free(r: int, side: int) -> bool:  # no occluder just outside either image's edge on row r
+    def free(i: int, side: int) -> bool:  # no occluder just outside either image's edge on row i
         nonlocal hidden
-        if _beside(occluder_left, r, left[r][side], side) or _beside(occluder_right, r, right[r][side], side):
+        r = rows[i]
+        if _beside(occluder_left, r, int(edges.left_px[i, side]), side) or _beside(
+            occluder_right, r, int(edges.right_px[i, side]), side
+        ):
             hidden += 1
             return False
         return True
 
     sides = (  # (columns, disparities) of the left edges, then of the right edges
         (
-            [left[r][0] - 0.5 for r in rows],
+            edges.left_px[:, side] + (0.5 if side else -0.5),
             [
-                left[r][0] - right[r][0]
-                if left[r][0] > first_l and right[r][0] > first_r and free(r, 0)
-                else 0
-                for r in rows
+                int(edges.disparity_px[i, side]) if edges.disparity_px[i, side] and free(i, side) else 0
+                for i in range(len(rows))
             ],
-        ),
-        (
-            [left[r][1] + 0.5 for r in rows],
-            [
-                left[r][1] - right[r][1] if left[r][1] < last_l and right[r][1] < last_r and free(r, 1) else 0
-                for r in rows
-            ],
-        ),
+        )
+        for side in (0, 1)
     )
     u, v, d = [], [], []
     runs = []
