@@ -148,6 +148,10 @@ class SupervisorConfig:
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
+        search_viewpoints, search_aside_margin_m: an object not seen anywhere around (head scans,
+            turning on the spot) is looked for again from at most this many viewpoints stepped aside
+            past the objects on the map that may hide it (both sides of each, nearest first), the
+            sight line passing this far [m] beside each (``localize``; 0: never);
         mapped_margin_m: a contact farther than this from every mapped box hit something the map lacks;
         wait_service_s: how long ``wait_service`` waits for a restarted service's liveliness token;
         plan_timeout_s: how long a planner request may take.
@@ -207,6 +211,8 @@ class SupervisorConfig:
     felt_obstacle_radius_m: float = 0.03
     grasp_clearance_m: float = 0.01
     recentre_fraction: float = 0.4
+    search_viewpoints: int = 2
+    search_aside_margin_m: float = 0.5
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0
     plan_timeout_s: float = 120.0
@@ -215,6 +221,10 @@ class SupervisorConfig:
         for name, value in vars(self).items():
             if isinstance(value, float) and not value >= 0.0:
                 raise InvalidRequestError(f"supervisor config: {name} must be >= 0, got {value}")
+        if self.search_viewpoints < 0:
+            raise InvalidRequestError(
+                f"supervisor config: search_viewpoints must be >= 0, got {self.search_viewpoints}"
+            )
         if self.near_m >= self.far_m:
             raise InvalidRequestError(
                 f"supervisor config: near_m ({self.near_m} m) must be below far_m ({self.far_m} m)"
