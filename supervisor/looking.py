@@ -6,7 +6,6 @@ positions come only from ``perception/locate`` and are kept in :class:`~supervis
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 from services.errors import NotFoundError
@@ -51,15 +50,7 @@ class LookingActions(ActionParts):
         name = step.args[0]
         if name not in self.memory.sightings:
             self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
-        target = self.memory.get(name).position_m
-        q = self.body.q()
-        x, y, yaw = self.body.base_xy_yaw(q)
-        bearing = math.remainder(math.atan2(target[1] - y, target[0] - x) - yaw, 2 * math.pi)
-        (pan_lo, pan_hi), _ = self.body.head_limits()
-        if not pan_lo <= bearing <= pan_hi:
-            turn = bearing - math.copysign(min(abs(pan_lo), abs(pan_hi)) * 0.5, bearing)
-            self._turn_rad(turn, f"turn toward {name}")
-        self.eyes.look_at(target, f"look at {name}")
+        self.eyes.face(self.memory.get(name).position_m, self._turn_rad, name)
         try:
             sighting = self.eyes.locate(name)
         except NotFoundError as exc:

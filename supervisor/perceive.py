@@ -20,7 +20,7 @@ from supervisor.body import Body, Progress
 from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory, Sighting
-from supervisor.scene_map import boxes, distance_to_box, viewpoints_past
+from supervisor.scene_map import boxes, distance_to_box, is_obstacle, viewpoints_past
 
 #: NotFoundError reasons of perception/locate that another viewpoint may fix ("": none given).
 LOOK_AROUND_REASONS = (*perception_msg.VIEWPOINT_REASONS, "")
@@ -147,6 +147,23 @@ class Eyes:
         pan, tilt = self.body.head_angles_towards(q, point_m)
         self.body.move_head(pan, tilt, what=what)
 
+    def beyond_head(self, point_m: np.ndarray) -> float:
+        """The bearing [rad] of ``point_m`` from the robot's heading when the head's pan range does not
+        reach it (0 when it does)."""
+        x, y, yaw = self.body.base_xy_yaw()
+        bearing = math.remainder(math.atan2(point_m[1] - y, point_m[0] - x) - yaw, 2 * math.pi)
+        (pan_lo, pan_hi), _ = self.body.head_limits()
+        return 0.0 if pan_lo <= bearing <= pan_hi else bearing
+
+    def face(self, point_m: np.ndarray, turn: Callable[[float, str], None], what: str) -> None:
+        """Look at ``point_m`` [m], turning the body first (``turn(angle_rad, why)``) when the head's pan
+        range does not reach it: the point then lies halfway into that range."""
+        bearing = self.beyond_head(point_m)
+        if bearing:
+            (pan_lo, pan_hi), _ = self.body.head_limits()
+            turn(bearing - math.copysign(min(abs(pan_lo), abs(pan_hi)) * 0.5, bearing), f"turn toward {what}")
+        self.look_at(point_m, f"look at {what}")
+
     def localize(
         self,
         name: str,
@@ -214,6 +231,13 @@ class Eyes:
             progress(f"{name} seen at the image border: looking at it to localize it precisely")
             self.look_at(found.position_m, f"look at {name}")
             again = attempt()
+            if look_around and _partial(again or found) and self.beyond_head(found.position_m):
+                # The head cannot turn far enough: what is seen at the border is a part of a big object
+                # (a table's leg: its middle, 0.6 m off the table's, and no floor rectangle; fetch layout
+                # box_near then stepped into the table). Turned toward, it is seen whole.
+                progress(f"{name} is beyond the head's reach: turning toward it to see it whole")
+                self.face(found.position_m, turn, name)
+                again = attempt() or again
             found = again if again is not None else found
         return found, views
 
@@ -300,3 +324,9 @@ class Eyes:
                 if found is not None:
                     return found
         return None
+
+
+def _partial(sighting: Sighting) -> bool:
+    """Whether ``sighting`` is of a big object (an obstacle: a box, a table, a chair) without a floor
+    rectangle: perception saw only a part of it (cut by the image's border) or too near to tell."""
+    return is_obstacle(sighting) and sighting.footprint is None
