@@ -75,7 +75,11 @@ class SupervisorConfig:
             lowered until it touches; put_highest_m, put_lowest_m: bounds of a place's top height (the
             estimate is capped at the first, the object is lowered down to the second at most);
             put_depth_m: and at most this far; put_inside_m: the release point is this far inside the
-            place's near face; put_retry_shift_m: after a put that touched nothing, the next release
+            place's near face, moved when a ball seen on the place lies nearer than put_clear_m to it
+            or to the forearm's way over the place (put_forearm_m from the point toward the robot):
+            to the nearest point of the place's top (put_edge_margin_m inside its rectangle) clear of
+            them (layout table_to_box: the forearm lowered onto a ball beside the point);
+            put_retry_shift_m: after a put that touched nothing, the next release
             point is this far at most from the first, toward the middle of the place's silhouette;
             put_edge_deg, put_edge_shift_m, put_edge_tries: a lowered object whose every contact with
             the place is more than put_edge_deg [deg] off straight below the hand's grasp frame
@@ -183,6 +187,9 @@ class SupervisorConfig:
     put_depth_m: float = 0.35
     put_inside_m: float = 0.15
     put_retry_shift_m: float = 0.35
+    put_clear_m: float = 0.15
+    put_forearm_m: float = 0.2
+    put_edge_margin_m: float = 0.1
     put_edge_deg: float = 45.0
     put_edge_shift_m: float = 0.12
     put_edge_tries: int = 2

@@ -270,3 +270,15 @@ def test_requests_in_a_recorded_log_are_counted_per_window(tmp_path):
     assert requests_in_log(path, fs_msg.PLAN, [(0, 300), (300, 800), (800, 1000)]) == [2, 0, 1]  # open
     writer.close()
     assert requests_in_log(path, fs_msg.PLAN, [(0, 1000)]) == [3]
+
+
+def test_a_release_point_beside_a_ball_or_behind_one_on_the_forearms_way_is_not_clear():
+    """Layout table_to_box: the ball put on the box beside two others; the forearm (coming down from
+    the robot's side) touched the one 10 cm from the release point."""
+    from supervisor.put import clear_of
+
+    robot = np.array([3.54, 0.14])
+    balls = [np.array([3.58, 0.98]), np.array([3.58, 0.62])]
+    assert not clear_of(np.array([3.50, 0.72]), robot, balls, 0.15, 0.2)  # 0.13 m from one
+    assert not clear_of(np.array([3.58, 0.78]), robot, balls, 0.15, 0.2)  # that one on the forearm's way
+    assert clear_of(np.array([3.36, 0.80]), robot, balls, 0.15, 0.2)
