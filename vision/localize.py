@@ -195,8 +195,11 @@ def _match_right(
     config: LocalizeConfig,
     bp_left: np.ndarray,
     bp_right: np.ndarray,
+    ends: bool = False,
 ) -> Detection:
     """The right-image candidate on the same rows as ``left``, in the disparity range, of similar size.
+    With ``ends`` (a big object: a box, a table, a chair), the silhouettes' first or last rows agreeing
+    stand for the centroids' rows (:func:`_an_end_row_agrees`).
 
     The disparity tested is that of the centroids, or, when either silhouette is cut by a side border,
     that of the silhouettes' edges (the cut moves each centroid by a different amount: a table close
@@ -205,6 +208,7 @@ def _match_right(
     seed 63's goto stopped with ``not_in_right_view``)."""
     d_lo, d_hi = disparity_range(frame.rig, config.stereo)
     size_l = float(np.mean(left.box[1]))
+    row_tol = _row_tolerance(left, config)
     best, best_cost = None, np.inf
     for c in candidates:
         disparity = left.centre_px[0] - c.centre_px[0]
@@ -219,11 +223,12 @@ def _match_right(
                 )
             except NotFoundError:
                 continue  # no edge off the borders on common rows
-        row_tol = config.stereo.max_row_difference_px + 0.05 * size_l
         size_ratio = float(np.mean(c.box[1])) / size_l
         if not (0.9 * d_lo <= disparity <= 1.1 * d_hi):
             continue
-        if abs(left.centre_px[1] - c.centre_px[1]) > row_tol:
+        if abs(left.centre_px[1] - c.centre_px[1]) > row_tol and not (
+            ends and _an_end_row_agrees(left, c, bp_left, bp_right, config)
+        ):
             continue
         if not (1 / config.max_size_ratio <= size_ratio <= config.max_size_ratio):
             continue
@@ -239,6 +244,30 @@ def _match_right(
             {"reason": REASON_NOT_IN_RIGHT_VIEW},
         )
     return best
+
+
+def _row_tolerance(left: Detection, config: LocalizeConfig) -> float:
+    """How far [px] the centroids of one object's two silhouettes may lie apart in rows (rectified)."""
+    return config.stereo.max_row_difference_px + 0.05 * float(np.mean(left.box[1]))
+
+
+def _an_end_row_agrees(
+    left: Detection, right: Detection, bp_left: np.ndarray, bp_right: np.ndarray, config: LocalizeConfig
+) -> bool:
+    """Whether the first or the last rows of the two silhouettes lie within ``max_row_difference_px``
+    (+ 1 px) of each other: one object seen over the same rows (rectified) except where something in
+    front hides a different part of it in each image (a table behind a chair: its leg hidden lower down
+    in one image; the centroids' rows 12 px apart, and the table was `not_in_right_view` from every
+    viewpoint of layout box_near). Its centroids then do not correspond (:func:`locate_in_frame` uses
+    the edges)."""
+    ends = []
+    for det, bp in ((left, bp_left), (right, bp_right)):
+        rows = np.flatnonzero(_silhouette(bp, det.window, config.detection).any(axis=1))
+        if len(rows) == 0:
+            return False
+        ends.append((det.window[1] + rows[0], det.window[1] + rows[-1]))
+    slack = config.stereo.max_row_difference_px + 1.0
+    return abs(ends[0][0] - ends[1][0]) <= slack or abs(ends[0][1] - ends[1][1]) <= slack
 
 
 def _centroid_point(
@@ -447,7 +476,9 @@ def _one_object_in_parts(
         for c in detect_all(bp_right, model.name, det_cfg)
     ]
     try:
-        right = _match_right(left, [r for r in rights if r is not None], frame, config, bp_left, bp_right)
+        right = _match_right(
+            left, [r for r in rights if r is not None], frame, config, bp_left, bp_right, ends=True
+        )
         depth = float(_edges_point(left, right, bp_left, bp_right, frame.rig, det_cfg)[0][2])
     except NotFoundError:
         return None
@@ -515,7 +546,7 @@ def locate_in_frame(
     candidates = [joined_right] if joined_right is not None else detect_all(bp_right, model.name, det_cfg)
     circles = None  # a ball's circles fitted off the robot's own pixels (vision.hidden_ball)
     try:
-        right = _match_right(left, candidates, frame, config, bp_left, bp_right)
+        right = _match_right(left, candidates, frame, config, bp_left, bp_right, ends=model.shape != "sphere")
     except NotFoundError as unmatched:
         hidden = (
             None
@@ -530,9 +561,13 @@ def locate_in_frame(
     rig = frame.rig
     method = config.stereo.method
     side_cut = bool({"left", "right"} & {*left.border_sides, *right.border_sides})
-    if method == "centroid" and joined_right is not None:
-        # Parts joined around an occluder: it hides different parts of them in each image, so the
-        # centroids do not correspond (a table behind a chair's back: 4.5 m for 3.0); the outer edges do.
+    hidden_apart = model.shape != "sphere" and abs(left.centre_px[1] - right.centre_px[1]) > _row_tolerance(
+        left, config
+    )
+    if method == "centroid" and (joined_right is not None or hidden_apart):
+        # Parts joined around an occluder, or matched by their end rows: something in front hides
+        # different parts in each image, so the centroids do not correspond (a table behind a chair's
+        # back: 4.5 m for 3.0); the outer edges do.
         method = "edges"
     if method == "centroid" and side_cut:
         # A silhouette cut by a side border moves the centroid differently in each image; a cut by the
