@@ -318,12 +318,13 @@ def test_the_table_behind_the_robots_own_hand_is_mapped_where_it_is(models):
     hand = stereo.rig.intrinsics.project(np.linalg.inv(stereo.T_world_left_camera)[:3] @ np.append(palm, 1.0))
     u, v = (round(float(c)) for c in hand)
     assert masks[0][v, u] and masks[0].mean() < 0.2 and masks[1].any()
-    assert seen.footprint is not None and seen.footprint.size_m[0] > 1.3  # the failure, without it
+    # the failure without them: 1.47 m long, now refused as longer than the catalogued 1.0 m
+    assert seen.footprint is None
     assert fp is not None
     assert np.linalg.norm(np.subtract(fp.center_m, table.position[:2])) < 0.05
     assert abs(fp.size_m[0] - 1.0) < 0.06 and abs(fp.size_m[1] - 0.6) < 0.05
     assert abs(fp.top_z_m - table.top_z_m) < 0.05  # the gripper's contour put it at 1.08 m
-    assert fp.n_hidden > seen.footprint.n_hidden  # the edges it left out (the ball's already), reported
+    assert fp.n_hidden > 0  # the edges it left out, reported
 
 
 #: The robot's configuration at the put's look at the table in fetch seed 40 (session 10's main): 1.08 m
