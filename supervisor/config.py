@@ -75,7 +75,11 @@ class SupervisorConfig:
             lowered until it touches; put_highest_m, put_lowest_m: bounds of a place's top height (the
             estimate is capped at the first, the object is lowered down to the second at most);
             put_depth_m: and at most this far; put_inside_m: the release point is this far inside the
-            place's near face; put_retry_shift_m: after a put that touched nothing, the next release
+            place's near face, moved when a ball seen on the place lies nearer than put_clear_m to it
+            or to the forearm's way over the place (put_forearm_m from the point toward the robot):
+            to the nearest point of the place's top (put_edge_margin_m inside its rectangle) clear of
+            them (layout table_to_box: the forearm lowered onto a ball beside the point);
+            put_retry_shift_m: after a put that touched nothing, the next release
             point is this far at most from the first, toward the middle of the place's silhouette;
             put_edge_deg, put_edge_shift_m, put_edge_tries: a lowered object whose every contact with
             the place is more than put_edge_deg [deg] off straight below the hand's grasp frame
@@ -148,6 +152,10 @@ class SupervisorConfig:
     Perception and remedies:
         recentre_fraction: an object seen farther than this fraction of the half-width from the image
             centre is looked at and localized again;
+        search_viewpoints, search_aside_margin_m: an object not seen anywhere around (head scans,
+            turning on the spot) is looked for again from at most this many viewpoints stepped aside
+            past the objects on the map that may hide it (both sides of each, nearest first), the
+            sight line passing this far [m] beside each (``localize``; 0: never);
         mapped_margin_m: a contact farther than this from every mapped box hit something the map lacks;
         wait_service_s: how long ``wait_service`` waits for a restarted service's liveliness token;
         plan_timeout_s: how long a planner request may take.
@@ -179,6 +187,9 @@ class SupervisorConfig:
     put_depth_m: float = 0.35
     put_inside_m: float = 0.15
     put_retry_shift_m: float = 0.35
+    put_clear_m: float = 0.15
+    put_forearm_m: float = 0.2
+    put_edge_margin_m: float = 0.1
     put_edge_deg: float = 45.0
     put_edge_shift_m: float = 0.12
     put_edge_tries: int = 2
@@ -207,6 +218,8 @@ class SupervisorConfig:
     felt_obstacle_radius_m: float = 0.03
     grasp_clearance_m: float = 0.01
     recentre_fraction: float = 0.4
+    search_viewpoints: int = 2
+    search_aside_margin_m: float = 0.5
     mapped_margin_m: float = 0.1
     wait_service_s: float = 30.0
     plan_timeout_s: float = 120.0
@@ -215,6 +228,10 @@ class SupervisorConfig:
         for name, value in vars(self).items():
             if isinstance(value, float) and not value >= 0.0:
                 raise InvalidRequestError(f"supervisor config: {name} must be >= 0, got {value}")
+        if self.search_viewpoints < 0:
+            raise InvalidRequestError(
+                f"supervisor config: search_viewpoints must be >= 0, got {self.search_viewpoints}"
+            )
         if self.near_m >= self.far_m:
             raise InvalidRequestError(
                 f"supervisor config: near_m ({self.near_m} m) must be below far_m ({self.far_m} m)"

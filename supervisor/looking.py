@@ -6,7 +6,7 @@ positions come only from ``perception/locate`` and are kept in :class:`~supervis
 
 from __future__ import annotations
 
-import math
+from collections.abc import Callable
 
 from services.errors import NotFoundError
 from supervisor.memory import Sighting
@@ -24,26 +24,33 @@ class LookingActions(ActionParts):
         sighting = self.eyes.locate(name)
         return self._ok(step, f"sees {sighting.describe()}", sighting)
 
+    _turn_rad: Callable[[float, str], int]  # LocomotionActions
+    _make_room: Callable[[str], None]  # LocomotionActions
+
     def do_localize(self, step: Step) -> ActionReport:
-        """Find the object, looking around (head scan, then turning on the spot) when not in view."""
+        """Find the object, looking around (head scan, then turning on the spot) when not in view, then
+        from viewpoints stepped aside past what may hide it (:meth:`Eyes.localize`)."""
         name = step.args[0]
-        sighting, views = self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
+        sighting, views = self.eyes.localize(
+            name, turn=self._turn_rad, progress=self.progress, view_from=self._view_from
+        )
         return self._ok(step, f"{sighting.describe()} ({views} view(s))", sighting, views=views)
+
+    def _view_from(self, x_m: float, y_m: float, yaw_rad: float, what: str) -> None:
+        """Walk to the pose (x, y, yaw) [m, rad] to look from: navigation/goto plans it against the map
+        (after stepping back from what is too near to start), ``infeasible`` when it finds no walk."""
+        self.body.straighten()
+        self._make_room(f"room to {what}")
+        plan = self.planners.goto_pose(x_m, y_m, yaw_rad)
+        self.progress(f"{what}: {plan.describe()}")
+        self.body.execute(plan.q, what=what, progress=self.progress)
 
     def do_look_at(self, step: Step) -> ActionReport:
         """Turn the head (and the body if the head cannot) toward a localized object, then see it again."""
         name = step.args[0]
         if name not in self.memory.sightings:
             self.eyes.localize(name, turn=self._turn_rad, progress=self.progress)
-        target = self.memory.get(name).position_m
-        q = self.body.q()
-        x, y, yaw = self.body.base_xy_yaw(q)
-        bearing = math.remainder(math.atan2(target[1] - y, target[0] - x) - yaw, 2 * math.pi)
-        (pan_lo, pan_hi), _ = self.body.head_limits()
-        if not pan_lo <= bearing <= pan_hi:
-            turn = bearing - math.copysign(min(abs(pan_lo), abs(pan_hi)) * 0.5, bearing)
-            self._turn_rad(turn, f"turn toward {name}")
-        self.eyes.look_at(target, f"look at {name}")
+        self.eyes.face(self.memory.get(name).position_m, self._turn_rad, name)
         try:
             sighting = self.eyes.locate(name)
         except NotFoundError as exc:

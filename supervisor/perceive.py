@@ -15,11 +15,12 @@ from collections.abc import Callable
 import numpy as np
 
 from services.bus.schemas import perception as perception_msg
-from services.errors import NotFoundError
+from services.errors import InfeasibleError, NotFoundError
 from supervisor.body import Body, Progress
 from supervisor.calls import ServiceCaller
 from supervisor.config import SupervisorConfig
 from supervisor.memory import Memory, Sighting
+from supervisor.scene_map import boxes, distance_to_box, is_obstacle, viewpoints_past
 
 #: NotFoundError reasons of perception/locate that another viewpoint may fix ("": none given).
 LOOK_AROUND_REASONS = (*perception_msg.VIEWPOINT_REASONS, "")
@@ -146,6 +147,23 @@ class Eyes:
         pan, tilt = self.body.head_angles_towards(q, point_m)
         self.body.move_head(pan, tilt, what=what)
 
+    def beyond_head(self, point_m: np.ndarray) -> float:
+        """The bearing [rad] of ``point_m`` from the robot's heading when the head's pan range does not
+        reach it (0 when it does)."""
+        x, y, yaw = self.body.base_xy_yaw()
+        bearing = math.remainder(math.atan2(point_m[1] - y, point_m[0] - x) - yaw, 2 * math.pi)
+        (pan_lo, pan_hi), _ = self.body.head_limits()
+        return 0.0 if pan_lo <= bearing <= pan_hi else bearing
+
+    def face(self, point_m: np.ndarray, turn: Callable[[float, str], None], what: str) -> None:
+        """Look at ``point_m`` [m], turning the body first (``turn(angle_rad, why)``) when the head's pan
+        range does not reach it: the point then lies halfway into that range."""
+        bearing = self.beyond_head(point_m)
+        if bearing:
+            (pan_lo, pan_hi), _ = self.body.head_limits()
+            turn(bearing - math.copysign(min(abs(pan_lo), abs(pan_hi)) * 0.5, bearing), f"turn toward {what}")
+        self.look_at(point_m, f"look at {what}")
+
     def localize(
         self,
         name: str,
@@ -154,14 +172,18 @@ class Eyes:
         progress: Progress,
         look_around: bool = True,
         clear_view: Callable[[], None] | None = None,
+        view_from: Callable[[float, float, float, str], None] | None = None,
     ) -> tuple[Sighting, int]:
         """Find ``name``: (sighting, views taken). Looks where it was last seen first, then scans with
         the head and turns the body (``turn(angle_rad, why)``) between scans. When perception says the
         robot's own arm hides it (``hidden_by_own_body``: the hand left on or in front of it after a
         failed grasp), ``clear_view()`` moves the arm away once (None: not done) and it is looked at
-        again from there.
+        again from there. Not seen all around, it is looked for past the objects on the map that may
+        hide it (:meth:`_look_past`: ``view_from(x, y, yaw, why)`` walks to a viewpoint stepped aside;
+        None: not done).
 
-        NotFoundError (reason ``not_found_around``) listing what was tried if it is nowhere.
+        NotFoundError (reason ``not_found_around``) listing what was tried if it is nowhere; its
+        details' ``viewpoints`` name the viewpoints stepped to ([x, y, yaw, the object looked past]).
         """
         views = 0
         reasons: list[str] = []
@@ -189,19 +211,33 @@ class Eyes:
             progress(f"looking where {name} was last seen")
             self.look_at(self.memory.sightings[name].position_m, f"look toward the last sighting of {name}")
             found = attempt()
+        viewpoints: list[list[float | str]] = []
         if found is None:
-            found = self._search(name, attempt, turn, progress)
+            start = np.asarray(self.body.base_xy_yaw()[:2])
+            found, turned = self._search(name, attempt, turn, progress)
+            if found is None and view_from is not None and self.config.search_viewpoints > 0:
+                found = self._look_past(name, start, turned, attempt, turn, view_from, progress, viewpoints)
         if found is None:
             tried = ", ".join(sorted(set(reasons)))
+            past = "".join(
+                f"; from ({x:.2f}, {y:.2f}) stepped aside past {what}" for x, y, _yaw, what in viewpoints
+            )
             raise NotFoundError(
                 f"{name} is nowhere around: looked in {views} directions (head scans and turning on the "
-                f"spot all around) and perception did not find it ({tried})",
-                {"object": name, "reason": "not_found_around", "views": views},
+                f"spot all around{past}) and perception did not find it ({tried})",
+                {"object": name, "reason": "not_found_around", "views": views, "viewpoints": viewpoints},
             )
         if self.off_centre() > self.config.recentre_fraction:
             progress(f"{name} seen at the image border: looking at it to localize it precisely")
             self.look_at(found.position_m, f"look at {name}")
             again = attempt()
+            if look_around and _partial(again or found) and self.beyond_head(found.position_m):
+                # The head cannot turn far enough: what is seen at the border is a part of a big object
+                # (a table's leg: its middle, 0.6 m off the table's, and no floor rectangle; fetch layout
+                # box_near then stepped into the table). Turned toward, it is seen whole.
+                progress(f"{name} is beyond the head's reach: turning toward it to see it whole")
+                self.face(found.position_m, turn, name)
+                again = attempt() or again
             found = again if again is not None else found
         return found, views
 
@@ -217,7 +253,8 @@ class Eyes:
         attempt: Callable[[], Sighting | None],
         turn: Callable[[float, str], None],
         progress: Progress,
-    ) -> Sighting | None:
+    ) -> tuple[Sighting | None, float]:
+        """Head scans, turning on the spot between them: (the sighting or None, the angle turned [rad])."""
         turned = 0.0
         for offset in [0.0, *self.body.robot.head.turns_rad]:
             if offset != 0.0:
@@ -226,13 +263,70 @@ class Eyes:
                 )
                 turn(offset - turned, f"turn to look for {name}")
                 turned = offset
-            for pan, tilt in self._scan_order():
-                progress(
-                    f"looking for {name}: head pan {math.degrees(pan):.0f} deg, "
-                    f"tilt {math.degrees(tilt):.0f} deg"
-                )
-                self.body.move_head(pan, tilt, what="head scan")
-                found = attempt()
+            found = self._scan(name, attempt, progress)
+            if found is not None:
+                return found, turned
+        return None, turned
+
+    def _scan(self, name: str, attempt: Callable[[], Sighting | None], progress: Progress) -> Sighting | None:
+        """One head scan (perception's look-around views) from where the robot stands."""
+        for pan, tilt in self._scan_order():
+            progress(
+                f"looking for {name}: head pan {math.degrees(pan):.0f} deg, tilt {math.degrees(tilt):.0f} deg"
+            )
+            self.body.move_head(pan, tilt, what="head scan")
+            found = attempt()
+            if found is not None:
+                return found
+        return None
+
+    def _look_past(
+        self,
+        name: str,
+        start_xy: np.ndarray,
+        turned: float,
+        attempt: Callable[[], Sighting | None],
+        turn: Callable[[float, str], None],
+        view_from: Callable[[float, float, float, str], None],
+        progress: Progress,
+        viewpoints: list[list[float | str]],
+    ) -> Sighting | None:
+        """Look for ``name`` from viewpoints stepped aside past the objects on the map that may hide it
+        (a chair between the robot and a box: from where the robot stands the search only turned on
+        the spot, fetch layout ``chair_in_way``): both sides of each, nearest first
+        (:func:`~supervisor.scene_map.viewpoints_past` from ``start_xy``, where the search looked
+        from), at most ``search_viewpoints`` reached; navigation plans each walk there
+        (``view_from``), a refused one is skipped. With nothing on the map, the robot turns back by
+        ``turned`` to where the search started and maps what is in view there first (the survey).
+        Each viewpoint reached is appended to ``viewpoints``; the sighting, or None."""
+        hiding = [box for box in boxes(self.memory) if box.name != name]
+        if not hiding:
+            if turned:
+                turn(-turned, f"turn back to look past what may hide {name}")
+            views = self._scan_order()
+            self.body.move_head(*views[0], what="head ahead")
+            self.survey(progress, exclude={name})
+            hiding = [box for box in boxes(self.memory) if box.name != name]
+        hiding.sort(key=lambda box: distance_to_box(box, float(start_xy[0]), float(start_xy[1])))
+        for box in hiding:
+            for x, y, yaw in viewpoints_past(box, start_xy, self.config.search_aside_margin_m):
+                if len(viewpoints) >= self.config.search_viewpoints:
+                    return None
+                what = f"step aside to look past {box.name} for {name}"
+                progress(f"{name} not seen around: {what}, from ({x:.2f}, {y:.2f})")
+                try:
+                    view_from(x, y, yaw, what)
+                except InfeasibleError as exc:
+                    progress(f"no walk to ({x:.2f}, {y:.2f}): {exc.message}")
+                    continue
+                viewpoints.append([x, y, yaw, box.name])
+                found = self._scan(name, attempt, progress)
                 if found is not None:
                     return found
         return None
+
+
+def _partial(sighting: Sighting) -> bool:
+    """Whether ``sighting`` is of a big object (an obstacle: a box, a table, a chair) without a floor
+    rectangle: perception saw only a part of it (cut by the image's border) or too near to tell."""
+    return is_obstacle(sighting) and sighting.footprint is None

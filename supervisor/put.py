@@ -27,7 +27,7 @@ from supervisor.body import Executed
 from supervisor.parts import ActionParts
 from supervisor.planners import LastSteps, Plan
 from supervisor.report import ActionReport
-from supervisor.scene_map import box_estimate, ray_entry
+from supervisor.scene_map import BoxEstimate, box_estimate, neighbours, ray_entry
 from supervisor.script import Step
 
 
@@ -46,6 +46,23 @@ def toward_edge(centre: np.ndarray, contacts: list[np.ndarray], edge_deg: float)
         sideways += offset[:2] / max(across, 1e-9)
     norm = float(np.linalg.norm(sideways))
     return sideways / norm if norm > 1e-9 else None
+
+
+def clear_of(
+    xy: np.ndarray, robot_xy: np.ndarray, balls: Sequence[np.ndarray], clear_m: float, forearm_m: float
+) -> bool:
+    """Whether every ball centre (x, y) [m] lies ``clear_m`` or farther from the release point ``xy``
+    [m] and from the forearm's way to it: the segment from ``xy`` ``forearm_m`` toward ``robot_xy``
+    (the hand comes down from the robot's side, its forearm behind it)."""
+    toward = np.asarray(robot_xy, dtype=float) - xy
+    norm = float(np.linalg.norm(toward))
+    end = xy + toward * min(1.0, forearm_m / norm) if norm > 1e-9 else xy
+    for ball in balls:
+        d = end - xy
+        t = float(np.clip(np.dot(ball - xy, d) / max(float(np.dot(d, d)), 1e-12), 0.0, 1.0))
+        if float(np.linalg.norm(ball - (xy + t * d))) < clear_m:
+            return False
+    return True
 
 
 def arm_only(collisions: Sequence[sim_msg.Contact], obj: str) -> bool:
@@ -316,5 +333,32 @@ class PutActions(ActionParts):
         u = to_centre / max(dist, 1e-6)
         face = min(dist, ray_entry(box, np.array([x, y]), u))
         ahead = min(dist, max(0.0, face) + self.config.put_inside_m)
-        xy = np.array([x, y]) + u * ahead
+        xy = self._clear_of_balls(np.array([x, y]) + u * ahead, box, place, np.array([x, y]))
         return np.array([xy[0], xy[1], top + self.config.put_height_m])
+
+    def _clear_of_balls(
+        self, xy: np.ndarray, box: BoxEstimate, place: str, robot_xy: np.ndarray
+    ) -> np.ndarray:
+        """``xy`` [m], or, when a ball seen on the place (not held) lies within ``put_clear_m`` of it or
+        of the forearm's way over the place (:func:`clear_of`), the nearest point of the place's top
+        (``put_edge_margin_m`` inside its map rectangle, on a 2 cm grid) clear of them all; ``xy`` when
+        there is none."""
+        c = self.config
+        balls = [centre[:2] for centre, _radius in neighbours(self.memory, xy, 1.5, exclude={place})]
+        if not balls or clear_of(xy, robot_xy, balls, c.put_clear_m, c.put_forearm_m):
+            return xy
+        rect = box.footprint
+        half = np.asarray(rect.size_m) / 2.0 - c.put_edge_margin_m
+        if (half <= 0.0).any():
+            return xy
+        grid = np.stack(np.meshgrid(*(np.arange(-h, h + 1e-9, 0.02) for h in half)), axis=-1).reshape(-1, 2)
+        points = rect.to_world(grid)
+        free = [p for p in points if clear_of(p, robot_xy, balls, c.put_clear_m, c.put_forearm_m)]
+        if not free:
+            return xy
+        best = min(free, key=lambda p: float(np.linalg.norm(p - xy)))
+        self.progress(
+            f"the balls seen on {place} lie near the release point: releasing at ({best[0]:.2f}, "
+            f"{best[1]:.2f}) instead, clear of them"
+        )
+        return np.asarray(best, dtype=float)

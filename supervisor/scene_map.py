@@ -149,3 +149,25 @@ def distance_to_box(box: BoxEstimate, x_m: float, y_m: float) -> float:
     """Horizontal distance from (x, y) to the box's footprint rectangle [m] (0 inside):
     :meth:`Rectangle.distance`."""
     return box.footprint.distance((x_m, y_m))
+
+
+def viewpoints_past(
+    box: BoxEstimate, from_xy: np.ndarray, margin_m: float
+) -> list[tuple[float, float, float]]:
+    """Two poses (x [m], y [m], yaw [rad]) from which to look past ``box`` (an object that may hide
+    another from ``from_xy``, where the robot looked from): stepped sideways from ``from_xy``,
+    perpendicular to the sight line to the box's middle, far enough that the same sight line from
+    there passes beside the box's floor rectangle by ``margin_m``, facing along it; its left side
+    first. Where to look from is perception's concern; the walk there is navigation's."""
+    start = np.asarray(from_xy, dtype=float)[:2]
+    centre = np.asarray(box.center_m[:2], dtype=float)
+    sight = centre - start
+    norm = float(np.linalg.norm(sight))
+    u = sight / norm if norm > 1e-6 else np.array([1.0, 0.0])
+    n = np.array([-u[1], u[0]])
+    half = float(np.abs((box.footprint.corners() - centre) @ n).max())
+    yaw = math.atan2(float(u[1]), float(u[0]))
+    return [
+        (float(p[0]), float(p[1]), yaw)
+        for p in (start + side * (half + margin_m) * n for side in (1.0, -1.0))
+    ]

@@ -231,9 +231,15 @@ def test_edge_disparity_skips_edges_on_the_image_border():
     d, n = edge_disparity_median(disc, (100, 50, 40, 40), disc, (93, 50, 40, 40), 640)
     assert d == 7.0 and n == 2 * 31
     # A bar cut by the left border of both images: only its right edges count.
-    bar = np.ones((20, 25), bool)
-    d, n = edge_disparity_median(bar, (0, 50, 25, 20), bar[:, :19], (0, 50, 19, 20), 640)
+    bar_left, bar_right = np.zeros((20, 30), bool), np.zeros((20, 30), bool)
+    bar_left[:, :25], bar_right[:, :19] = True, True
+    d, n = edge_disparity_median(bar_left, (0, 50, 30, 20), bar_right, (0, 50, 30, 20), 640)
     assert (d, n) == (6.0, 20)
+    # The same bar cut by the left image's measurement window (CamShift's box of a big object close by)
+    # at its last column: that edge is not the contour either (the footprint's outline skips it alike).
+    with pytest.raises(NotFoundError, match="edge stereo"):
+        edge_disparity_median(bar_left[:, :23], (0, 50, 23, 20), bar_right, (0, 50, 30, 20), 640)
+    bar = np.ones((20, 25), bool)
     with pytest.raises(NotFoundError, match="edge stereo") as e:  # cut by both borders: no edge left
         edge_disparity_median(bar, (0, 50, 25, 20), bar, (0, 50, 25, 20), 25)
     assert e.value.details["reason"] == "no_disparity"

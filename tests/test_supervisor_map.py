@@ -10,7 +10,7 @@ import pytest
 
 from services.bus.schemas.perception import FootprintMsg
 from supervisor.memory import Memory, Sighting
-from supervisor.scene_map import box_estimate, distance_to_box, neighbours, ray_entry
+from supervisor.scene_map import box_estimate, distance_to_box, neighbours, ray_entry, viewpoints_past
 
 
 def _fp(center, size, yaw, top_z, n_points) -> FootprintMsg:
@@ -49,6 +49,23 @@ def test_without_a_footprint_the_box_faces_the_camera():
     box = box_estimate(_sighting(None))
     assert box.yaw_rad == pytest.approx(0.0)
     assert box.center_m[0] > 2.0  # pushed back from the seen middle of the silhouette
+
+
+def test_the_viewpoints_past_an_occluder_see_beside_it_along_the_same_sight_line():
+    """Layout chair_in_way: a chair 1.9 m ahead hides a box behind it. From each viewpoint (stepped
+    aside, left first) the old sight line's parallel passes the chair's rectangle by the margin."""
+    chair = box_estimate(_sighting(_fp((1.8, 0.5), (0.46, 0.46), 2.8, 0.9, 300), name="chair"))
+    start = np.array([0.0, 0.0])
+    views = viewpoints_past(chair, start, 0.5)
+    sight = np.array([1.8, 0.5]) / np.hypot(1.8, 0.5)
+    assert [v[2] for v in views] == pytest.approx([math.atan2(0.5, 1.8)] * 2)
+    left, right = (np.array(v[:2]) for v in views)
+    assert np.cross(sight, left) > 0 > np.cross(sight, right)  # left side first
+    for view in (left, right):
+        assert abs(float(np.dot(view - start, sight))) < 1e-9  # sideways from where it looked
+        assert ray_entry(chair, view, sight) == math.inf  # the sight line passes beside the chair
+        gap = min(abs(float(np.cross(sight, corner - view))) for corner in chair.footprint.corners())
+        assert gap == pytest.approx(0.5)
 
 
 def test_a_ray_enters_a_yawed_box_at_its_face():
@@ -253,3 +270,15 @@ def test_requests_in_a_recorded_log_are_counted_per_window(tmp_path):
     assert requests_in_log(path, fs_msg.PLAN, [(0, 300), (300, 800), (800, 1000)]) == [2, 0, 1]  # open
     writer.close()
     assert requests_in_log(path, fs_msg.PLAN, [(0, 1000)]) == [3]
+
+
+def test_a_release_point_beside_a_ball_or_behind_one_on_the_forearms_way_is_not_clear():
+    """Layout table_to_box: the ball put on the box beside two others; the forearm (coming down from
+    the robot's side) touched the one 10 cm from the release point."""
+    from supervisor.put import clear_of
+
+    robot = np.array([3.54, 0.14])
+    balls = [np.array([3.58, 0.98]), np.array([3.58, 0.62])]
+    assert not clear_of(np.array([3.50, 0.72]), robot, balls, 0.15, 0.2)  # 0.13 m from one
+    assert not clear_of(np.array([3.58, 0.78]), robot, balls, 0.15, 0.2)  # that one on the forearm's way
+    assert clear_of(np.array([3.36, 0.80]), robot, balls, 0.15, 0.2)

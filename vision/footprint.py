@@ -37,7 +37,7 @@ import numpy as np
 from services.model.ground import Rectangle
 from vision.camera import StereoRig
 from vision.camshift import Window
-from vision.stereo import silhouette_rows, to_world
+from vision.stereo import edge_rows, to_world
 
 #: Fewer matched outline points than this give no footprint.
 MIN_POINTS = 8
@@ -78,6 +78,14 @@ ABOVE_TOP_M = 0.1
 #: (:func:`_to_known_size`), from the side with ``ANCHOR_RATIO`` times the points of the other.
 KNOWN_SIZE_TOLERANCE_M = 0.08
 ANCHOR_RATIO = 2.0
+#: A rectangle longer or wider than the object's known floor size by more than this [m] is not a
+#: measurement of it and gives no footprint (refused: the caller keeps what it knew, or looks again).
+#: Whole-pixel disparities legitimately stretch a side by up to 20 cm at 4 m (``scripts/bench
+#: perception``: +17.9 cm long side, +20.4 cm short side at most; 87 dumped fetch looks of the table at
+#: 1-3.6 m: +18 cm at most); an edge paired with another contour on a run of rows in the middle of a
+#: side, which neither :func:`_consistent` nor ``ABOVE_TOP_M`` catches, made a 1.0 m table 1.70 m long
+#: (fetch seed 47's approach look, the robot then stepped back 0.34 m "to make room" from the phantom).
+OVERSIZE_TOLERANCE_M = 0.3
 #: An edge whose outside neighbour within this many pixels belongs to an occluder is dropped (the
 #: silhouettes are closed morphologically and anti-aliased: a pixel or two lies between them).
 OCCLUDER_GAP_PX = 2
@@ -128,41 +136,31 @@ def outline_points(
     are seen (None: none); an edge within :data:`OCCLUDER_GAP_PX` of one in either image is dropped
     (module docstring).
     """
-    left = silhouette_rows(silhouette_left, window_left)
-    right = silhouette_rows(silhouette_right, window_right)
-    # An edge on a window's first or last column (the image's border or where the measurement window
-    # cut the silhouette: CamShift's box of a big object close by) is not the object's contour.
-    first_l, first_r = window_left[0], window_right[0]
-    last_l = min(window_left[0] + window_left[2], rig.intrinsics.width) - 1
-    last_r = min(window_right[0] + window_right[2], rig.intrinsics.width) - 1
-    rows = sorted(left.keys() & right.keys())
-
+    # Edges on a window's first or last column (the image's border or where the measurement window
+    # cut the silhouette: CamShift's box of a big object close by) are not the object's contour: 0.
+    edges = edge_rows(silhouette_left, window_left, silhouette_right, window_right, rig.intrinsics.width)
+    rows = [int(r) for r in edges.rows]
     hidden = 0
 
-    def free(r: int, side: int) -> bool:  # no occluder just outside either image's edge on row r
+    def free(i: int, side: int) -> bool:  # no occluder just outside either image's edge on row i
         nonlocal hidden
-        if _beside(occluder_left, r, left[r][side], side) or _beside(occluder_right, r, right[r][side], side):
+        r = rows[i]
+        if _beside(occluder_left, r, int(edges.left_px[i, side]), side) or _beside(
+            occluder_right, r, int(edges.right_px[i, side]), side
+        ):
             hidden += 1
             return False
         return True
 
     sides = (  # (columns, disparities) of the left edges, then of the right edges
         (
-            [left[r][0] - 0.5 for r in rows],
+            edges.left_px[:, side] + (0.5 if side else -0.5),
             [
-                left[r][0] - right[r][0]
-                if left[r][0] > first_l and right[r][0] > first_r and free(r, 0)
-                else 0
-                for r in rows
+                int(edges.disparity_px[i, side]) if edges.disparity_px[i, side] and free(i, side) else 0
+                for i in range(len(rows))
             ],
-        ),
-        (
-            [left[r][1] + 0.5 for r in rows],
-            [
-                left[r][1] - right[r][1] if left[r][1] < last_l and right[r][1] < last_r and free(r, 1) else 0
-                for r in rows
-            ],
-        ),
+        )
+        for side in (0, 1)
     )
     u, v, d = [], [], []
     runs = []
@@ -355,6 +353,12 @@ def _to_known_size(
     return (float(middle[0]), float(middle[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1]))
 
 
+def _oversized(size: tuple[float, float], known: tuple[float, float]) -> bool:
+    """Whether the rectangle's longer or shorter side [m] exceeds the ``known`` one's by more than
+    :data:`OVERSIZE_TOLERANCE_M`."""
+    return bool(np.any(np.sort(size) - np.sort(known) > OVERSIZE_TOLERANCE_M))
+
+
 def _top(z_m: np.ndarray) -> float:
     """The highest well-supported height of the points [m] (see ``TOP_BAND_M``)."""
     z = np.sort(z_m)[::-1]
@@ -393,8 +397,9 @@ def footprint(
     edges left out next to an occluder (:class:`Outline`), reported; ``runs``: the outline's unbroken
     runs (:class:`Outline`), whose highest points bound the top from below (:func:`_top`);
     ``known_size_m``: the object's floor rectangle [m] when known (its model's catalogue): a rectangle
-    shorter is grown to it (:func:`_to_known_size`, ``camera_xy`` [m] the camera that saw it). None
-    with fewer than :data:`MIN_POINTS` points.
+    shorter is grown to it (:func:`_to_known_size`, ``camera_xy`` [m] the camera that saw it), one
+    longer by more than :data:`OVERSIZE_TOLERANCE_M` is refused (None). None with fewer than
+    :data:`MIN_POINTS` points.
     """
     p = np.asarray(points_world, dtype=float).reshape(-1, 3)
     kept = _near(p[:, :2], np.asarray(centre_world, dtype=float)[:2], max_extent_m) & (p[:, 2] > -0.05)
@@ -413,6 +418,8 @@ def footprint(
     (cx, cy), (w, h), counts = _median_sides(p[:, :2], centre, size, yaw)
     if known_size_m is not None:
         (cx, cy), (w, h) = _to_known_size((cx, cy), (w, h), yaw, counts, known_size_m, camera_xy)
+        if _oversized((w, h), known_size_m):
+            return None
     if w < h:  # the first side along the yaw is the longer one
         w, h, yaw = h, w, yaw + math.pi / 2.0
     yaw = (yaw + math.pi / 2.0) % math.pi - math.pi / 2.0  # a rectangle's yaw is defined modulo pi

@@ -21,6 +21,7 @@ import numpy as np
 
 from services import budget
 from services.bus.schemas.perception import (
+    REASON_AMBIGUOUS,
     REASON_HIDDEN_BY_OWN_BODY,
     REASON_NO_DISPARITY,
     REASON_NOT_IN_RIGHT_VIEW,
@@ -33,6 +34,7 @@ from vision.camshift import Detection, DetectionConfig, RotatedBox, Window, chec
 from vision.footprint import Footprint, footprint, outline_points
 from vision.hidden_ball import Circle, free_circle, touches
 from vision.histogram import ObjectModel, colour_mask, to_hsv
+from vision.parts import PARTS_SLACK_M, joined_through
 from vision.stereo import (
     StereoConfig,
     dense_disparity_median,
@@ -193,8 +195,11 @@ def _match_right(
     config: LocalizeConfig,
     bp_left: np.ndarray,
     bp_right: np.ndarray,
+    ends: bool = False,
 ) -> Detection:
     """The right-image candidate on the same rows as ``left``, in the disparity range, of similar size.
+    With ``ends`` (a big object: a box, a table, a chair), the silhouettes' first or last rows agreeing
+    stand for the centroids' rows (:func:`_an_end_row_agrees`).
 
     The disparity tested is that of the centroids, or, when either silhouette is cut by a side border,
     that of the silhouettes' edges (the cut moves each centroid by a different amount: a table close
@@ -203,6 +208,7 @@ def _match_right(
     seed 63's goto stopped with ``not_in_right_view``)."""
     d_lo, d_hi = disparity_range(frame.rig, config.stereo)
     size_l = float(np.mean(left.box[1]))
+    row_tol = _row_tolerance(left, config)
     best, best_cost = None, np.inf
     for c in candidates:
         disparity = left.centre_px[0] - c.centre_px[0]
@@ -217,11 +223,12 @@ def _match_right(
                 )
             except NotFoundError:
                 continue  # no edge off the borders on common rows
-        row_tol = config.stereo.max_row_difference_px + 0.05 * size_l
         size_ratio = float(np.mean(c.box[1])) / size_l
         if not (0.9 * d_lo <= disparity <= 1.1 * d_hi):
             continue
-        if abs(left.centre_px[1] - c.centre_px[1]) > row_tol:
+        if abs(left.centre_px[1] - c.centre_px[1]) > row_tol and not (
+            ends and _an_end_row_agrees(left, c, bp_left, bp_right, config)
+        ):
             continue
         if not (1 / config.max_size_ratio <= size_ratio <= config.max_size_ratio):
             continue
@@ -237,6 +244,30 @@ def _match_right(
             {"reason": REASON_NOT_IN_RIGHT_VIEW},
         )
     return best
+
+
+def _row_tolerance(left: Detection, config: LocalizeConfig) -> float:
+    """How far [px] the centroids of one object's two silhouettes may lie apart in rows (rectified)."""
+    return config.stereo.max_row_difference_px + 0.05 * float(np.mean(left.box[1]))
+
+
+def _an_end_row_agrees(
+    left: Detection, right: Detection, bp_left: np.ndarray, bp_right: np.ndarray, config: LocalizeConfig
+) -> bool:
+    """Whether the first or the last rows of the two silhouettes lie within ``max_row_difference_px``
+    (+ 1 px) of each other: one object seen over the same rows (rectified) except where something in
+    front hides a different part of it in each image (a table behind a chair: its leg hidden lower down
+    in one image; the centroids' rows 12 px apart, and the table was `not_in_right_view` from every
+    viewpoint of layout box_near). Its centroids then do not correspond (:func:`locate_in_frame` uses
+    the edges)."""
+    ends = []
+    for det, bp in ((left, bp_left), (right, bp_right)):
+        rows = np.flatnonzero(_silhouette(bp, det.window, config.detection).any(axis=1))
+        if len(rows) == 0:
+            return False
+        ends.append((det.window[1] + rows[0], det.window[1] + rows[-1]))
+    slack = config.stereo.max_row_difference_px + 1.0
+    return abs(ends[0][0] - ends[1][0]) <= slack or abs(ends[0][1] - ends[1][1]) <= slack
 
 
 def _centroid_point(
@@ -415,6 +446,58 @@ def _edges_point(
     return point_from_pixel_disparity(rig, left.centre_px[0], left.centre_px[1], disparity), disparity
 
 
+def _one_object_in_parts(
+    model: ObjectModel,
+    left_candidates: list[Detection],
+    bp_left: np.ndarray,
+    bp_right: np.ndarray,
+    frame: StereoFrame,
+    config: LocalizeConfig,
+    occluders: Sequence[ObjectModel],
+) -> tuple[Detection, Detection] | None:
+    """The left and right detections of ``model``'s object when its two best left candidates (called
+    ambiguous) are parts of it that an occluder in front separates (vision.parts): in each image the
+    pixels of its colour connected to a candidate through the other objects' or the robot's own pixels
+    (:func:`vision.parts.joined_through`), the left one holding both parts, matched as usual
+    (:func:`_match_right`), the parts' centres at the joined outline's depth (:func:`_edges_point`: the
+    centroids of parts hidden differently in each image do not correspond) within the catalogued floor
+    diagonal plus ``PARTS_SLACK_M``. None otherwise (ambiguous it stays: two objects of one colour, or a third
+    blob as strong)."""
+    det_cfg = config.detection
+    a, b = left_candidates[0], left_candidates[1]
+    others = [other for other in occluders if other.name != model.name]
+    own_left, own_right = frame.own_masks
+    left = joined_through(a, bp_left, _occluder_mask(frame, "left", others, det_cfg, own_left), det_cfg)
+    if left is None or not _inside(b.centre_px, left.window):
+        return None
+    occluder_right = _occluder_mask(frame, "right", others, det_cfg, own_right)
+    rights = [
+        joined_through(c, bp_right, occluder_right, det_cfg)
+        for c in detect_all(bp_right, model.name, det_cfg)
+    ]
+    try:
+        right = _match_right(
+            left, [r for r in rights if r is not None], frame, config, bp_left, bp_right, ends=True
+        )
+        depth = float(_edges_point(left, right, bp_left, bp_right, frame.rig, det_cfg)[0][2])
+    except NotFoundError:
+        return None
+    k = frame.rig.intrinsics
+    spread = depth * float(
+        np.hypot((a.centre_px[0] - b.centre_px[0]) / k.fx, (a.centre_px[1] - b.centre_px[1]) / k.fy)
+    )
+    if spread > float(np.hypot(*model.floor_size_m)) + PARTS_SLACK_M:
+        return None
+    rest = [c for c in left_candidates[2:] if c.score >= det_cfg.ambiguity_ratio * left.score]
+    return None if rest else (left, right)
+
+
+def _inside(point_px: tuple[float, float], window: Window) -> bool:
+    return (
+        window[0] <= point_px[0] < window[0] + window[2] and window[1] <= point_px[1] < window[1] + window[3]
+    )
+
+
 def _occluder_mask(
     frame: StereoFrame,
     side: str,
@@ -445,16 +528,25 @@ def locate_in_frame(
     config = config or LocalizeConfig()
     det_cfg = config.detection
     bp_left = frame.back_projection(model, "left")
+    left_candidates = detect_all(bp_left, model.name, det_cfg)
+    bp_right, joined_right = None, None
     try:
-        left = check_unambiguous(detect_all(bp_left, model.name, det_cfg), det_cfg, f"'{model.name}'")
+        left = check_unambiguous(left_candidates, det_cfg, f"'{model.name}'")
     except NotFoundError as e:
         e.details.setdefault("object", model.name)
-        raise
-    bp_right = frame.back_projection(model, "right")
-    candidates = detect_all(bp_right, model.name, det_cfg)
+        if e.details.get("reason") != REASON_AMBIGUOUS or model.shape == "sphere" or not model.floor_size_m:
+            raise
+        bp_right = frame.back_projection(model, "right")
+        parts = _one_object_in_parts(model, left_candidates, bp_left, bp_right, frame, config, occluders)
+        if parts is None:
+            raise
+        left, joined_right = parts
+    if bp_right is None:
+        bp_right = frame.back_projection(model, "right")
+    candidates = [joined_right] if joined_right is not None else detect_all(bp_right, model.name, det_cfg)
     circles = None  # a ball's circles fitted off the robot's own pixels (vision.hidden_ball)
     try:
-        right = _match_right(left, candidates, frame, config, bp_left, bp_right)
+        right = _match_right(left, candidates, frame, config, bp_left, bp_right, ends=model.shape != "sphere")
     except NotFoundError as unmatched:
         hidden = (
             None
@@ -469,6 +561,14 @@ def locate_in_frame(
     rig = frame.rig
     method = config.stereo.method
     side_cut = bool({"left", "right"} & {*left.border_sides, *right.border_sides})
+    hidden_apart = model.shape != "sphere" and abs(left.centre_px[1] - right.centre_px[1]) > _row_tolerance(
+        left, config
+    )
+    if method == "centroid" and (joined_right is not None or hidden_apart):
+        # Parts joined around an occluder, or matched by their end rows: something in front hides
+        # different parts in each image, so the centroids do not correspond (a table behind a chair's
+        # back: 4.5 m for 3.0); the outer edges do.
+        method = "edges"
     if method == "centroid" and side_cut:
         # A silhouette cut by a side border moves the centroid differently in each image; a cut by the
         # top or bottom border removes the same rows from both (rectified), which the centroid tolerates.

@@ -274,6 +274,49 @@ def silhouette_rows(silhouette: np.ndarray, window: Window) -> dict[int, tuple[i
     return {int(y + r): (int(x + a), int(x + b)) for r, a, b in zip(rows, first, last, strict=True)}
 
 
+@dataclass(frozen=True)
+class EdgeRows:
+    """The silhouettes' edges on the image rows both cover, row by row (n rows, sorted).
+
+    rows: (n,) image rows [px]; left_px, right_px: (n, 2) the (first, last) object column [px] of the
+    left and of the right image's silhouette on each row; disparity_px: (n, 2) the disparity [px] of
+    the left edges (column 0) and of the right edges (column 1), 0 where either image's edge lies on
+    its window's first or last column: the image's border, or where the measurement window (CamShift's
+    box of a big object close by) cut the silhouette; there the edge is not the object's contour."""
+
+    rows: np.ndarray
+    left_px: np.ndarray
+    right_px: np.ndarray
+    disparity_px: np.ndarray
+
+
+def edge_rows(
+    silhouette_left: np.ndarray,
+    window_left: Window,
+    silhouette_right: np.ndarray,
+    window_right: Window,
+    image_width_px: int,
+) -> EdgeRows:
+    """The silhouettes' matched edges row by row (:class:`EdgeRows`): on a row both cover, the leftmost
+    object pixel of the left image and that of the right image see (nearly) the same point of the
+    object's occluding contour; so do the rightmost ones. silhouette_*: boolean (h, w) masks of the
+    object in each image's window (x, y, w, h) [px]. The one rule of which edges are the contour, for
+    the edge stereo (:func:`edge_disparity_median`) and the footprint's outline (vision.footprint)."""
+    left = silhouette_rows(silhouette_left, window_left)
+    right = silhouette_rows(silhouette_right, window_right)
+    rows = np.array(sorted(left.keys() & right.keys()), dtype=int)
+    left_px = np.array([left[r] for r in rows], dtype=int).reshape(-1, 2)
+    right_px = np.array([right[r] for r in rows], dtype=int).reshape(-1, 2)
+    firsts = np.array([window_left[0], window_right[0]])
+    lasts = (
+        np.minimum([window_left[0] + window_left[2], window_right[0] + window_right[2]], image_width_px) - 1
+    )
+    inside_first = (left_px[:, 0] > firsts[0]) & (right_px[:, 0] > firsts[1])
+    inside_last = (left_px[:, 1] < lasts[0]) & (right_px[:, 1] < lasts[1])
+    disparity = (left_px - right_px) * np.stack([inside_first, inside_last], axis=1)
+    return EdgeRows(rows, left_px, right_px, disparity)
+
+
 def edge_disparity_median(
     silhouette_left: np.ndarray,
     window_left: Window,
@@ -284,27 +327,16 @@ def edge_disparity_median(
 ) -> tuple[float, int]:
     """Median disparity [px] of the silhouettes' left and right edges, row by row, and the edges used.
 
-    silhouette_*: boolean (h, w) masks of the object in each image's window (x, y, w, h) [px]. On a row
-    both cover, the leftmost object pixel of the left image and that of the right image see (nearly) the
-    same point of the object's occluding contour; so do the rightmost ones. Edges on the image's left or
-    right border (the object is cut there) are skipped. NotFoundError (reason ``no_disparity``) when fewer
-    than ``min_rows`` edges remain.
+    silhouette_*: boolean (h, w) masks of the object in each image's window (x, y, w, h) [px]; the
+    edges are :func:`edge_rows`' (those on an image's border or its window's are skipped).
+    NotFoundError (reason ``no_disparity``) when fewer than ``min_rows`` edges remain.
     """
-
-    left = silhouette_rows(silhouette_left, window_left)
-    right = silhouette_rows(silhouette_right, window_right)
-    last_col = image_width_px - 1
-    disparities = []
-    for row in left.keys() & right.keys():
-        (l0, l1), (r0, r1) = left[row], right[row]
-        if l0 > 0 and r0 > 0:
-            disparities.append(l0 - r0)
-        if l1 < last_col and r1 < last_col:
-            disparities.append(l1 - r1)
+    edges = edge_rows(silhouette_left, window_left, silhouette_right, window_right, image_width_px)
+    disparities = edges.disparity_px[edges.disparity_px != 0]
     if len(disparities) < min_rows:
         raise NotFoundError(
-            f"edge stereo found only {len(disparities)} silhouette edges off the image border in both images "
-            "(the object is cut by both side borders, or seen in too few common rows)",
+            f"edge stereo found only {len(disparities)} silhouette edges off the image and window borders in "
+            "both images (the object is cut by both side borders, or seen in too few common rows)",
             {"reason": REASON_NO_DISPARITY},
         )
     return float(np.median(disparities)), len(disparities)
