@@ -35,6 +35,9 @@ class SimConfig:
         settle_s: physics time run after a reset so that objects come to rest [s].
         loaded_foot_force_n: a sole carries weight (and its slip is measured) above this normal force [N].
         contact_force_n: contacts weaker than this are ignored when looking for collisions [N].
+        start_contact_push_m: a contact the robot is in when a motion starts stays allowed while the
+            planned motion moves its contact points no more than this further into the object [m]
+            (:mod:`sim.start_contacts`).
         render_near_m, render_far_m: clipping planes of the cameras [m].
         stabilizer: leg corrections from the measured body inclination during executions
             (:mod:`sim.stabilizer`, as the real robot's stabilizer); off (the default: with it on fetch
@@ -60,6 +63,7 @@ class SimConfig:
     settle_s: float = 0.3
     loaded_foot_force_n: float = 30.0
     contact_force_n: float = 0.05
+    start_contact_push_m: float = 0.003
     render_near_m: float = 0.05
     render_far_m: float = 30.0
     stabilizer: bool = False
@@ -78,6 +82,7 @@ class SimConfig:
             "gripper_timeout_s",
             "render_near_m",
             "render_far_m",
+            "start_contact_push_m",
         ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):

@@ -40,6 +40,7 @@ from sim.objects import build_scene
 from sim.results import CameraImage, ExecutionResult, GripperResult, ObjectState, RobotState
 from sim.scene import Layout, SceneSpec, layout, load_scene
 from sim.stabilizer import Stabilizer, StabilizerGains
+from sim.start_contacts import StartContacts
 
 GRIPPER_ACTIONS = ("open", "close")
 _FINGER_STALL_SPEED = 2e-3  # [m/s or rad/s]: a closing finger slower than this has stopped
@@ -512,6 +513,17 @@ class World:
             else None
         )
         rules.already_touching = rules.touching_pairs()
+        start_points = rules.robot_contact_points()
+        if start_points:  # a motion starting in contact may leave it, not push into it (sim.start_contacts)
+            rules.start = StartContacts.measure(
+                self.robot,
+                self._data,
+                self.link_name,
+                start_points,
+                self.pyrobot.read_q(),
+                q_traj,
+                cfg.start_contact_push_m,
+            )
         n_hold = round(hold_s / dt)
         monitor = _Monitor(self)
         # the soles the only supports: a multi-contact motion's body leans on its supports as planned
@@ -568,7 +580,7 @@ class World:
                     f"{math.degrees(tilt):.1f} deg (limit {math.degrees(fall_tilt):.1f} deg)"
                 )
                 break
-            for contact in rules.collisions(points):
+            for contact in rules.collisions(points, k_next):
                 collided.setdefault((contact.robot_link, contact.other), contact)
             if collided and stop_on_collision:
                 break
