@@ -98,6 +98,7 @@ class Remedies(ActionParts):
         except (InfeasibleError, InvalidRequestError) as exc:
             self.progress(f"the {hand} hand stays where it is ({exc.message})")
         self.body.straighten()
+        self.settle()  # a sole left up or tilted (a stopped look, seed 46): no stance is planned from there
         try:
             plan = self.planners.square()
         except (InfeasibleError, InvalidRequestError) as exc:
