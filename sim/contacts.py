@@ -82,6 +82,14 @@ class ContactRules:
             and not (c[_BODY_B] == floor and c[_LINK_A] in feet)
         ]
 
+    def pushing_force(self, points: Sequence[tuple] | None = None) -> float:
+        """Total normal force [N] of the contacts on the robot other than its soles on the floor and its
+        hands on the objects they hold (``points``: as :meth:`robot_contact_points`)."""
+        held = set(self.held.values())
+        return float(
+            sum(c[_NORMAL_FORCE] for c in self.robot_contact_points(points) if c[_BODY_B] not in held)
+        )
+
     def robot_contacts(
         self, points: Sequence[tuple] | None = None
     ) -> list[tuple[int, int, tuple[float, float, float], float]]:

@@ -202,7 +202,7 @@ class World:
                     cfg.stabilizer_gain,
                     cfg.stabilizer_damping_s,
                     cfg.stabilizer_max_rad,
-                    cfg.loaded_foot_force_n,
+                    cfg.stabilizer_loaded_n,
                 ),
             )
             if cfg.stabilizer
@@ -556,7 +556,9 @@ class World:
             # one contact query per period for the slip monitor and the collision rules
             points = p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client)
             T_base = monitor.update(self.q_cmd, points)
-            if stabilizer is not None:  # the corrections of the next period, from the state now
+            if stabilizer is not None and stabilizer.free_of_contacts(
+                rules.pushing_force(points) >= cfg.stabilizer_contact_n
+            ):  # the corrections of the next period, from the state now
                 omega = p.getBaseVelocity(self.robot_id, physicsClientId=self.client)[1]
                 stabilizer.update(
                     self._data,
