@@ -178,7 +178,18 @@ class Remedies(ActionParts):
                 f"the robot cannot settle its feet: {exc.message}", {**exc.details, "ends_retries": True}
             ) from exc
         self.progress(f"settle the feet: {plan.describe()}")
-        self.body.execute(plan.q, what="settle the feet", progress=self.progress)
+        done = self.body.execute(plan.q, what="settle the feet", progress=self.progress)
+        self.progress(f"the feet settled: {self._soles(done.q)}")
+
+    def _soles(self, q: np.ndarray) -> str:
+        """How high [mm] and how tilted [deg] each sole is at ``q`` (for the progress reports)."""
+        robot = self.body.robot
+        said = []
+        for side in ("left", "right"):
+            pose = robot.frame_pose(q, robot.info.frames[f"{side}_sole"])
+            tilt = math.degrees(math.acos(min(1.0, float(pose.rotation[2, 2]))))
+            said.append(f"{side} sole {1e3 * pose.translation[2]:.1f} mm up, tilted {tilt:.2f} deg")
+        return ", ".join(said)
 
     def _remember_felt(self, collisions: list[sim_msg.Contact]) -> None:
         """Contacts of a hand with a small object other than the one reached for (a ball beside the
