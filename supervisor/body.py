@@ -35,6 +35,10 @@ PLAN_FROM_COMMAND_RAD = 0.05
 #: were on the floor (within ``FLAT_SOLE_M`` [m]: the planners want them within 5 mm).
 BACK_OUT_MIN_S = 0.5
 FLAT_SOLE_M = 0.004
+#: The planners start only from soles within 5 mm of the ground and 0.02 rad of horizontal
+#: (footsteps, reaching, navigation: their ``q_start`` checks).
+PLANNERS_FLAT_M = 0.005
+PLANNERS_FLAT_RAD = 0.02
 
 Progress = Callable[[str], None]
 
@@ -187,6 +191,23 @@ class Body:
         """Whether both soles are on the floor (within ``FLAT_SOLE_M``) at ``q`` (default: now)."""
         q = self.q() if q is None else q
         return bool(np.all(np.abs(self.robot.sole_heights(q)) < FLAT_SOLE_M))
+
+    def soles(self, q: np.ndarray | None = None) -> dict[str, tuple[float, float]]:
+        """Each sole's height [m] and tilt from horizontal [rad] at ``q`` (default: now)."""
+        q = self.q() if q is None else q
+        robot = self.robot
+        out = {}
+        for side in ("left", "right"):
+            pose = robot.frame_pose(q, robot.info.frames[f"{side}_sole"])
+            out[side] = (float(pose.translation[2]), math.acos(min(1.0, float(pose.rotation[2, 2]))))
+        return out
+
+    def plannable(self, q: np.ndarray | None = None) -> bool:
+        """Whether the planners accept ``q`` (default: now) as a start: both soles within
+        ``PLANNERS_FLAT_M`` of the ground and ``PLANNERS_FLAT_RAD`` of horizontal."""
+        return all(
+            abs(z) <= PLANNERS_FLAT_M and tilt <= PLANNERS_FLAT_RAD for z, tilt in self.soles(q).values()
+        )
 
     def back_out(self, progress: Progress | None = None) -> float:
         """Undo the end of the motion a collision stopped: play its executed part backward (the same

@@ -150,7 +150,12 @@ class Remedies(ActionParts):
                         self._back_off(hand, touched)
                     else:
                         raise
-        self.settle()
+        try:
+            self.settle()
+        except InfeasibleError as exc:
+            if exc.details.get("reason") != walk_msg.REASON_LEANING or not touched:
+                raise
+            raise InfeasibleError(f"{exc.message} (it touched {', '.join(touched)})", exc.details) from exc
         self._remember_felt(collisions)
         self._map_what_was_hit([c.position for c in collisions])
         self.relocalize(step, report)
@@ -161,35 +166,43 @@ class Remedies(ActionParts):
         ``already_settled``). A back-out or a stopped motion can leave a sole 3 mm - 1.4 cm up or tilted
         0.025-0.16 rad, from which reaching, footsteps and walking refuse to plan.
 
+        When the robot is still not standing as the planners want it after a settle (both soles within
+        5 mm and 0.02 rad: measured, :meth:`Body.plannable`), one more settle from there.
+
         Raises:
             InfeasibleError: ``details.reason`` ``leaning`` (with ``ends_retries``): the robot is held
-                up by something it touches; other refusals as walking gives them.
+                up by something it touches (walking refused, or the robot stays tilted after two
+                settles: box_near's shank on the table left both soles tilted 1.2 deg); other refusals
+                as walking gives them.
         """
-        try:
-            plan = self.planners.walk_goal(walk_msg.GoalRequest(q_start=self.body.q(), kind="settle"))
-        except InvalidRequestError as exc:
-            if exc.details.get("reason") == walk_msg.REASON_ALREADY_SETTLED:
-                return
-            raise
-        except InfeasibleError as exc:
-            if exc.details.get("reason") != walk_msg.REASON_LEANING:
+        said = ""
+        for _ in range(2):  # a second settle from where the first one left the robot
+            try:
+                plan = self.planners.walk_goal(walk_msg.GoalRequest(q_start=self.body.q(), kind="settle"))
+            except InvalidRequestError as exc:
+                if exc.details.get("reason") == walk_msg.REASON_ALREADY_SETTLED:
+                    return
                 raise
-            raise InfeasibleError(
-                f"the robot cannot settle its feet: {exc.message}", {**exc.details, "ends_retries": True}
-            ) from exc
-        self.progress(f"settle the feet: {plan.describe()}")
-        done = self.body.execute(plan.q, what="settle the feet", progress=self.progress)
-        self.progress(f"the feet settled: {self._soles(done.q)}")
-
-    def _soles(self, q: np.ndarray) -> str:
-        """How high [mm] and how tilted [deg] each sole is at ``q`` (for the progress reports)."""
-        robot = self.body.robot
-        said = []
-        for side in ("left", "right"):
-            pose = robot.frame_pose(q, robot.info.frames[f"{side}_sole"])
-            tilt = math.degrees(math.acos(min(1.0, float(pose.rotation[2, 2]))))
-            said.append(f"{side} sole {1e3 * pose.translation[2]:.1f} mm up, tilted {tilt:.2f} deg")
-        return ", ".join(said)
+            except InfeasibleError as exc:
+                if exc.details.get("reason") != walk_msg.REASON_LEANING:
+                    raise
+                raise InfeasibleError(
+                    f"the robot cannot settle its feet: {exc.message}", {**exc.details, "ends_retries": True}
+                ) from exc
+            self.progress(f"settle the feet: {plan.describe()}")
+            done = self.body.execute(plan.q, what="settle the feet", progress=self.progress)
+            said = ", ".join(
+                f"{side} sole {1e3 * z:.1f} mm up, tilted {math.degrees(tilt):.2f} deg"
+                for side, (z, tilt) in self.body.soles(done.q).items()
+            )
+            self.progress(f"the feet settled: {said}")
+            if self.body.plannable(done.q):
+                return
+        raise InfeasibleError(
+            f"the robot cannot settle its feet: it stays tilted after settling twice ({said}): it leans on "
+            "something it touches",
+            {"reason": walk_msg.REASON_LEANING, "ends_retries": True},
+        )
 
     def _remember_felt(self, collisions: list[sim_msg.Contact]) -> None:
         """Contacts of a hand with a small object other than the one reached for (a ball beside the
