@@ -39,11 +39,6 @@ FLAT_SOLE_M = 0.004
 #: (footsteps, reaching, navigation: their ``q_start`` checks).
 PLANNERS_FLAT_M = 0.005
 PLANNERS_FLAT_RAD = 0.02
-#: At rest: the base slower than this [m/s] and turning slower than this [rad/s]; held this long at a
-#: time until it is [s].
-REST_M_S = 0.01
-REST_RAD_S = 0.03
-REST_HOLD_S = 0.25
 
 Progress = Callable[[str], None]
 
@@ -196,25 +191,6 @@ class Body:
         """Whether both soles are on the floor (within ``FLAT_SOLE_M``) at ``q`` (default: now)."""
         q = self.q() if q is None else q
         return bool(np.all(np.abs(self.robot.sole_heights(q)) < FLAT_SOLE_M))
-
-    def come_to_rest(self, *, hold_s: float = REST_HOLD_S, tries: int = 4) -> float:
-        """Hold still (the measured posture commanded, ``hold_s`` at a time, ``tries`` times at most)
-        until the base moves slower than ``REST_M_S`` and turns slower than ``REST_RAD_S``: a motion
-        stopped by a collision, or the end of a back-out (an instant in the middle of a walk), leaves
-        the robot swaying, and a motion planned from a snapshot of it (a settle holding the CoM
-        still) assumes it at rest (box_near: a settle planned 0.1 s after a back-out fell). Returns
-        the time held [s]."""
-        held = 0.0
-        for _ in range(tries):
-            state = self.state()
-            v = np.asarray(state.v, dtype=float)
-            if float(np.linalg.norm(v[:3])) < REST_M_S and float(np.linalg.norm(v[3:6])) < REST_RAD_S:
-                break
-            q = np.asarray(state.q, dtype=float)
-            held += self.execute(
-                np.repeat(q[None, :], 2, axis=0), what="hold still", hold_s=hold_s
-            ).duration_s
-        return held
 
     def soles(self, q: np.ndarray | None = None) -> dict[str, tuple[float, float]]:
         """Each sole's height [m] and tilt from horizontal [rad] at ``q`` (default: now)."""

@@ -177,9 +177,6 @@ class Remedies(ActionParts):
         """
         said = ""
         for _ in range(2):  # a second settle from where the first one left the robot
-            held = self.body.come_to_rest()  # planned from a snapshot: the robot still, not swaying
-            if held:
-                self.progress(f"held still {held:.2f} s: the robot was swaying")
             try:
                 plan = self.planners.walk_goal(walk_msg.GoalRequest(q_start=self.body.q(), kind="settle"))
             except InvalidRequestError as exc:
