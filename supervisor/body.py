@@ -35,6 +35,8 @@ PLAN_FROM_COMMAND_RAD = 0.05
 #: were on the floor (within ``FLAT_SOLE_M`` [m]: the planners want them within 5 mm).
 BACK_OUT_MIN_S = 0.5
 FLAT_SOLE_M = 0.004
+#: The back-out's last this much of path [s] is played slowing down to a stop (in twice the time).
+BACK_OUT_EASE_S = 0.4
 #: The planners start only from soles within 5 mm of the ground and 0.02 rad of horizontal
 #: (footsteps, reaching, navigation: their ``q_start`` checks).
 PLANNERS_FLAT_M = 0.005
@@ -213,8 +215,11 @@ class Body:
         """Undo the end of the motion a collision stopped: play its executed part backward (the same
         path, time reversed: the CoM accelerations, hence the ZMP, are those of the planned motion) for at
         least ``BACK_OUT_MIN_S``, on to the last instant both soles were on the floor. A robot stopped
-        mid-step holds a foot in the air, where no planner can start from. Returns the time played [s]
-        (0 when nothing was interrupted)."""
+        mid-step holds a foot in the air, where no planner can start from. Its last ``BACK_OUT_EASE_S``
+        of path are played slowing down to a stop (:func:`_ease_out`): that instant of a walk has the
+        CoM moving, and a robot stopped there abruptly swayed on, so that the settle planned from a
+        snapshot of it ended tilted or fell (box_near). Returns the time played [s] (0 when nothing
+        was interrupted)."""
         interrupted, self.interrupted = self.interrupted, None
         if interrupted is None or interrupted.q.shape[0] < 2:
             return 0.0
@@ -228,7 +233,7 @@ class Body:
         if progress is not None:
             progress(f"{what}: {(last - k) * interrupted.dt_s:.1f} s of it backward")
         done = self.execute(
-            Q[k:][::-1],
+            _ease_out(Q[k:][::-1], round(BACK_OUT_EASE_S / interrupted.dt_s)),
             what=what,
             dt_s=interrupted.dt_s,
             allowed_contacts=interrupted.allowed_contacts,
@@ -335,3 +340,21 @@ class Body:
     # Grippers ----------------------------------------------------------------------------------------
     def gripper(self, side: str, action: str) -> sim_msg.GripperReply:
         return self.bus.call(sim_msg.GRIPPER, sim_msg.GripperRequest(side=side, action=action), 15.0)
+
+
+def _ease_out(Q: np.ndarray, n: int) -> np.ndarray:
+    """The (M, nq) path ``Q`` (one sample per period) with its last ``n`` samples played slowing down
+    linearly from full speed to a stop, in 2 n periods: the sample index advances by 1 - t / (2 n) per
+    period (t periods into the slowing part), configurations linearly interpolated between samples (the
+    base quaternion renormalized). The path is unchanged; only its timing at the end."""
+    M = Q.shape[0]
+    n = min(n, M - 1)
+    if n < 2:
+        return Q
+    t = np.arange(1, 2 * n + 1, dtype=float)
+    u = (M - 1 - n) + t - t * t / (4.0 * n)  # integral of the speed 1 - t / (2 n)
+    i = np.minimum(np.floor(u).astype(int), M - 2)
+    a = (u - i)[:, None]
+    tail = (1.0 - a) * Q[i] + a * Q[i + 1]
+    tail[:, 3:7] /= np.linalg.norm(tail[:, 3:7], axis=1, keepdims=True)
+    return np.vstack([Q[: M - n], tail])
