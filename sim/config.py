@@ -35,6 +35,9 @@ class SimConfig:
         settle_s: physics time run after a reset so that objects come to rest [s].
         loaded_foot_force_n: a sole carries weight (and its slip is measured) above this normal force [N].
         contact_force_n: contacts weaker than this are ignored when looking for collisions [N].
+        start_contact_push_m: a contact the robot is in when a motion starts stays allowed while the
+            planned motion moves its contact points no more than this further into the object [m]
+            (:mod:`sim.start_contacts`).
         render_near_m, render_far_m: clipping planes of the cameras [m].
         stabilizer: leg corrections from the measured body inclination during executions
             (:mod:`sim.stabilizer`, as the real robot's stabilizer); off (the default: with it on fetch
@@ -42,6 +45,12 @@ class SimConfig:
         stabilizer_gain: correction per radian of inclination error [rad/rad].
         stabilizer_damping_s: correction per rad/s of inclination rate error [s].
         stabilizer_max_rad: largest correction [rad].
+        stabilizer_loaded_n: the stabilizer corrects only while the two soles' floor forces add up to
+            this [N] (both soles together: ``loaded_foot_force_n`` is per sole).
+        stabilizer_contact_n: the stabilizer holds its correction while contacts other than the soles
+            on the floor and the hands on what they hold push on the robot with this much in total [N],
+            and for 0.1 s after (a hand on a box, a shank on a table: a tilt they hold is not the
+            feet's to correct).
     """
 
     model: str = "hrp2_like"
@@ -60,12 +69,15 @@ class SimConfig:
     settle_s: float = 0.3
     loaded_foot_force_n: float = 30.0
     contact_force_n: float = 0.05
+    start_contact_push_m: float = 0.003
     render_near_m: float = 0.05
     render_far_m: float = 30.0
     stabilizer: bool = False
     stabilizer_gain: float = 1.0
     stabilizer_damping_s: float = 0.02
     stabilizer_max_rad: float = 0.05
+    stabilizer_loaded_n: float = 30.0
+    stabilizer_contact_n: float = 5.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -78,11 +90,18 @@ class SimConfig:
             "gripper_timeout_s",
             "render_near_m",
             "render_far_m",
+            "start_contact_push_m",
         ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise InvalidRequestError(f"sim config: {name} must be a positive number, got {value!r}")
-        for name in ("stabilizer_gain", "stabilizer_damping_s", "stabilizer_max_rad"):
+        for name in (
+            "stabilizer_gain",
+            "stabilizer_damping_s",
+            "stabilizer_max_rad",
+            "stabilizer_loaded_n",
+            "stabilizer_contact_n",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise InvalidRequestError(f"sim config: {name} must be a number >= 0, got {value!r}")

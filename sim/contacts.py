@@ -10,7 +10,10 @@ Planned contacts:
 * any link on an object the motion is ``leaving`` (backing out of a collision), until that contact
   first breaks: touching it again later is a collision;
 * any link on a ``supports`` object (a multi-contact motion's supports: the chair the robot gets up
-  from, the table it leans on; the contact planner chose where).
+  from, the table it leans on; the contact planner chose where);
+* any link on an object it already touched when the motion started, while the planned motion does not
+  push it further into that object (:mod:`sim.start_contacts`: a hand left resting on a box after a
+  stop may move off it; a motion pressing on into it still stops).
 
 Every other contact between the robot (or an object it holds) and the scene is a collision. Contacts
 among scene objects (a ball resting on a box) are never reported. Self-contacts of the robot are not
@@ -23,6 +26,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import pybullet as p
+
+from sim.start_contacts import StartContacts
 
 # Indices in the tuples returned by pybullet.getContactPoints.
 _BODY_A, _BODY_B, _LINK_A, _LINK_B, _POS_ON_A, _DISTANCE, _NORMAL_FORCE = 1, 2, 3, 4, 5, 8, 9
@@ -56,27 +61,44 @@ class ContactRules:
     min_force_n: float = 0.05
     leaving: set[str] = field(default_factory=set)  # objects still touched since the start (shrinks)
     supports: frozenset[str] = frozenset()  # objects any link may touch (multi-contact supports)
+    start: StartContacts | None = None  # the contacts the motion started in (None: none)
 
     def other_name(self, body: int) -> str:
         return "floor" if body == self.floor_id else self.names.get(body, f"body{body}")
+
+    def robot_contact_points(self, points: Sequence[tuple] | None = None) -> list[tuple]:
+        """The robot-scene contact points now (pybullet ``getContactPoints`` tuples, robot = body A) of
+        at least ``min_force_n``, a sole on the floor left out (always planned); ``points``: the
+        robot's contact points now, as ``pybullet.getContactPoints(bodyA=robot)`` returns them, else
+        queried here."""
+        if points is None:
+            points = p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client)
+        floor, feet = self.floor_id, self.foot_links
+        return [
+            c
+            for c in points
+            if c[_BODY_B] != self.robot_id
+            and c[_NORMAL_FORCE] >= self.min_force_n
+            and not (c[_BODY_B] == floor and c[_LINK_A] in feet)
+        ]
+
+    def pushing_force(self, points: Sequence[tuple] | None = None) -> float:
+        """Total normal force [N] of the contacts on the robot other than its soles on the floor and its
+        hands on the objects they hold (``points``: as :meth:`robot_contact_points`)."""
+        held = set(self.held.values())
+        return float(
+            sum(c[_NORMAL_FORCE] for c in self.robot_contact_points(points) if c[_BODY_B] not in held)
+        )
 
     def robot_contacts(
         self, points: Sequence[tuple] | None = None
     ) -> list[tuple[int, int, tuple[float, float, float], float]]:
         """(robot link, other body, position, normal force) of every current robot-scene contact
-        (``points``: the robot's contact points now, as ``pybullet.getContactPoints(bodyA=robot)``
-        returns them, else queried here); a sole on the floor is left out (always planned)."""
-        out = []
-        if points is None:
-            points = p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client)
-        floor, feet = self.floor_id, self.foot_links
-        for c in points:
-            if c[_BODY_B] == self.robot_id or c[_NORMAL_FORCE] < self.min_force_n:
-                continue
-            if c[_BODY_B] == floor and c[_LINK_A] in feet:
-                continue
-            out.append((c[_LINK_A], c[_BODY_B], c[_POS_ON_A], c[_NORMAL_FORCE]))
-        return out
+        (:meth:`robot_contact_points`)."""
+        return [
+            (c[_LINK_A], c[_BODY_B], c[_POS_ON_A], c[_NORMAL_FORCE])
+            for c in self.robot_contact_points(points)
+        ]
 
     def held_contacts(self) -> list[tuple[str, int, tuple[float, float, float], float]]:
         """(held object, other body, position, normal force) of contacts of held objects with the scene."""
@@ -94,19 +116,25 @@ class ContactRules:
         """(held object, other) pairs in contact now (recorded when a motion starts)."""
         return frozenset((name, self.other_name(other)) for name, other, _, _ in self.held_contacts())
 
-    def collisions(self, points: Sequence[tuple] | None = None) -> list[Contact]:
+    def collisions(self, points: Sequence[tuple] | None = None, sample: int = 0) -> list[Contact]:
         """Unplanned contacts now, one per (robot link or held object, other) pair (strongest point);
-        ``points``: as :meth:`robot_contacts`."""
+        ``points``: as :meth:`robot_contacts`; ``sample``: the trajectory sample commanded now (for the
+        contacts the motion started in, :attr:`start`)."""
         found: dict[tuple[str, str], Contact] = {}
         held_names = {body: name for name, body in self.held.items()}
         contacts = self.robot_contacts(points)
         if self.leaving:
             self.leaving &= {self.other_name(other) for _, other, _, _ in contacts}  # broken: no longer
+        start = self.start
+        if start is not None:
+            start.update({(link, other) for link, other, _, _ in contacts}, sample)
         for link, other, pos, force in contacts:
             other_name = self.other_name(other)
             if other_name in self.leaving or other_name in self.supports:
                 continue
             if link in self.hand_links and (other in held_names or other_name in self.allowed):
+                continue
+            if start is not None and start.allows((link, other), sample):
                 continue
             _keep(found, Contact(self.link_name.get(link, f"link{link}"), other_name, tuple(pos), force))
         for name, other, pos, force in self.held_contacts():

@@ -40,6 +40,7 @@ from sim.objects import build_scene
 from sim.results import CameraImage, ExecutionResult, GripperResult, ObjectState, RobotState
 from sim.scene import Layout, SceneSpec, layout, load_scene
 from sim.stabilizer import Stabilizer, StabilizerGains
+from sim.start_contacts import StartContacts
 
 GRIPPER_ACTIONS = ("open", "close")
 _FINGER_STALL_SPEED = 2e-3  # [m/s or rad/s]: a closing finger slower than this has stopped
@@ -201,7 +202,7 @@ class World:
                     cfg.stabilizer_gain,
                     cfg.stabilizer_damping_s,
                     cfg.stabilizer_max_rad,
-                    cfg.loaded_foot_force_n,
+                    cfg.stabilizer_loaded_n,
                 ),
             )
             if cfg.stabilizer
@@ -512,6 +513,17 @@ class World:
             else None
         )
         rules.already_touching = rules.touching_pairs()
+        start_points = rules.robot_contact_points()
+        if start_points:  # a motion starting in contact may leave it, not push into it (sim.start_contacts)
+            rules.start = StartContacts.measure(
+                self.robot,
+                self._data,
+                self.link_name,
+                start_points,
+                self.pyrobot.read_q(),
+                q_traj,
+                cfg.start_contact_push_m,
+            )
         n_hold = round(hold_s / dt)
         monitor = _Monitor(self)
         # the soles the only supports: a multi-contact motion's body leans on its supports as planned
@@ -544,7 +556,9 @@ class World:
             # one contact query per period for the slip monitor and the collision rules
             points = p.getContactPoints(bodyA=self.robot_id, physicsClientId=self.client)
             T_base = monitor.update(self.q_cmd, points)
-            if stabilizer is not None:  # the corrections of the next period, from the state now
+            if stabilizer is not None and stabilizer.free_of_contacts(
+                rules.pushing_force(points) >= cfg.stabilizer_contact_n
+            ):  # the corrections of the next period, from the state now
                 omega = p.getBaseVelocity(self.robot_id, physicsClientId=self.client)[1]
                 stabilizer.update(
                     self._data,
@@ -568,7 +582,7 @@ class World:
                     f"{math.degrees(tilt):.1f} deg (limit {math.degrees(fall_tilt):.1f} deg)"
                 )
                 break
-            for contact in rules.collisions(points):
+            for contact in rules.collisions(points, k_next):
                 collided.setdefault((contact.robot_link, contact.other), contact)
             if collided and stop_on_collision:
                 break

@@ -35,6 +35,12 @@ PLAN_FROM_COMMAND_RAD = 0.05
 #: were on the floor (within ``FLAT_SOLE_M`` [m]: the planners want them within 5 mm).
 BACK_OUT_MIN_S = 0.5
 FLAT_SOLE_M = 0.004
+#: The back-out's last this much of path [s] is played slowing down to a stop (in twice the time).
+BACK_OUT_EASE_S = 0.4
+#: The planners start only from soles within 5 mm of the ground and 0.02 rad of horizontal
+#: (footsteps, reaching, navigation: their ``q_start`` checks).
+PLANNERS_FLAT_M = 0.005
+PLANNERS_FLAT_RAD = 0.02
 
 Progress = Callable[[str], None]
 
@@ -188,12 +194,32 @@ class Body:
         q = self.q() if q is None else q
         return bool(np.all(np.abs(self.robot.sole_heights(q)) < FLAT_SOLE_M))
 
+    def soles(self, q: np.ndarray | None = None) -> dict[str, tuple[float, float]]:
+        """Each sole's height [m] and tilt from horizontal [rad] at ``q`` (default: now)."""
+        q = self.q() if q is None else q
+        robot = self.robot
+        out = {}
+        for side in ("left", "right"):
+            pose = robot.frame_pose(q, robot.info.frames[f"{side}_sole"])
+            out[side] = (float(pose.translation[2]), math.acos(min(1.0, float(pose.rotation[2, 2]))))
+        return out
+
+    def plannable(self, q: np.ndarray | None = None) -> bool:
+        """Whether the planners accept ``q`` (default: now) as a start: both soles within
+        ``PLANNERS_FLAT_M`` of the ground and ``PLANNERS_FLAT_RAD`` of horizontal."""
+        return all(
+            abs(z) <= PLANNERS_FLAT_M and tilt <= PLANNERS_FLAT_RAD for z, tilt in self.soles(q).values()
+        )
+
     def back_out(self, progress: Progress | None = None) -> float:
         """Undo the end of the motion a collision stopped: play its executed part backward (the same
         path, time reversed: the CoM accelerations, hence the ZMP, are those of the planned motion) for at
         least ``BACK_OUT_MIN_S``, on to the last instant both soles were on the floor. A robot stopped
-        mid-step holds a foot in the air, where no planner can start from. Returns the time played [s]
-        (0 when nothing was interrupted)."""
+        mid-step holds a foot in the air, where no planner can start from. Its last ``BACK_OUT_EASE_S``
+        of path are played slowing down to a stop (:func:`_ease_out`): that instant of a walk has the
+        CoM moving, and a robot stopped there abruptly swayed on, so that the settle planned from a
+        snapshot of it ended tilted or fell (box_near). Returns the time played [s] (0 when nothing
+        was interrupted)."""
         interrupted, self.interrupted = self.interrupted, None
         if interrupted is None or interrupted.q.shape[0] < 2:
             return 0.0
@@ -207,7 +233,7 @@ class Body:
         if progress is not None:
             progress(f"{what}: {(last - k) * interrupted.dt_s:.1f} s of it backward")
         done = self.execute(
-            Q[k:][::-1],
+            _ease_out(Q[k:][::-1], round(BACK_OUT_EASE_S / interrupted.dt_s)),
             what=what,
             dt_s=interrupted.dt_s,
             allowed_contacts=interrupted.allowed_contacts,
@@ -314,3 +340,21 @@ class Body:
     # Grippers ----------------------------------------------------------------------------------------
     def gripper(self, side: str, action: str) -> sim_msg.GripperReply:
         return self.bus.call(sim_msg.GRIPPER, sim_msg.GripperRequest(side=side, action=action), 15.0)
+
+
+def _ease_out(Q: np.ndarray, n: int) -> np.ndarray:
+    """The (M, nq) path ``Q`` (one sample per period) with its last ``n`` samples played slowing down
+    linearly from full speed to a stop, in 2 n periods: the sample index advances by 1 - t / (2 n) per
+    period (t periods into the slowing part), configurations linearly interpolated between samples (the
+    base quaternion renormalized). The path is unchanged; only its timing at the end."""
+    M = Q.shape[0]
+    n = min(n, M - 1)
+    if n < 2:
+        return Q
+    t = np.arange(1, 2 * n + 1, dtype=float)
+    u = (M - 1 - n) + t - t * t / (4.0 * n)  # integral of the speed 1 - t / (2 n)
+    i = np.minimum(np.floor(u).astype(int), M - 2)
+    a = (u - i)[:, None]
+    tail = (1.0 - a) * Q[i] + a * Q[i + 1]
+    tail[:, 3:7] /= np.linalg.norm(tail[:, 3:7], axis=1, keepdims=True)
+    return np.vstack([Q[: M - n], tail])

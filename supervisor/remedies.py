@@ -98,6 +98,7 @@ class Remedies(ActionParts):
         except (InfeasibleError, InvalidRequestError) as exc:
             self.progress(f"the {hand} hand stays where it is ({exc.message})")
         self.body.straighten()
+        self.settle()  # a sole left up or tilted (a stopped look, seed 46): no stance is planned from there
         try:
             plan = self.planners.square()
         except (InfeasibleError, InvalidRequestError) as exc:
@@ -110,11 +111,22 @@ class Remedies(ActionParts):
         self.body.execute(plan.q, what="square the stance", progress=self.progress)
 
     def replan(self, step: Step, report: ActionReport) -> None:
-        """After a collision: free the robot (a leg or the body touched, or the robot stopped with a foot
-        up: play the end of the stopped motion backward, :meth:`Body.back_out`; a hand: move it back and
-        up, the touched objects allowed), map what was hit if the map lacks it, refresh the goal's
-        position; the retry then plans again from the state the robot is in now (planners are stateless
-        and the actions plan from ``sim/state``)."""
+        """After a collision, one sequence, each motion planned by a planner, then the retry plans again
+        from the state the robot is in (planners are stateless, the actions plan from ``sim/state``):
+
+        1. a leg or the body touched, or the robot stopped with a foot up: play the end of the stopped
+           motion backward (:meth:`Body.back_out`);
+        2. each hand that touched backs off (reaching, no stepping, the touched objects allowed); when
+           reaching refuses and the motion that touched was stopped, that motion is backed out instead
+           (the hand came there with the body: its own back-off would move the CoM out of the support,
+           table_to_box); when reaching refuses the start (a sole not flat), the feet settle first;
+        3. :meth:`settle`: both soles back flat and the body over them (``walking/goal`` ``kind:
+           settle`` from the measured configuration) when a sole was left up or tilted; ``infeasible``
+           ``leaning`` (held up by what it touches) ends the retries;
+        4. what was hit goes to the map if the map lacks it, the goal is localized again.
+
+        A motion of the sequence may start in contact with what was hit: the sim lets it leave that
+        contact, not push into it (sim/README "Contacts at the start")."""
         if self.body.state().fallen:
             raise FellError("the robot fell: it cannot replan from the ground")
         collisions: list[sim_msg.Contact] = report.details.get("collisions") or []
@@ -126,10 +138,71 @@ class Remedies(ActionParts):
             self.body.back_out(self.progress)  # a leg or the body hit it, or a foot is up: undo the end
         for hand, tag in (("right", "RARM"), ("left", "LARM")):
             if tag in links or ("held:" in links.lower() and hand in self.body.held()):
-                self._back_off(hand, touched)
+                try:
+                    self._back_off(hand, touched)
+                except (InfeasibleError, InvalidRequestError) as exc:
+                    if self.body.interrupted is not None:
+                        self.progress(f"the {hand} hand cannot back off alone ({exc.message}): backing out")
+                        self.body.back_out(self.progress)
+                    elif isinstance(exc, InvalidRequestError):  # e.g. a sole not flat: settled, then again
+                        self.progress(f"the {hand} hand cannot back off from here ({exc.message})")
+                        self.settle()
+                        self._back_off(hand, touched)
+                    else:
+                        raise
+        try:
+            self.settle()
+        except InfeasibleError as exc:
+            if exc.details.get("reason") != walk_msg.REASON_LEANING or not touched:
+                raise
+            raise InfeasibleError(f"{exc.message} (it touched {', '.join(touched)})", exc.details) from exc
         self._remember_felt(collisions)
         self._map_what_was_hit([c.position for c in collisions])
         self.relocalize(step, report)
+
+    def settle(self) -> None:
+        """Both soles back flat on the ground and the body over them, planned by walking from the
+        measured configuration (``walking/goal`` ``kind: settle``; nothing when both soles are flat:
+        ``already_settled``). A back-out or a stopped motion can leave a sole 3 mm - 1.4 cm up or tilted
+        0.025-0.16 rad, from which reaching, footsteps and walking refuse to plan.
+
+        When the robot is still not standing as the planners want it after a settle (both soles within
+        5 mm and 0.02 rad: measured, :meth:`Body.plannable`), one more settle from there.
+
+        Raises:
+            InfeasibleError: ``details.reason`` ``leaning`` (with ``ends_retries``): the robot is held
+                up by something it touches (walking refused, or the robot stays tilted after two
+                settles: box_near's shank on the table left both soles tilted 1.2 deg); other refusals
+                as walking gives them.
+        """
+        said = ""
+        for _ in range(2):  # a second settle from where the first one left the robot
+            try:
+                plan = self.planners.walk_goal(walk_msg.GoalRequest(q_start=self.body.q(), kind="settle"))
+            except InvalidRequestError as exc:
+                if exc.details.get("reason") == walk_msg.REASON_ALREADY_SETTLED:
+                    return
+                raise
+            except InfeasibleError as exc:
+                if exc.details.get("reason") != walk_msg.REASON_LEANING:
+                    raise
+                raise InfeasibleError(
+                    f"the robot cannot settle its feet: {exc.message}", {**exc.details, "ends_retries": True}
+                ) from exc
+            self.progress(f"settle the feet: {plan.describe()}")
+            done = self.body.execute(plan.q, what="settle the feet", progress=self.progress)
+            said = ", ".join(
+                f"{side} sole {1e3 * z:.1f} mm up, tilted {math.degrees(tilt):.2f} deg"
+                for side, (z, tilt) in self.body.soles(done.q).items()
+            )
+            self.progress(f"the feet settled: {said}")
+            if self.body.plannable(done.q):
+                return
+        raise InfeasibleError(
+            f"the robot cannot settle its feet: it stays tilted after settling twice ({said}): it leans on "
+            "something it touches",
+            {"reason": walk_msg.REASON_LEANING, "ends_retries": True},
+        )
 
     def _remember_felt(self, collisions: list[sim_msg.Contact]) -> None:
         """Contacts of a hand with a small object other than the one reached for (a ball beside the

@@ -139,9 +139,11 @@ class Runner:
                 try:
                     remedy(resolved, report)
                 except HumanoidError as exc:
-                    self._emit(
-                        "failed", step, attempt, exc.code, f"remedy {rule.remedy} failed: {exc.message}"
-                    )
+                    message = f"remedy {rule.remedy} failed: {exc.message}"
+                    self._emit("failed", step, attempt, exc.code, message)
+                    if exc.details.get("ends_retries"):  # no retry can succeed from here (a robot leaning)
+                        details = {**report.details, **exc.details}
+                        return dataclasses.replace(report, reason=exc.code, message=message, details=details)
 
     def _emit(self, kind: str, step: Step, attempt: int, reason: str = "", message: str = "") -> None:
         self.on_event(Event(kind, step.text(), step.line, attempt, reason, message))

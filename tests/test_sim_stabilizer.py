@@ -10,7 +10,9 @@ import pybullet as p
 import pytest
 
 from services.errors import InvalidRequestError
+from sim import motions
 from sim.config import SimConfig
+from sim.scene import COLOURS, ObjectSpec, load_scene, with_object
 from sim.stabilizer import Stabilizer, StabilizerGains, roll_pitch
 from sim.world import World
 
@@ -80,7 +82,38 @@ def test_the_stabilizer_switched_off_plays_the_trajectory_open_loop():
         assert _walked(on) != open_loop
 
 
-@pytest.mark.parametrize("name", ["stabilizer_gain", "stabilizer_damping_s", "stabilizer_max_rad"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "stabilizer_gain",
+        "stabilizer_damping_s",
+        "stabilizer_max_rad",
+        "stabilizer_loaded_n",
+        "stabilizer_contact_n",
+    ],
+)
 def test_stabilizer_gains_are_checked(name):
     with pytest.raises(InvalidRequestError, match=name):
         SimConfig(**{name: -1.0})
+
+
+def test_the_stabilizer_holds_its_correction_while_a_contact_holds_the_body():
+    """The right arm stopped pressing on a crate leans the body: holding still there, the stabilizer
+    (on) leaves its correction as it was (a tilt the crate holds is not the feet's to correct); once
+    the arm has swung back off the crate it corrects again."""
+    scene = with_object(
+        load_scene("empty"),
+        ObjectSpec(name="crate", kind="box", colour=COLOURS["blue"], xy=(0.45, -0.3), size_m=(0.3, 0.3, 1.0)),
+    )
+    with World("hrp2_like", scene, config=SimConfig(stabilizer=True)) as world:
+        stabilizer = world.stabilizer
+        assert stabilizer is not None
+        swing = motions.joint_motion(world.robot, world.state().q, {"RARM_JOINT0": -1.2}, 1.0)
+        assert world.execute(swing).outcome == "collision"  # stopped: offsets reset
+        q = world.state().q
+        assert world.collisions() and not np.any(stabilizer.offsets)
+        assert world.execute(np.repeat(q[None, :], 100, axis=0)).outcome == "completed"
+        assert not np.any(stabilizer.offsets)  # held at zero while the crate pushes on the arm
+        away = motions.joint_motion(world.robot, world.state().q, {"RARM_JOINT0": 0.0}, 1.0)
+        assert world.execute(away).outcome == "completed" and not world.collisions()
+        assert np.any(stabilizer.offsets)  # free of the crate: correcting again

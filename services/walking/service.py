@@ -11,7 +11,9 @@ planning time is logged). :func:`plan_reply` is the whole adapter without the bu
 Endpoint ``walking/goal``: a goal relative to the stance now (a pose to reach, an angle to turn on the
 spot, a stance to square; :mod:`services.walking.goals`) and the map's boxes in; the planner makes the
 footsteps within the robot's bounds, checks them against the boxes and plans them as ``walking/plan``
-does (:func:`goal_reply`). ``infeasible`` replies carry ``details.reason`` (``REASON_*`` of the schema).
+does (:func:`goal_reply`). Kind ``settle``: no step, both soles brought back flat from the measured
+configuration (:mod:`services.walking.settle`), the same reply shape. ``infeasible`` replies carry
+``details.reason`` (``REASON_*`` of the schema).
 
 Failure codes: ``invalid_request`` (malformed request: unknown model, q of the wrong size, overlapping
 soles, a zero duration, a bad upper-body task, q_start and the starting soles more than 5 mm apart);
@@ -59,6 +61,7 @@ from services.walking.goals import (
     walk_to_steps,
 )
 from services.walking.pattern import PatternOptions
+from services.walking.settle import SettleMotion, settle_motion
 from services.walking.sweep import check_legs_clear
 from services.walking.timing import WalkTiming
 from services.walking.two_stage import COM_LOWERINGS_M
@@ -342,6 +345,8 @@ def goal_reply(request: msg.GoalRequest, config: WalkingConfig | None = None) ->
     if not (math.isfinite(request.leg_clearance_m) and request.leg_clearance_m >= 0.0):
         raise InvalidRequestError(f"leg_clearance_m must be >= 0 m, got {request.leg_clearance_m}")
     obstacles = obstacles_of(request)  # read once: the footsteps' check and the legs' sweep use them
+    if request.kind == "settle":
+        return _settle_reply(robot, settle_motion(robot, robot.check_q(request.q_start, "q_start")))
     boxes = [o for o in obstacles if isinstance(o, BoxObstacle)]
     q, sequence = goal_steps(request, robot, obstacles=obstacles)
     try:
@@ -379,6 +384,48 @@ def _goal_walk(
     reply = plan_reply(plan, config)
     check_legs_clear(robot, np.asarray(reply.q), reply.dt_s, boxes, clearance_m=request.leg_clearance_m)
     return reply
+
+
+def _settle_reply(robot: Any, motion: SettleMotion) -> msg.PlanReply:
+    """The reply of a ``settle`` goal: no step; the ZMP reference and the planned ZMP are the CoM
+    reference (a quasi-static motion), the multibody ZMP the motion's."""
+    zmp_ref = np.ascontiguousarray(motion.com_ref_m[:, :2])
+    margin = -motion.zmp_distance_m
+    final = {
+        side: [float(v) for v in rows[-1, [0, 1, 3]]]
+        for side, rows in (("left", motion.left_sole), ("right", motion.right_sole))
+    }
+    return msg.PlanReply(
+        model=robot.name,
+        joint_names=list(robot.joint_names),
+        dt_s=motion.dt_s,
+        times_s=motion.times_s,
+        q=np.ascontiguousarray(motion.q),
+        com_m=np.ascontiguousarray(motion.com_m),
+        com_ref_m=np.ascontiguousarray(motion.com_ref_m),
+        zmp_ref_m=zmp_ref,
+        zmp_planned_m=zmp_ref,
+        zmp_multibody_m=np.ascontiguousarray(motion.zmp_m),
+        zmp_margin_m=margin,
+        left_sole=np.ascontiguousarray(motion.left_sole),
+        right_sole=np.ascontiguousarray(motion.right_sole),
+        phase=motion.phase,
+        steps=[],
+        final_left_sole=final["left"],
+        final_right_sole=final["right"],
+        figures=msg.PlanFigures(
+            duration_s=float(motion.times_s[-1]),
+            n_samples=int(motion.times_s.shape[0]),
+            min_zmp_margin_m=float(margin.min()),
+            worst_zmp_outside_m=max(0.0, float(motion.zmp_distance_m.max())),
+            second_stage_passes=0,
+            second_stage_acted=False,
+            min_zmp_margin_first_pass_m=float(margin.min()),
+            max_zmp_error_m=float(np.abs(motion.zmp_m - zmp_ref).max()),
+            max_sole_error_m=motion.max_sole_error_m,
+            max_com_error_m=float(np.abs(motion.com_m - motion.com_ref_m).max()),
+        ),
+    )
 
 
 def _check_result(result: WholeBodyResult, request: msg.PlanRequest) -> None:

@@ -175,12 +175,14 @@ PLAN = EndpointSpec(
 # ------------------------------------------------------------------------------------------ walks to a goal
 
 #: ``GoalRequest.kind`` values.
-GOAL_KINDS = ("pose", "turn", "square")
+GOAL_KINDS = ("pose", "turn", "square", "settle")
 #: ``details["reason"]`` of an ``infeasible`` reply of ``walking/goal`` (sub-reasons across processes).
 REASON_BLOCKED = "blocked_by_obstacle"  # a step or the mid-feet path comes too near a box of the map
 REASON_NO_ROOM_TO_TURN = "no_room_to_turn"  # a box nearer than turn_room_m to the mid-feet point
 REASON_OUT_OF_BOUNDS = "out_of_bounds"  # no count of steps fits the robot's stepping bounds
 REASON_ALREADY_SQUARE = "already_square"  # invalid_request: a `square` goal for a stance square already
+REASON_ALREADY_SETTLED = "already_settled"  # invalid_request: a `settle` goal with both soles flat already
+REASON_LEANING = "leaning"  # a `settle` goal: the robot is held up by something it touches
 
 
 class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
@@ -199,6 +201,13 @@ class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
       walk (no stand-still between them); the turn's room is checked where it starts.
     * ``"square"``: the one step that brings the rear foot beside the front one (``invalid_request``
       if the stance is already square).
+    * ``"settle"``: from ``q_start`` as measured (a sole left up to a few cm up or tilted by a stopped
+      motion), both soles back flat on the ground and the body over them, no step
+      (:mod:`services.walking.settle`: the CoM over the flatter sole, the other one lowered flat below
+      where it is, the CoM to the middle; the multibody ZMP checked). ``invalid_request`` with reason
+      ``already_settled`` when both soles are flat; ``infeasible`` with reason ``leaning`` when the
+      robot is held up by something it touches (neither sole flat, or the CoM outside the feet). The
+      obstacles are not used (the sole comes down where it is).
 
     Obstacle test (``obstacles``: the map's boxes, ``kind`` "box"): the mid-feet path keeps
     ``clearance_m`` from every box (or as far as its start or its end is, if nearer), every landing sole
@@ -207,7 +216,7 @@ class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
     as far as it starts). Failures: ``infeasible`` with ``details.reason`` one of ``REASON_*``.
     """
 
-    q_start: np.ndarray  # (nq,) the robot's configuration now, standing on both soles
+    q_start: np.ndarray  # (nq,) the robot's configuration now, standing on both soles (settle: as measured)
     kind: Name = "pose"
     pose: Annotated[list[Coord], Meta(max_length=3)] = []  # kind "pose": [x, y, yaw] of the mid-feet frame
     frame: Name = "robot"  # kind "pose": "robot" or "world"
