@@ -101,8 +101,8 @@ class SupervisorConfig:
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
         raise_ahead_m: a hand below the approach height is first raised at least this far ahead of
             the mid-feet point;
-        raise_box_margin_m: that raise goes straight up first, then forward, when the map's box of
-            the object's support comes within this far [m] of its straight line forward;
+        raise_box_margin_m: that raise goes straight up first, then forward, when its straight line
+            comes over the map's box of the object's support less than this far [m] above its top;
         upright_hand: ask reaching for the grasp frame upright along the heading (fingers down, jaws
             sideways) for the two last motions of a reach (above the object, then down onto it): no
             finger then reaches past the object onto a neighbour (a hand pointing forward swept the

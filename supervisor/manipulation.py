@@ -140,16 +140,23 @@ def raise_parts(
     here_m: np.ndarray, point_m: np.ndarray, box: BoxEstimate | None, margin_m: float
 ) -> list[np.ndarray]:
     """The hand's raise from ``here_m`` to ``point_m`` [m] (world) as one straight motion, or as two (up
-    to ``point_m``'s height where the hand is, then forward) when ``box`` (the map's box of the object's
-    support; None: none known) is below that height and its footprint comes within ``margin_m`` [m] of
-    the hand's way forward: a straight line from low and near would sweep the wrist into its side."""
-    if box is None or box.top_z_m >= point_m[2]:
+    to ``point_m``'s height where the hand is, then forward) when the straight line comes over the
+    footprint of ``box`` (the map's box of the object's support; None: none known) less than
+    ``margin_m`` [m] above its top: the wrist, near the hand, would sweep into its side or edge (layout
+    ball_far_side). Not when the line ends before the box: the hand's posture after the raise is
+    what the reach above starts from, and an arm raised another way came down onto the ball another
+    way (fetch seed 37's left hand: closed on nothing after the two motions, grasped after one)."""
+    if box is None:
         return [point_m]
     way = np.asarray(point_m[:2], dtype=float) - here_m[:2]
     length = float(np.linalg.norm(way))
     if length < 1e-6:
         return [point_m]
-    if ray_entry(box, np.asarray(here_m[:2], dtype=float), way / length) > length + margin_m:
+    entry = ray_entry(box, np.asarray(here_m[:2], dtype=float), way / length)
+    if entry >= length:
+        return [point_m]
+    z_over_edge = here_m[2] + (point_m[2] - here_m[2]) * entry / length
+    if z_over_edge >= box.top_z_m + margin_m:
         return [point_m]
     up = np.array(here_m, dtype=float)
     up[2] = point_m[2]
@@ -331,10 +338,10 @@ class ManipulationActions(ActionParts):
     ) -> None:
         """Raise the hand in front of the body to ``height_m`` before moving it forward: the reaching
         planner moves the hand on a straight line, which from a hanging arm would sweep the front of the
-        object's support (a box, a table). Nothing to do if the hand is already that high. When the
-        ``support``'s box on the map lies within ``raise_box_margin_m`` of that line's way forward (a
-        stance close to it: layout ball_far_side's 4 steps toward a ball 0.4 m deep swept the wrist
-        into the box's side), the hand goes straight up first, then forward (:func:`raise_parts`)."""
+        object's support (a box, a table). Nothing to do if the hand is already that high. When that
+        line comes over the ``support``'s box on the map less than ``raise_box_margin_m`` above its
+        top (a stance close to it: layout ball_far_side's 4 steps toward a ball 0.4 m deep swept the
+        wrist into the box's side), the hand goes straight up first, then forward (:func:`raise_parts`)."""
         q = self.body.q()
         robot = self.body.robot
         here = robot.grasp_position(q, hand)

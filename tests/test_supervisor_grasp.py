@@ -213,14 +213,15 @@ BOX = BoxEstimate("green_box", (3.4, 1.19, 0.35), (0.53, 0.67, 0.7), 0.0)  # nea
 
 
 @pytest.mark.parametrize(
-    ("hand_x", "parts"),
+    ("hand_x", "hand_z", "parts"),
     [
-        (2.9, 2),  # the way forward to 0.2 m ahead ends 3.5 cm before the box: up first, then forward
-        (2.6, 1),  # 33.5 cm before it: one straight motion
+        (3.0, 0.55, 2),  # over the box's edge at 0.77 m, 7 cm above its top (layout ball_far_side): up first
+        (2.9, 0.55, 1),  # the line ends 3.5 cm before the box: one straight motion (seed 37)
+        (3.0, 0.82, 1),  # over the edge at 0.85 m, 15 cm above its top: one straight motion
     ],
 )
-def test_a_raise_near_the_support_goes_up_first(hand_x, parts):
-    here = np.array([hand_x, 1.0, 0.55])
+def test_a_raise_over_the_support_goes_up_first(hand_x, hand_z, parts):
+    here = np.array([hand_x, 1.0, hand_z])
     point = np.array([hand_x + 0.2, 1.0, 0.87])
     got = raise_parts(here, point, BOX, SupervisorConfig().raise_box_margin_m)
     assert len(got) == parts and np.allclose(got[-1], point)
