@@ -105,6 +105,8 @@ class SupervisorConfig:
         carry_m: (forward, lateral, height) of the carry point in front of the chest;
         raise_ahead_m: a hand below the approach height is first raised at least this far ahead of
             the mid-feet point;
+        raise_box_margin_m: that raise goes straight up first, then forward, when its straight line
+            comes over the map's box of the object's support less than this far [m] above its top;
         upright_hand: ask reaching for the grasp frame upright along the heading (fingers down, jaws
             sideways) for the two last motions of a reach (above the object, then down onto it): no
             finger then reaches past the object onto a neighbour (a hand pointing forward swept the
@@ -145,6 +147,12 @@ class SupervisorConfig:
             motion from a stance planned without the jaws. felt_obstacle_radius_m: the felt
             points near an object to grasp also go to footsteps/plan as spheres of this radius [m]
             that the arm (forearm, upper arm) keeps out of, with the object itself.
+        hand_way_deg, hand_way_gap_m: a reach or grasp whose script line names no hand uses the right
+            one unless an object beside the target on the map (a ball seen, a point felt) lies on its
+            side of the approach, between hand_way_deg = (low, high) [deg] off it, with a surface gap
+            under hand_way_gap_m [m], and none on the left's: then the left (fetch seeds 6 and 37: the
+            right gripper came down on a ball 3.1 / 1.6 cm beside the target, 34-58 deg right of the
+            approach; seeds 4 and 12 grasped with 3.6 / 4.4 cm).
         grasp_clearance_m: the hand comes down onto an object with its centre this far [m] from
             where it ends held (against the fixed finger), toward the jaws' middle (never past it):
             the closing finger pushes it the rest of the way (fetch seed 46: lowered against the fixed
@@ -202,6 +210,7 @@ class SupervisorConfig:
     lift_m: float = 0.1
     carry_m: tuple[float, float, float] = (0.25, 0.22, 0.85)
     raise_ahead_m: float = 0.2
+    raise_box_margin_m: float = 0.1
     upright_hand: bool = False
     turn_piece_deg: float = 35.0
     felt_radius_m: float = 0.3
@@ -216,6 +225,8 @@ class SupervisorConfig:
     jaws_free_yaw: bool = True
     jaws_tilt_deg: float = 10.0
     felt_obstacle_radius_m: float = 0.03
+    hand_way_deg: tuple[float, float] = (15.0, 90.0)
+    hand_way_gap_m: float = 0.035
     grasp_clearance_m: float = 0.01
     recentre_fraction: float = 0.4
     search_viewpoints: int = 2

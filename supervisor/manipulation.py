@@ -17,10 +17,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from services.bus.schemas import walking as walk_msg
+from services.bus.schemas.reaching import CRITERION_HAND_OBSTACLE, REASON_HAND_OBSTACLE
+from services.bus.schemas.supervisor import REASON_NO_CLEAR_WAY, REASON_OUT_OF_REACH
 from services.errors import (
     CollisionError,
     HumanoidError,
     InfeasibleError,
+    InvalidRequestError,
     NotFoundError,
     NotGraspedError,
     RequestTimeoutError,
@@ -28,8 +31,8 @@ from services.errors import (
 from supervisor.parts import ActionParts
 from supervisor.planners import LastSteps, Plan
 from supervisor.report import ActionReport
-from supervisor.scene_map import box_estimate, is_obstacle, neighbours, sphere_radius
-from supervisor.script import Step, parse_point
+from supervisor.scene_map import BoxEstimate, box_estimate, is_obstacle, neighbours, ray_entry, sphere_radius
+from supervisor.script import EITHER_HAND, Step, parse_point
 
 
 def turns_clear_of(
@@ -89,6 +92,84 @@ def grasp_point(
     offset = np.array(held_offset_m, dtype=float)
     offset[1] = math.copysign(max(0.0, abs(offset[1]) - clearance_m), offset[1])
     return np.asarray(centre_m, dtype=float) - np.asarray(R_world_hand, dtype=float) @ offset
+
+
+def hand_in_the_way(
+    point: np.ndarray,
+    radius_m: float,
+    robot_xy: tuple[float, float],
+    beside: list[tuple[np.ndarray, float]],
+    way_deg: tuple[float, float],
+    gap_m: float,
+) -> dict[str, list[tuple[float, np.ndarray]]]:
+    """For each hand, the spheres ``beside`` (centre [m] world, radius [m]) in its way to an object of
+    ``radius_m`` centred at ``point`` [m] (world), as (surface gap [m], centre), smallest gap first: those
+    on that hand's side of the approach (the direction from ``robot_xy`` to ``point``; the right hand's
+    side is to the right), between ``way_deg`` = (low, high) [deg] off it, with a gap under ``gap_m``;
+    a hand with none is left out. The hand comes down onto the object from its own side, its gripper
+    turned with the arm, and its moving finger sweeps that side (fetch seed 6: the right gripper on the
+    purple ball 3.1 cm from the orange one, 34 deg right of the approach; seed 37: 1.6 cm, 58 deg)."""
+    bearing = math.atan2(point[1] - robot_xy[1], point[0] - robot_xy[0])
+    low, high = (math.radians(a) for a in way_deg)
+    way: dict[str, list[tuple[float, np.ndarray]]] = {}
+    for centre, radius in beside:
+        off = math.remainder(math.atan2(centre[1] - point[1], centre[0] - point[0]) - bearing, math.tau)
+        gap = float(np.linalg.norm(np.asarray(centre[:2]) - point[:2])) - radius - radius_m
+        if low <= abs(off) <= high and gap < gap_m:
+            way.setdefault("right" if off < 0 else "left", []).append((gap, np.asarray(centre, dtype=float)))
+    return {hand: sorted(spheres, key=lambda s: s[0]) for hand, spheres in way.items()}
+
+
+def choose_hand(
+    in_the_way: dict[str, list[tuple[float, np.ndarray]]], default: str = "right"
+) -> tuple[str, str]:
+    """The hand to reach with, given :func:`hand_in_the_way`, and why (empty: the ``default``):
+    ``default`` unless something is in its way and nothing in the other's (a real stack picks the arm
+    by feasibility)."""
+    other = "left" if default == "right" else "right"
+    if default in in_the_way and other not in in_the_way:
+        gap = in_the_way[default][0][0]
+        return (
+            other,
+            f"something {100 * gap:.1f} cm from it on the {default} hand's side, none on the {other}'s",
+        )
+    return default, ""
+
+
+def raise_parts(
+    here_m: np.ndarray, point_m: np.ndarray, box: BoxEstimate | None, margin_m: float
+) -> list[np.ndarray]:
+    """The hand's raise from ``here_m`` to ``point_m`` [m] (world) as one straight motion, or as two (up
+    to ``point_m``'s height where the hand is, then forward) when the straight line comes over the
+    footprint of ``box`` (the map's box of the object's support; None: none known) less than
+    ``margin_m`` [m] above its top: the wrist, near the hand, would sweep into its side or edge (layout
+    ball_far_side). Not when the line ends before the box: the hand's posture after the raise is
+    what the reach above starts from, and an arm raised another way came down onto the ball another
+    way (fetch seed 37's left hand: closed on nothing after the two motions, grasped after one)."""
+    if box is None:
+        return [point_m]
+    way = np.asarray(point_m[:2], dtype=float) - here_m[:2]
+    length = float(np.linalg.norm(way))
+    if length < 1e-6:
+        return [point_m]
+    entry = ray_entry(box, np.asarray(here_m[:2], dtype=float), way / length)
+    if entry >= length:
+        return [point_m]
+    z_over_edge = here_m[2] + (point_m[2] - here_m[2]) * entry / length
+    if z_over_edge >= box.top_z_m + margin_m:
+        return [point_m]
+    up = np.array(here_m, dtype=float)
+    up[2] = point_m[2]
+    return [up, point_m]
+
+
+def refused_for_spheres(details: dict[str, Any]) -> bool:
+    """Whether a ``reaching/reach`` refusal with ``hand_obstacles`` (its ``details``) is because of the
+    spheres: ``reason`` ``hand_obstacle`` (no motion keeps the arm clear of them) or the criterion
+    ``hand_obstacle`` (one came within its clearance, or a criterion failed while its rows held the
+    arm off: ``held_back``); not when another criterion failed as it would without them."""
+    reason, criterion = details.get("reason"), details.get("criterion")
+    return reason == REASON_HAND_OBSTACLE or criterion == CRITERION_HAND_OBSTACLE
 
 
 def yaw_of(R_world_hand: np.ndarray) -> float:
@@ -173,14 +254,18 @@ class ManipulationActions(ActionParts):
         """``Planners.reach`` of ``hand`` to ``point`` with its ``request`` fields (an orientation: the
         hand's turn is the supervisor's, which the grasp point is for), the whole arm, gripper
         included, kept clear of the spheres ``beside`` (reaching's ``hand_obstacles``: the balls seen
-        beside the object and the points felt near it; paper 000 eqs. 12-13); refused so (``infeasible``
-        for them or for a criterion the rows made fail), planned as without them (the stance and the
-        jaws' yaw were chosen clear of them already; the hand may then brush one)."""
+        beside the object and the points felt near it; paper 000 eqs. 12-13). Refused because of them
+        (:func:`refused_for_spheres`: ``infeasible`` for them, or for a criterion that failed while
+        their rows held the arm off), it is planned as without them (the stance and the jaws' yaw were
+        chosen clear of them already; the hand may then brush one); refused for any other reason, that
+        refusal is the answer (planning it again without them would reach the same one)."""
         if not beside:
             return self.planners.reach(hand, point, **request)
         try:
             return self.planners.reach(hand, point, hand_obstacles=beside, **request)
         except InfeasibleError as exc:
+            if not refused_for_spheres(exc.details):
+                raise
             self.progress(f"{what}: clear of what is beside it refused ({exc.message}); as without it")
         return self.planners.reach(hand, point, **request)
 
@@ -248,10 +333,15 @@ class ManipulationActions(ActionParts):
             return None
         return self._play(last, what, allowed)
 
-    def _raise_hand(self, hand: str, height_m: float, what: str, *, allowed: list[str]) -> None:
+    def _raise_hand(
+        self, hand: str, height_m: float, what: str, *, allowed: list[str], support: str | None = None
+    ) -> None:
         """Raise the hand in front of the body to ``height_m`` before moving it forward: the reaching
         planner moves the hand on a straight line, which from a hanging arm would sweep the front of the
-        object's support (a box, a table). Nothing to do if the hand is already that high."""
+        object's support (a box, a table). Nothing to do if the hand is already that high. When that
+        line comes over the ``support``'s box on the map less than ``raise_box_margin_m`` above its
+        top (a stance close to it: layout ball_far_side's 4 steps toward a ball 0.4 m deep swept the
+        wrist into the box's side), the hand goes straight up first, then forward (:func:`raise_parts`)."""
         q = self.body.q()
         robot = self.body.robot
         here = robot.grasp_position(q, hand)
@@ -262,7 +352,13 @@ class ManipulationActions(ActionParts):
         ahead = float(np.dot(here[:2] - (x, y), forward[:2]))
         point = here + forward * max(0.0, self.config.raise_ahead_m - ahead)
         point[2] = height_m
-        self._arm_motion(hand, point, what, allowed=allowed, motion="raise")
+        sighting = self.memory.sightings.get(support) if support else None
+        box = box_estimate(sighting) if sighting is not None and is_obstacle(sighting) else None
+        parts = raise_parts(here, point, box, self.config.raise_box_margin_m)
+        for i, part in enumerate(parts):
+            how = f"up first, clear of {support}" if i == 0 else "then forward"
+            label = what if len(parts) == 1 else f"{what} ({how})"
+            self._arm_motion(hand, part, label, allowed=allowed, motion="raise")
 
     def _grasp_point(
         self, hand: str, target: str, yaw_rad: float, R_world_hand: np.ndarray | None = None
@@ -297,6 +393,15 @@ class ManipulationActions(ActionParts):
         its orientation.
         """
         hand, target = step.args
+        way = self._in_the_way(target)
+        if hand == EITHER_HAND:  # the script names none: the one whose way is clear (the right by default)
+            hand, why = choose_hand(way)
+            if why:
+                self.progress(f"reach {target}: the {hand} hand ({why})")
+        # Something in both hands' ways (balls a few cm on either side): only a hand whose jaws straddle
+        # the object, fingers down, its yaw clear of them, can take it; the hand as reaching turns it
+        # would come down on one of them (layout balls_tight: three touches, then a dead end).
+        tight = [centre for spheres in way.values() for _gap, centre in spheres] if len(way) == 2 else []
         self.last_reach = (hand, target)  # the reach under way (a remedy backs this hand off its target)
         if hand not in self.body.held():
             self.body.gripper(hand, "open")
@@ -307,7 +412,7 @@ class ManipulationActions(ActionParts):
         # of it (it can be beside the wrist: fetch seed 37). That hand is a task of the footstep IK
         # (paper 000 §4: the tasks decide where the feet go), the hand on the object, so that the
         # stance suits the posture: approach direction and wrist yaw chosen from the neighbours.
-        near = self._felt_near(point)
+        near = self._felt_near(point) + tight
         turns = self.config.jaws_turns_deg
         if near and turns and parse_point(target, 3, "reach target") is None:
             self._where_it_was_aimed(target)
@@ -341,7 +446,10 @@ class ManipulationActions(ActionParts):
         if decided is None:
             decided = self._last_steps(hand, hand_at, point, f"step up to {target}", hand_obstacles=keep_out)
         support = self._support(target)
-        if decided is None and support and self._walk_nearer(support[0], point, f"step up to {target}"):
+        # Nothing found from here: nearer first (to the object itself when it rests on nothing known: a
+        # ball on the floor; what refuses it then is its height or reach from near, not the step cap).
+        toward = support[0] if support else None if parse_point(target, 3, "reach target") else target
+        if decided is None and toward and self._walk_nearer(toward, point, f"step up to {target}"):
             decided = self._last_steps(hand, hand_at, point, f"step up to {target}", hand_obstacles=keep_out)
             walked = True
         else:
@@ -356,7 +464,13 @@ class ManipulationActions(ActionParts):
             yaw = self._heading() if jaws is None else jaws
             point = self._grasp_point(hand, target, yaw)
             above = point + np.array([0.0, 0.0, self.config.approach_m])
-        self._raise_hand(hand, float(above[2]), f"raise the {hand} hand", allowed=[])
+        self._raise_hand(
+            hand,
+            float(above[2]),
+            f"raise the {hand} hand",
+            allowed=[],
+            support=support[0] if support else None,
+        )
         # The hand above the object as footsteps/plan's final posture has it (paper 000 §7: the footstep
         # planner decided the stance and the posture together; reaching executes that hand pose), or,
         # with ``upright_hand``, fingers down: the jaws then straddle the object and no finger reaches
@@ -373,17 +487,24 @@ class ManipulationActions(ActionParts):
         )
         if steps is None and jaws is not None:
             steps = self._fingers_down(hand, above, f"reach above {target}", jaws, beside, lag_m=lag)
+        if steps is None and tight:
+            raise self._no_clear_way(hand, target, way, yaw)
         if steps is None:
             # From the stance planned for the jaws, no reaching steps (fetch seed 6: 8 steps into the box)
-            steps = self._move_hand(
-                hand,
-                above,
-                f"reach above {target}",
-                allowed=[],
-                stepping=jaws_quat is None,
-                yaw_rad=yaw,
-                upright=True,
-            )
+            try:
+                steps = self._move_hand(
+                    hand,
+                    above,
+                    f"reach above {target}",
+                    allowed=[],
+                    stepping=jaws_quat is None,
+                    yaw_rad=yaw,
+                    upright=True,
+                )
+            except InfeasibleError as exc:
+                if support or parse_point(target, 3, "reach target") is not None:
+                    raise
+                raise self._out_of_reach(hand, target, above, exc) from None
         upright = None
         if jaws is not None or self.config.upright_hand:
             upright = Rotation.from_euler("z", self._heading() if jaws is None else jaws).as_quat().tolist()
@@ -415,6 +536,52 @@ class ManipulationActions(ActionParts):
             step.args,
             message=f"{hand} hand at {target}" + (f" after {steps} steps" if steps else ""),
             details={"target": point.tolist(), "stepped": steps > 0, "steps": steps},
+        )
+
+    def _out_of_reach(
+        self, hand: str, target: str, above: np.ndarray, refused: InfeasibleError
+    ) -> InfeasibleError:
+        """The ``infeasible`` answer (final: no look again raises it) when reaching refused the hand
+        ``above`` [m] (world) an object ``target`` that rests on nothing known (a ball on the floor),
+        from as near as the robot came: its height and distance as the residuals, with reaching's
+        criterion (a standing HRP-2 does not squat: layout ball_on_floor)."""
+        x, y, _yaw = self.body.base_xy_yaw()
+        centre = self.memory.get(target).position_m
+        far = float(np.hypot(centre[0] - x, centre[1] - y))
+        return InfeasibleError(
+            f"{target} rests on nothing known, {centre[2]:.2f} m above the floor and {far:.2f} m from "
+            f"the feet: the {hand} hand cannot reach {above[2]:.2f} m high above it ({refused.message})",
+            {
+                "reason": REASON_OUT_OF_REACH,
+                "target": target,
+                "hand": hand,
+                "height_m": float(centre[2]),
+                "hand_height_m": float(above[2]),
+                "distance_m": far,
+                "refused": refused.details,
+            },
+        )
+
+    def _no_clear_way(
+        self, hand: str, target: str, way: dict[str, list[tuple[float, np.ndarray]]], yaw_rad: float
+    ) -> InfeasibleError:
+        """The ``infeasible`` answer when something is in both hands' ``way`` to ``target`` and the
+        jaws' approach (fingers down, its yaw ``yaw_rad`` [rad] clear of them) was refused: given before
+        the hand comes down (not after touching them), with the clearances as residuals."""
+        gaps = {side: [round(gap, 4) for gap, _centre in spheres] for side, spheres in way.items()}
+        lowest = min(gap for spheres in gaps.values() for gap in spheres)
+        return InfeasibleError(
+            f"no clear way for a hand to {target}: something beside it on both sides (the nearest "
+            f"{100 * lowest:.1f} cm away, under {100 * self.config.hand_way_gap_m:.1f} cm) and the "
+            f"{hand} hand's jaws, fingers down at {math.degrees(yaw_rad):.0f} deg, refused by the planners",
+            {
+                "reason": REASON_NO_CLEAR_WAY,
+                "target": target,
+                "hand": hand,
+                "gaps_m": gaps,
+                "needed_gap_m": self.config.hand_way_gap_m,
+                "jaws_yaw_rad": yaw_rad,
+            },
         )
 
     def _jaws_stance(
@@ -452,11 +619,13 @@ class ManipulationActions(ActionParts):
             # The yaw the footstep IK chooses (reach8's free_yaw: only the fingers-down tilt is a task, the
             # gripper's rows against the spheres turn the jaws clear of them), planned with the hand on
             # the object: 12 cm above it the fingers are far from the neighbours and the rows do not act.
-            point = self._grasp_point(hand, target, jaws)
+            # The grasp frame's origin (the jaws' middle) on the object's centre: the same point whatever
+            # yaw the IK chooses (the grasp point of one yaw is up to twice the held offset's side off for
+            # another: review s11 #11); the lowering then aims the held offset for the yaw executed.
             decided = self._last_steps(
                 hand,
-                point,
-                point,
+                centre,
+                centre,
                 f"step up to {target}, the jaws' yaw free (beside it at {felt} deg)",
                 hand_obstacles=keep_out,
                 orientation=Rotation.from_euler("z", jaws).as_quat().tolist(),
@@ -560,18 +729,21 @@ class ManipulationActions(ActionParts):
         if parse_point(target, 3, "reach target") is not None:
             return []
         sighting = self.memory.get(target)
-        spheres = [(np.asarray(sighting.position_m, dtype=float), sphere_radius(sighting))]
-        # the balls seen beside it (perception reports every object a look sees): known before a touch
-        spheres += neighbours(self.memory, sighting.position_m, self.config.felt_radius_m, {target})
-        r_felt = self.config.felt_obstacle_radius_m
-        return spheres + [(f, r_felt) for f in self._felt_near(sighting.position_m)]
+        itself = (np.asarray(sighting.position_m, dtype=float), sphere_radius(sighting))
+        return [itself, *self._beside(target)]
 
     def _beside(self, target: str) -> list[tuple[np.ndarray, float]]:
         """The spheres (centre [m] world, radius [m]) beside ``target`` a hand reaching it keeps clear
         of: the balls seen within ``felt_radius_m`` of it (``scene_map.neighbours``: perception reports
         every object a look sees, so they are known before a touch) and the points felt near it
         (spheres of ``felt_obstacle_radius_m``: a ball perception has no model of); none for a point."""
-        return self._grasp_obstacles(target)[1:]
+        if parse_point(target, 3, "reach target") is not None:
+            return []
+        sighting = self.memory.get(target)
+        # the balls seen beside it (perception reports every object a look sees): known before a touch
+        spheres = neighbours(self.memory, sighting.position_m, self.config.felt_radius_m, {target})
+        r_felt = self.config.felt_obstacle_radius_m
+        return spheres + [(f, r_felt) for f in self._felt_near(sighting.position_m)]
 
     def _felt_near(self, point: np.ndarray) -> list[np.ndarray]:
         """Memory's felt points within ``felt_radius_m`` of ``point`` (horizontally) [m]."""
@@ -837,9 +1009,30 @@ class ManipulationActions(ActionParts):
         self._arm_motion(hand, up, f"{what}: lift", allowed=allowed, motion=lift)
         self._arm_motion(hand, self._carry_point(hand), f"{what}: carry", allowed=allowed, motion=carry)
 
+    def _in_the_way(self, target: str) -> dict[str, list[tuple[float, np.ndarray]]]:
+        """What beside ``target`` on the map (balls seen, points felt: :meth:`_beside`) is in each hand's
+        way from the robot's stance now (:func:`hand_in_the_way`); empty for a point."""
+        if parse_point(target, 3, "reach target") is not None:
+            return {}
+        sighting = self.memory.get(target)
+        x, y, _yaw = self.body.base_xy_yaw()
+        c = self.config
+        return hand_in_the_way(
+            np.asarray(sighting.position_m, dtype=float),
+            sphere_radius(sighting),
+            (x, y),
+            self._beside(target),
+            c.hand_way_deg,
+            c.hand_way_gap_m,
+        )
+
     def do_grasp(self, step: Step) -> ActionReport:
         """Close the hand; ``not_grasped`` if nothing is held. Lifts what it holds and carries it."""
         hand = step.args[0]
+        if hand == EITHER_HAND:
+            if self.last_reach is None:
+                raise InvalidRequestError("grasp: no hand has reached for anything yet; name the hand")
+            hand = self.last_reach[0]  # the hand that reached
         reply = self.body.gripper(hand, "close")
         if reply.outcome != "grasped" or not reply.held:
             self.body.gripper(hand, "open")  # ready for another reach

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from services.bus.schemas.supervisor import REASON_WORLD_LOST
+from services.bus.schemas.supervisor import REASON_OUT_OF_REACH, REASON_WORLD_LOST
 from supervisor.report import REASONS
 
 REMEDIES = ("none", "relocalize", "replan", "wait_service")
@@ -33,10 +33,11 @@ class RetryRule:
 @dataclass(frozen=True)
 class RetryPolicy:
     """A rule per failure reason; reasons without a rule are not retried, nor are the failures whose
-    sub-reason (``details["reason"]``) is ``final`` (no retry can help: the world they acted in is gone)."""
+    sub-reason (``details["reason"]``) is ``final`` (no retry can help: the world they acted in is gone;
+    the object rests below the reach of a standing robot, seen from near)."""
 
     rules: tuple[tuple[str, RetryRule], ...]
-    final: tuple[str, ...] = (REASON_WORLD_LOST,)
+    final: tuple[str, ...] = (REASON_WORLD_LOST, REASON_OUT_OF_REACH)
 
     def rule(self, reason: str, sub_reason: str = "") -> RetryRule:
         if sub_reason and sub_reason in self.final:

@@ -12,9 +12,11 @@
     put ball on=yellow_table
 
 A line is ``ACTION ARG... [KEY=VALUE...] [as NAME]``. Arguments are words (object names use
-underscores: ``orange_ball``) or numbers. ``$NAME`` or a bare ``NAME`` bound by an earlier ``as``
-refers to what that action returned. Parsing checks every line against the action signatures
-before anything runs, and errors name the line and suggest the closest action.
+underscores: ``orange_ball``) or numbers. ``reach`` and ``grasp`` may name no hand (``reach
+orange_ball``, ``grasp as ball``; or ``either``): the supervisor then chooses it. ``$NAME`` or a
+bare ``NAME`` bound by an earlier ``as`` refers to what that action returned. Parsing checks every
+line against the action signatures before anything runs, and errors name the line and suggest the
+closest action.
 """
 
 from __future__ import annotations
@@ -68,6 +70,9 @@ ACTIONS: dict[str, Signature] = {
 }
 
 HANDS = ("left", "right")
+#: The hand of a ``reach`` or ``grasp`` whose line names none: the supervisor chooses it (a reach: the hand
+#: whose approach is clear of the object's neighbours; a grasp: the hand that reached).
+EITHER_HAND = "either"
 #: Arguments (positional or ``key=value``) that are numbers: checked when the script is read, not when
 #: the action runs (after connecting, after the actions before it).
 NUMBERS = ("angle_deg", "forward_m", "left_m", "yaw_deg", "goal_y", "budget_s", "distance")
@@ -122,14 +127,19 @@ def parse_line(text: str, line: int = 1) -> Step | None:
         else:
             args.append(word.removeprefix("$"))
     required = len(signature.positional) - signature.optional_positional
+    if "hand" in signature.positional and len(args) == required - 1:
+        args.insert(signature.positional.index("hand"), EITHER_HAND)  # no hand named: the supervisor's choice
     if not required <= len(args) <= len(signature.positional):
         raise InvalidRequestError(
             f"line {line}: '{action}' takes {signature.usage(action)}, got {len(args)} argument(s)"
         )
     if "hand" in signature.positional:
         hand = args[signature.positional.index("hand")]
-        if hand not in HANDS:
-            raise InvalidRequestError(f"line {line}: hand '{hand}' is not one of {', '.join(HANDS)}")
+        if hand not in (*HANDS, EITHER_HAND):
+            raise InvalidRequestError(
+                f"line {line}: hand '{hand}' is not one of {', '.join(HANDS)} "
+                f"(or {EITHER_HAND}, or none named)"
+            )
     for name, value in [*zip(signature.positional, args, strict=False), *kwargs.items()]:
         if name in NUMBERS and not _is_finite_number(value):
             raise InvalidRequestError(f"line {line}: '{action}' {name} '{value}' is not a number")

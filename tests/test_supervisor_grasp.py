@@ -14,8 +14,15 @@ import numpy as np
 import pytest
 
 from supervisor.config import SupervisorConfig
-from supervisor.manipulation import ManipulationActions
+from supervisor.manipulation import (
+    ManipulationActions,
+    choose_hand,
+    hand_in_the_way,
+    raise_parts,
+    refused_for_spheres,
+)
 from supervisor.memory import Memory, Sighting
+from supervisor.scene_map import BoxEstimate
 
 AIMED = np.array([3.33, 1.13, 0.75])  # where the last lowering aimed (seen from near) [m]
 
@@ -158,3 +165,70 @@ def test_a_free_yaw_posture_is_kept_with_the_fingers_down_only(tilt_deg, refused
     assert (reason is not None) == refused
     if refused:
         assert "25 deg off down" in reason
+
+
+# ------------------------------------------------------------------------------------------ the hand's way
+ORANGE = np.array([3.332, 1.133, 0.75])  # fetch seed 6's orange ball [m]; the robot at (2.44, 1.12)
+STANCE = (2.44, 1.12)
+R_BALL = 0.05
+
+
+def _way(beside):
+    c = SupervisorConfig()
+    return hand_in_the_way(ORANGE, R_BALL, STANCE, beside, c.hand_way_deg, c.hand_way_gap_m)
+
+
+def test_a_ball_close_on_the_right_hands_side_takes_the_left_hand():
+    purple = np.array([3.441, 1.061, 0.75])  # seed 6: 3.1 cm away, 34 deg right of the approach
+    blue = np.array([3.431, 1.328, 0.75])  # 11.9 cm away on the left: not in the way
+    way = _way([(purple, R_BALL), (blue, R_BALL)])
+    assert list(way) == ["right"] and way["right"][0][0] == pytest.approx(0.031, abs=1e-3)
+    hand, why = choose_hand(way)
+    assert hand == "left" and "right hand's side" in why
+
+
+@pytest.mark.parametrize(
+    ("offset", "hand"),
+    [
+        ((0.15, -0.08), "right"),  # 7 cm away: wide enough for the default hand
+        ((0.145, 0.0), "right"),  # straight ahead (0 deg): on neither hand's side
+        ((-0.13, -0.02), "right"),  # behind it, toward the robot (171 deg): neither side's way
+    ],
+)
+def test_otherwise_the_default_hand(offset, hand):
+    assert choose_hand(_way([(ORANGE + np.array([*offset, 0.0]), R_BALL)]))[0] == hand
+
+
+def test_something_on_both_sides_keeps_the_default_hand_and_both_are_reported():
+    right = ORANGE + np.array([0.04, -0.115, 0.0])  # layout balls_tight: 2.2 cm gaps, 71 deg either side
+    left = ORANGE + np.array([0.04, 0.115, 0.0])
+    way = _way([(right, R_BALL), (left, R_BALL)])
+    assert sorted(way) == ["left", "right"]
+    assert choose_hand(way) == ("right", "")
+
+
+def test_only_refusals_because_of_the_spheres_are_planned_again_without_them():
+    assert refused_for_spheres({"reason": "hand_obstacle", "criterion": "ee_error"})
+    assert refused_for_spheres({"reason": "stepping_not_allowed", "criterion": "hand_obstacle"})
+    assert not refused_for_spheres({"reason": "stepping_not_allowed", "criterion": "ee_error"})
+
+
+BOX = BoxEstimate("green_box", (3.4, 1.19, 0.35), (0.53, 0.67, 0.7), 0.0)  # near face at x = 3.135
+
+
+@pytest.mark.parametrize(
+    ("hand_x", "hand_z", "parts"),
+    [
+        (3.0, 0.55, 2),  # over the box's edge at 0.77 m, 7 cm above its top (layout ball_far_side): up first
+        (2.9, 0.55, 1),  # the line ends 3.5 cm before the box: one straight motion (seed 37)
+        (3.0, 0.82, 1),  # over the edge at 0.85 m, 15 cm above its top: one straight motion
+    ],
+)
+def test_a_raise_over_the_support_goes_up_first(hand_x, hand_z, parts):
+    here = np.array([hand_x, 1.0, hand_z])
+    point = np.array([hand_x + 0.2, 1.0, 0.87])
+    got = raise_parts(here, point, BOX, SupervisorConfig().raise_box_margin_m)
+    assert len(got) == parts and np.allclose(got[-1], point)
+    if parts == 2:
+        assert np.allclose(got[0], [hand_x, 1.0, 0.87])  # straight up where the hand is
+    assert len(raise_parts(here, point, None, 0.1)) == 1  # no support known: as before

@@ -11,7 +11,7 @@ from supervisor.console import interpret
 from supervisor.report import ActionReport
 from supervisor.retry import RetryPolicy, RetryRule
 from supervisor.runner import Runner
-from supervisor.script import parse_script
+from supervisor.script import EITHER_HAND, parse_script
 
 KNOWN = ("orange_ball", "green_box", "yellow_table")
 
@@ -199,3 +199,21 @@ def test_supervisor_config_arm_timing_per_motion_and_its_bounds():
         SupervisorConfig(fast_arm_min_s=0.1)
     with pytest.raises(InvalidRequestError, match="fast_arm_hold_s"):
         SupervisorConfig(fast_arm_hold_s=-0.1)
+
+
+def test_a_reach_or_grasp_naming_no_hand_leaves_it_to_the_supervisor() -> None:
+    reach, grasp, named = parse_script("reach orange_ball\ngrasp as ball\nreach left 1,2,0.8")
+    assert reach.args == (EITHER_HAND, "orange_ball")
+    assert grasp.args == (EITHER_HAND,) and grasp.bind == "ball"
+    assert named.args == ("left", "1,2,0.8")
+    with pytest.raises(InvalidRequestError, match="takes reach hand target"):
+        parse_script("reach")
+
+
+def test_an_object_out_of_reach_from_near_is_not_looked_for_again() -> None:
+    from services.bus.schemas.supervisor import REASON_NO_CLEAR_WAY, REASON_OUT_OF_REACH
+    from supervisor.retry import DEFAULT_POLICY
+
+    assert DEFAULT_POLICY.rule("infeasible", REASON_OUT_OF_REACH).retries == 0
+    assert DEFAULT_POLICY.rule("infeasible", REASON_NO_CLEAR_WAY).retries == 1  # a fresh look may show room
+    assert DEFAULT_POLICY.rule("infeasible").retries == 1

@@ -14,6 +14,14 @@ from services.bus.spec import TopicSpec
 #: ``details["reason"]`` of the ``unavailable`` failure the supervisor reports when the sim process died and
 #: was restarted: the world it held (scene, objects, the robot's place) is gone. Final: never retried.
 REASON_WORLD_LOST = "world_lost"
+#: ``details["reason"]`` of the ``infeasible`` failure of a reach when something on the map lies in both
+#: hands' way to the object and the jaws' approach clear of it was refused (``details.gaps_m``: the
+#: clearances per hand's side [m], ``needed_gap_m``). Final: given before the hand comes down.
+REASON_NO_CLEAR_WAY = "no_clear_way"
+#: ``details["reason"]`` of the ``infeasible`` failure of a reach refused from near an object that rests on
+#: nothing known (a ball on the floor): ``height_m``, ``hand_height_m``, ``distance_m`` and reaching's
+#: refusal (``refused``). Final: looking again does not raise the object.
+REASON_OUT_OF_REACH = "out_of_reach"
 
 #: Kinds of :class:`SupervisorEvent`.
 EVENT_KINDS = (
