@@ -9,6 +9,7 @@ import argparse
 import contextlib
 import difflib
 import json
+import logging
 import os
 import signal
 import sys
@@ -587,7 +588,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 
     from services.bus.config import load_section
     from services.bus.recorder import RecorderConfig, RecorderService
-    from services.bus.service import configure_logging, serve
+    from services.bus.service import configure_logging, exit_if_still_busy, serve
 
     configure_logging("INFO")
     config = load_section(args.config, "record", RecorderConfig)
@@ -603,7 +604,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     bus = _bus(args)
     stop = stop_event(args.duration)
     serve(RecorderService, config, bus, stop)
-    print(f"log written to {config.output}")
+    print(f"log written to {config.output}", flush=True)
+    exit_if_still_busy(RecorderService.name, logging.getLogger("humanoid.record"))
     return 0
 
 

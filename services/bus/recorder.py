@@ -42,9 +42,9 @@ STATE_TOPICS = ("/sim/joint_state", "/sim/base_pose", "/sim/clock")
 #: The sim's 200 Hz sensor streams written rounded to ``state_decimals`` (their float64 low bits are
 #: physics noise that zstd cannot compress: 2/3 of a fetch's log otherwise).
 ROUNDED_TOPICS = ("sim/joint_state", "sim/base_pose")
-#: How long the recorder waits for ``sim/ground_truth`` [s]; how often it looks for the sim before it
-#: answered once, and for the stop [s].
-WORLD_TIMEOUT_S = 2.0
+#: How long the recorder waits for ``sim/ground_truth`` [s] (a reply coming later is still recorded: the
+#: sim publishes its copy whoever waits); how often it looks for the sim before it answered once [s].
+WORLD_TIMEOUT_S = 1.0
 WORLD_RETRY_S = 0.5
 
 
@@ -174,10 +174,12 @@ class RecorderService(Service):
         while not world.ask(self.session, robot, GROUND_TRUTH, timeout_s=WORLD_TIMEOUT_S):
             if self._stopping.wait(WORLD_RETRY_S):
                 return
-        while not self._stopping.is_set():
-            if self._moved.wait(WORLD_RETRY_S):
-                self._moved.clear()  # before asking: a motion ending meanwhile asks once more
-                world.ask(self.session, robot, GROUND_TRUTH, timeout_s=WORLD_TIMEOUT_S)
+        while True:
+            self._moved.wait()  # set by the writer after a motion, and by stop()
+            if self._stopping.is_set():
+                return
+            self._moved.clear()  # before asking: a motion ending meanwhile asks once more
+            world.ask(self.session, robot, GROUND_TRUTH, timeout_s=WORLD_TIMEOUT_S)
 
     def _write_loop(self) -> None:
         channel = self._subscriber.handler
@@ -217,12 +219,15 @@ class RecorderService(Service):
 
     def stop(self) -> None:
         self._stopping.set()
+        self._moved.set()  # wakes the world's thread, which then returns
         with contextlib.suppress(zenoh.ZError):
             self._subscriber.undeclare()
         self._writer_thread.join(timeout=0.5)
         with self._lock:
             self.writer.close()
         self.log.info("wrote %d messages to %s", self.recorded, self.config.output)
+        if self._world_thread is not None:  # the log is closed: a request under way ends in its timeout
+            self._world_thread.join(timeout=WORLD_TIMEOUT_S + 0.2)
 
 
 def main(argv: list[str] | None = None, **kwargs: Any) -> int:

@@ -558,7 +558,22 @@ def run_service(
     except HumanoidError as exc:
         log.error("%s", exc.message)
         return 2
+    exit_if_still_busy(service_type.name, log)
     return 0
+
+
+def exit_if_still_busy(name: str, log: logging.Logger) -> None:
+    """Exit at once (status 0) when a thread of service ``name`` (``name:...``) is still running after
+    its orderly stop: a handler past the stop's deadline, a zenoh call still waiting. The interpreter's
+    finalization would end such a thread inside zenoh's native code, and glibc aborts the process then
+    ("FATAL: exception not rethrown", exit -6). The same hard exit as :func:`_exit_after`'s."""
+    busy = [t.name for t in threading.enumerate() if t.name.startswith(f"{name}:") and t.is_alive()]
+    if busy:
+        log.info("still busy after the stop (%s): exiting now", ", ".join(busy))
+        logging.shutdown()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
 
 
 def _exit_after(delay_s: float, log: logging.Logger) -> None:
