@@ -208,6 +208,12 @@ def test_a_reach_or_grasp_naming_no_hand_leaves_it_to_the_supervisor() -> None:
     assert named.args == ("left", "1,2,0.8")
     with pytest.raises(InvalidRequestError, match="takes reach hand target"):
         parse_script("reach")
+    # A hand with its target forgotten is an error, not a search for an object called "right".
+    with pytest.raises(InvalidRequestError, match="takes reach hand target, got 1"):
+        parse_script("reach right")
+    # Only reach and grasp choose: "open" must name the hand it opens, refused before anything runs.
+    with pytest.raises(InvalidRequestError, match="takes open hand, got 0"):
+        parse_script("open")
 
 
 def test_an_object_out_of_reach_from_near_is_not_looked_for_again() -> None:
