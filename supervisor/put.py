@@ -339,15 +339,20 @@ class PutActions(ActionParts):
     def _clear_of_balls(
         self, xy: np.ndarray, box: BoxEstimate, place: str, robot_xy: np.ndarray
     ) -> np.ndarray:
-        """``xy`` [m], or, when a ball seen on the place (not held) lies within ``put_clear_m`` of it or
-        of the forearm's way over the place (:func:`clear_of`), the nearest point of the place's top
+        """``xy`` [m], or, when a ball seen on the place (not held: inside the place's map rectangle, its
+        bottom within ``put_on_top_m`` of the place's top) lies within ``put_clear_m`` of it or of the
+        forearm's way over the place (:func:`clear_of`), the nearest point of the place's top
         (``put_edge_margin_m`` inside its map rectangle, on a 2 cm grid) clear of them all; ``xy`` when
         there is none."""
         c = self.config
-        balls = [centre[:2] for centre, _radius in neighbours(self.memory, xy, 1.5, exclude={place})]
+        rect = box.footprint
+        balls = [
+            centre[:2]
+            for centre, radius in neighbours(self.memory, xy, float(np.hypot(*rect.size_m)), exclude={place})
+            if rect.distance(centre[:2]) == 0.0 and abs(centre[2] - radius - box.top_z_m) <= c.put_on_top_m
+        ]
         if not balls or clear_of(xy, robot_xy, balls, c.put_clear_m, c.put_forearm_m):
             return xy
-        rect = box.footprint
         half = np.asarray(rect.size_m) / 2.0 - c.put_edge_margin_m
         if (half <= 0.0).any():
             return xy
