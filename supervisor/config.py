@@ -78,8 +78,7 @@ class SupervisorConfig:
             place's near face, moved when a ball seen on the place lies nearer than put_clear_m to it
             or to the forearm's way over the place (put_forearm_m from the point toward the robot):
             to the nearest point of the place's top (put_edge_margin_m inside its rectangle) clear of
-            them (layout table_to_box: the forearm lowered onto a ball beside the point); a ball is on
-            the place when inside its map rectangle with its bottom within put_on_top_m of its top;
+            them (layout table_to_box: the forearm lowered onto a ball beside the point);
             put_retry_shift_m: after a put that touched nothing, the next release
             point is this far at most from the first, toward the middle of the place's silhouette;
             put_edge_deg, put_edge_shift_m, put_edge_tries: a lowered object whose every contact with
@@ -202,7 +201,6 @@ class SupervisorConfig:
     put_clear_m: float = 0.15
     put_forearm_m: float = 0.2
     put_edge_margin_m: float = 0.1
-    put_on_top_m: float = 0.1
     put_edge_deg: float = 45.0
     put_edge_shift_m: float = 0.12
     put_edge_tries: int = 2
