@@ -561,7 +561,9 @@ class WalkingService(Service):
         self.log.info(
             "%s goal %s: %d steps, %.2f s of walk planned in %.2f s",
             request.kind,
-            {"pose": request.pose, "turn": f"{request.angle_rad:.3f} rad"}.get(request.kind, "the stance"),
+            {"pose": request.pose, "turn": f"{request.angle_rad:.3f} rad", "settle": "from q_start"}.get(
+                request.kind, "the stance"
+            ),
             len(reply.steps),
             reply.figures.duration_s,
             time.perf_counter() - started,
