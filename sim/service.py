@@ -22,7 +22,6 @@ import contextlib
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,11 +31,11 @@ import yaml
 from services import budget
 from services.bus.schemas import sim as msg
 from services.bus.service import Service, config_with, handles, run_service
-from services.errors import HumanoidError, InvalidRequestError, NotFoundError, RequestTimeoutError
+from services.errors import HumanoidError, InvalidRequestError, RequestTimeoutError
 from services.model.options import add_model_argument, with_model
 from sim.config import SimConfig
 from sim.robot_info import kinematics_reply, robot_info_reply
-from sim.scene import SCENES_DIR, SceneSpec, load_scene, parse_scene
+from sim.scene import SceneSpec, find_scene, load_scene, parse_scene
 from sim.world import World
 
 _RESYNC_BEHIND_S = 0.1  # realtime pacing gives up catching up when this far behind the wall clock
@@ -345,13 +344,7 @@ class SimService(Service):
     def _named_scene(self, name: str) -> SceneSpec:
         """The scene ``name`` from the scene folders (the request's schema allows names only, never a
         path); a broken file is logged here and reported without its content."""
-        folders = _scene_folders(self.config)
-        path = next((f / f"{name}.yaml" for f in folders if (f / f"{name}.yaml").is_file()), None)
-        if path is None:
-            raise NotFoundError(
-                f"unknown scene {name!r}; available scenes: {', '.join(_scene_names(folders))}",
-                {"field": "scene"},
-            )
+        path = find_scene(name, self.config.scene_dirs)
         if path.stat().st_size > MAX_SCENE_BYTES:
             raise InvalidRequestError(f"scene {name!r} is larger than {MAX_SCENE_BYTES} bytes")
         try:
@@ -409,22 +402,11 @@ class SimService(Service):
         return msg.SnapshotReply(sim_time_s=t, png=np.frombuffer(png, dtype=np.uint8))
 
 
-def _scene_folders(config: SimConfig) -> list[Path]:
-    return [SCENES_DIR, *(Path(d) for d in config.scene_dirs)]
-
-
-def _scene_names(folders: list[Path]) -> list[str]:
-    return sorted({p.stem for f in folders if f.is_dir() for p in f.glob("*.yaml")})
-
-
 def _startup_scene(config: SimConfig) -> SceneSpec:
     """The start-up scene: a YAML path, or a name looked up in the scene folders (shipped first)."""
     if config.scene.endswith((".yaml", ".yml")):
         return load_scene(config.scene)
-    for folder in _scene_folders(config):
-        if (folder / f"{config.scene}.yaml").is_file():
-            return load_scene(folder / f"{config.scene}.yaml")
-    return load_scene(config.scene)  # NotFoundError listing the shipped scenes
+    return load_scene(find_scene(config.scene, config.scene_dirs))
 
 
 if __name__ == "__main__":

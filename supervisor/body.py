@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from services.bus.schemas import sim as sim_msg
+from services.bus.schemas.common import START_SOLE_MAX_HEIGHT_M, START_SOLE_MAX_TILT_RAD
 from services.errors import CollisionError, FellError, InternalError, StoppedError, WorldOutcomeError
 from supervisor.calls import ServiceCaller
 from supervisor.robot import Robot
@@ -38,9 +39,9 @@ FLAT_SOLE_M = 0.004
 #: The back-out's last this much of path [s] is played slowing down to a stop (in twice the time).
 BACK_OUT_EASE_S = 0.4
 #: The planners start only from soles within 5 mm of the ground and 0.02 rad of horizontal
-#: (footsteps, reaching, navigation: their ``q_start`` checks).
-PLANNERS_FLAT_M = 0.005
-PLANNERS_FLAT_RAD = 0.02
+#: (footsteps, reaching, navigation: their ``q_start`` checks; one pair in the schemas).
+PLANNERS_FLAT_M = START_SOLE_MAX_HEIGHT_M
+PLANNERS_FLAT_RAD = START_SOLE_MAX_TILT_RAD
 
 Progress = Callable[[str], None]
 

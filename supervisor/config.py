@@ -153,6 +153,9 @@ class SupervisorConfig:
             under hand_way_gap_m [m], and none on the left's: then the left (fetch seeds 6 and 37: the
             right gripper came down on a ball 3.1 / 1.6 cm beside the target, 34-58 deg right of the
             approach; seeds 4 and 12 grasped with 3.6 / 4.4 cm).
+        floor_margin_m: an object whose bottom as seen (centre less radius) is within this [m] of the
+            floor rests on it: a reach refused from near it is final (``out_of_reach``); higher, on
+            something not mapped (a table not seen yet), the refusal is retried after a fresh look.
         grasp_clearance_m: the hand comes down onto an object with its centre this far [m] from
             where it ends held (against the fixed finger), toward the jaws' middle (never past it):
             the closing finger pushes it the rest of the way (fetch seed 46: lowered against the fixed
@@ -227,6 +230,7 @@ class SupervisorConfig:
     felt_obstacle_radius_m: float = 0.03
     hand_way_deg: tuple[float, float] = (15.0, 90.0)
     hand_way_gap_m: float = 0.035
+    floor_margin_m: float = 0.03
     grasp_clearance_m: float = 0.01
     recentre_fraction: float = 0.4
     search_viewpoints: int = 2

@@ -502,8 +502,9 @@ class ManipulationActions(ActionParts):
                     upright=True,
                 )
             except InfeasibleError as exc:
-                if support or parse_point(target, 3, "reach target") is not None:
-                    raise
+                point_target = parse_point(target, 3, "reach target") is not None
+                if support or point_target or not self._on_floor(target):
+                    raise  # a support not mapped (yet): the retry's fresh look may map it
                 raise self._out_of_reach(hand, target, above, exc) from None
         upright = None
         if jaws is not None or self.config.upright_hand:
@@ -963,6 +964,15 @@ class ManipulationActions(ActionParts):
         self.progress(f"{what}: {far:.2f} m away: walking nearer to {name} ({plan.describe()})")
         self.body.execute(plan.q, what=f"walk nearer to {name}", progress=self.progress)
         return True
+
+    def _on_floor(self, name: str) -> bool:
+        """Whether the object ``name`` as seen rests on the floor: its bottom (its centre less its radius
+        as seen) within ``floor_margin_m`` of z = 0. Not when it floats higher on something the map does
+        not hold (a table not seen yet, a footprint refused): that refusal is not final."""
+        sighting = self.memory.sightings.get(name)
+        if sighting is None:
+            return False
+        return float(sighting.position_m[2]) - sphere_radius(sighting) <= self.config.floor_margin_m
 
     def _support(self, name: str) -> list[str]:
         """The object ``name`` rests on, among those seen (the big one under it), if any: the hand may

@@ -30,6 +30,10 @@ from supervisor.report import ActionReport
 from supervisor.scene_map import BoxEstimate, box_estimate, neighbours, ray_entry
 from supervisor.script import Step
 
+#: A ball whose bottom is within this [m] of a place's top, over its map rectangle grown by as much, lies
+#: on the place (the put's release point keeps clear of it).
+ON_TOP_M = 0.05
+
 
 def toward_edge(centre: np.ndarray, contacts: list[np.ndarray], edge_deg: float) -> np.ndarray | None:
     """Whether a lowered object touched a surface only on its side: every contact point [m] (world)
@@ -342,9 +346,17 @@ class PutActions(ActionParts):
         """``xy`` [m], or, when a ball seen on the place (not held) lies within ``put_clear_m`` of it or
         of the forearm's way over the place (:func:`clear_of`), the nearest point of the place's top
         (``put_edge_margin_m`` inside its map rectangle, on a 2 cm grid) clear of them all; ``xy`` when
-        there is none."""
+        there is none. A ball is on the place when its centre lies over the place's map rectangle
+        (grown by ``ON_TOP_M``: the map's error) and its bottom within ``ON_TOP_M`` of the top (a ball
+        on the floor in front of a table is not)."""
         c = self.config
-        balls = [centre[:2] for centre, _radius in neighbours(self.memory, xy, 1.5, exclude={place})]
+        reach = c.put_clear_m + c.put_forearm_m + max(box.size_m[:2])  # any ball on the place's top
+        over = box.footprint.grown(ON_TOP_M)
+        balls = [
+            centre[:2]
+            for centre, radius in neighbours(self.memory, xy, reach, exclude={place})
+            if over.contains(centre[:2]) and abs(centre[2] - radius - box.top_z_m) <= ON_TOP_M
+        ]
         if not balls or clear_of(xy, robot_xy, balls, c.put_clear_m, c.put_forearm_m):
             return xy
         rect = box.footprint

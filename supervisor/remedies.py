@@ -162,19 +162,22 @@ class Remedies(ActionParts):
 
     def settle(self) -> None:
         """Both soles back flat on the ground and the body over them, planned by walking from the
-        measured configuration (``walking/goal`` ``kind: settle``; nothing when both soles are flat:
-        ``already_settled``). A back-out or a stopped motion can leave a sole 3 mm - 1.4 cm up or tilted
+        measured configuration (``walking/goal`` ``kind: settle``), when the planners would refuse to
+        start from it (:meth:`Body.plannable`; walking also answers ``already_settled`` within 1 mm).
+        A back-out or a stopped motion can leave a sole 3 mm - 1.4 cm up or tilted
         0.025-0.16 rad, from which reaching, footsteps and walking refuse to plan.
 
         When the robot is still not standing as the planners want it after a settle (both soles within
         5 mm and 0.02 rad: measured, :meth:`Body.plannable`), one more settle from there.
 
         Raises:
-            InfeasibleError: ``details.reason`` ``leaning`` (with ``ends_retries``): the robot is held
+            InfeasibleError: ``details.reason`` ``leaning`` (final in the retry policy): the robot is held
                 up by something it touches (walking refused, or the robot stays tilted after two
                 settles: box_near's shank on the table left both soles tilted 1.2 deg); other refusals
                 as walking gives them.
         """
+        if self.body.plannable():  # the planners start from here: nothing to settle
+            return
         said = ""
         for _ in range(2):  # a second settle from where the first one left the robot
             try:
@@ -187,7 +190,7 @@ class Remedies(ActionParts):
                 if exc.details.get("reason") != walk_msg.REASON_LEANING:
                     raise
                 raise InfeasibleError(
-                    f"the robot cannot settle its feet: {exc.message}", {**exc.details, "ends_retries": True}
+                    f"the robot cannot settle its feet: {exc.message}", exc.details
                 ) from exc
             self.progress(f"settle the feet: {plan.describe()}")
             done = self.body.execute(plan.q, what="settle the feet", progress=self.progress)
@@ -201,7 +204,7 @@ class Remedies(ActionParts):
         raise InfeasibleError(
             f"the robot cannot settle its feet: it stays tilted after settling twice ({said}): it leans on "
             "something it touches",
-            {"reason": walk_msg.REASON_LEANING, "ends_retries": True},
+            {"reason": walk_msg.REASON_LEANING},
         )
 
     def _remember_felt(self, collisions: list[sim_msg.Contact]) -> None:

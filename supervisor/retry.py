@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from services.bus.schemas.supervisor import REASON_OUT_OF_REACH, REASON_WORLD_LOST
+from services.bus.schemas.walking import REASON_LEANING
 from supervisor.report import REASONS
 
 REMEDIES = ("none", "relocalize", "replan", "wait_service")
@@ -34,10 +35,12 @@ class RetryRule:
 class RetryPolicy:
     """A rule per failure reason; reasons without a rule are not retried, nor are the failures whose
     sub-reason (``details["reason"]``) is ``final`` (no retry can help: the world they acted in is gone;
-    the object rests below the reach of a standing robot, seen from near)."""
+    the object rests below the reach of a standing robot, seen from near; the robot leans on what it
+    touched and cannot settle its feet). A remedy failing with a ``final`` sub-reason ends the retries
+    too (the runner)."""
 
     rules: tuple[tuple[str, RetryRule], ...]
-    final: tuple[str, ...] = (REASON_WORLD_LOST, REASON_OUT_OF_REACH)
+    final: tuple[str, ...] = (REASON_WORLD_LOST, REASON_OUT_OF_REACH, REASON_LEANING)
 
     def rule(self, reason: str, sub_reason: str = "") -> RetryRule:
         if sub_reason and sub_reason in self.final:

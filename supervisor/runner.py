@@ -141,7 +141,7 @@ class Runner:
                 except HumanoidError as exc:
                     message = f"remedy {rule.remedy} failed: {exc.message}"
                     self._emit("failed", step, attempt, exc.code, message)
-                    if exc.details.get("ends_retries"):  # no retry can succeed from here (a robot leaning)
+                    if exc.details.get("reason") in self.policy.final:  # no retry can succeed from here
                         details = {**report.details, **exc.details}
                         return dataclasses.replace(report, reason=exc.code, message=message, details=details)
 

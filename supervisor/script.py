@@ -73,6 +73,9 @@ HANDS = ("left", "right")
 #: The hand of a ``reach`` or ``grasp`` whose line names none: the supervisor chooses it (a reach: the hand
 #: whose approach is clear of the object's neighbours; a grasp: the hand that reached).
 EITHER_HAND = "either"
+#: The actions whose hand may be left out (``open`` names the hand to open: it has no way to choose one,
+#: and ``reach right`` with its target forgotten stays an error, not a search for an object "right").
+CHOOSES_HAND = ("reach", "grasp")
 #: Arguments (positional or ``key=value``) that are numbers: checked when the script is read, not when
 #: the action runs (after connecting, after the actions before it).
 NUMBERS = ("angle_deg", "forward_m", "left_m", "yaw_deg", "goal_y", "budget_s", "distance")
@@ -127,7 +130,7 @@ def parse_line(text: str, line: int = 1) -> Step | None:
         else:
             args.append(word.removeprefix("$"))
     required = len(signature.positional) - signature.optional_positional
-    if "hand" in signature.positional and len(args) == required - 1:
+    if action in CHOOSES_HAND and len(args) == required - 1 and not (args and args[0] in HANDS):
         args.insert(signature.positional.index("hand"), EITHER_HAND)  # no hand named: the supervisor's choice
     if not required <= len(args) <= len(signature.positional):
         raise InvalidRequestError(

@@ -232,3 +232,14 @@ def test_a_raise_over_the_support_goes_up_first(hand_x, hand_z, parts):
     if parts == 2:
         assert np.allclose(got[0], [hand_x, 1.0, 0.87])  # straight up where the hand is
     assert len(raise_parts(here, point, None, 0.1)) == 1  # no support known: as before
+
+
+def test_only_an_object_on_the_floor_is_out_of_reach_for_good(actions):
+    """A ball whose bottom is on the floor is refused for good from near (a standing robot does not
+    squat); one higher up on a support the map does not hold yet (a table not seen) is not: the
+    retry's fresh look may map that support."""
+    actions.memory.remember(_ball([4.3, -0.7, 0.04], 0.9))  # radius 0.04 as seen: bottom at 0
+    assert actions._on_floor("orange_ball")
+    actions.memory.remember(_ball([2.4, -1.8, 0.76], 0.9))  # on a table top at 0.72 m
+    assert not actions._on_floor("orange_ball")
+    assert not actions._on_floor("blue_ball")  # never seen

@@ -282,3 +282,27 @@ def test_a_release_point_beside_a_ball_or_behind_one_on_the_forearms_way_is_not_
     assert not clear_of(np.array([3.50, 0.72]), robot, balls, 0.15, 0.2)  # 0.13 m from one
     assert not clear_of(np.array([3.58, 0.78]), robot, balls, 0.15, 0.2)  # that one on the forearm's way
     assert clear_of(np.array([3.36, 0.80]), robot, balls, 0.15, 0.2)
+
+
+def test_only_the_balls_on_the_place_move_the_release_point():
+    """A ball on the table 8 cm from the release point moves it; the same ball on the floor in front of
+    the table (under the forearm's way, but not on the place) does not."""
+    from supervisor.config import SupervisorConfig
+    from supervisor.memory import Memory, Sighting
+    from supervisor.put import PutActions
+    from supervisor.scene_map import BoxEstimate
+
+    table = BoxEstimate("yellow_table", (2.4, -1.8, 0.36), (1.0, 0.6, 0.72), 0.0)
+    point, robot = np.array([2.05, -1.8]), np.array([1.4, -1.8])
+
+    def released_with(ball_at) -> np.ndarray:
+        actions = PutActions()
+        actions.memory, actions.config, actions.progress = Memory(), SupervisorConfig(), lambda _: None
+        actions.memory.remember(
+            Sighting("blue_ball", np.asarray(ball_at, float), (0.1, 0.1), 1.0, 0.9, 1.0, np.zeros(3))
+        )
+        return actions._clear_of_balls(point, table, "yellow_table", robot)
+
+    moved = released_with([2.05, -1.72, 0.77])  # on the top (bottom at 0.72 m)
+    assert np.linalg.norm(moved - point) > 0.05
+    assert np.allclose(released_with([1.95, -1.75, 0.05]), point)  # on the floor in front of the table

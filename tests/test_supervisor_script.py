@@ -208,12 +208,21 @@ def test_a_reach_or_grasp_naming_no_hand_leaves_it_to_the_supervisor() -> None:
     assert named.args == ("left", "1,2,0.8")
     with pytest.raises(InvalidRequestError, match="takes reach hand target"):
         parse_script("reach")
+    # A hand with its target forgotten is an error, not a search for an object called "right".
+    with pytest.raises(InvalidRequestError, match="takes reach hand target, got 1"):
+        parse_script("reach right")
+    # Only reach and grasp choose: "open" must name the hand it opens, refused before anything runs.
+    with pytest.raises(InvalidRequestError, match="takes open hand, got 0"):
+        parse_script("open")
 
 
 def test_an_object_out_of_reach_from_near_is_not_looked_for_again() -> None:
     from services.bus.schemas.supervisor import REASON_NO_CLEAR_WAY, REASON_OUT_OF_REACH
+    from services.bus.schemas.walking import REASON_LEANING
     from supervisor.retry import DEFAULT_POLICY
 
     assert DEFAULT_POLICY.rule("infeasible", REASON_OUT_OF_REACH).retries == 0
+    assert DEFAULT_POLICY.rule("infeasible", REASON_LEANING).retries == 0  # leaning on what it touched
+    assert REASON_LEANING in DEFAULT_POLICY.final  # a remedy failing so ends the retries (the runner)
     assert DEFAULT_POLICY.rule("infeasible", REASON_NO_CLEAR_WAY).retries == 1  # a fresh look may show room
     assert DEFAULT_POLICY.rule("infeasible").retries == 1

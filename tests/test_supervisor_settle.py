@@ -131,3 +131,27 @@ def test_a_robot_held_up_by_something_cannot_settle(stack) -> None:
     with pytest.raises(InfeasibleError, match="leans on something") as leaning:
         stack.client.call(walk_msg.GOAL, walk_msg.GoalRequest(q_start=q, kind="settle"), 30)
     assert leaning.value.details["reason"] == walk_msg.REASON_LEANING
+
+
+def test_the_anchor_is_the_sole_on_the_ground_not_the_flatter_one() -> None:
+    """A step stopped mid-swing keeps its foot flat in the air while the standing foot rolls a little:
+    the settle stands on the foot on the ground (before, the flatter sole, the one in the air, was taken
+    for the support and the CoM moved toward it before it landed)."""
+    import pinocchio as pin
+
+    from services.walking.settle import anchor_side
+
+    model = load_robot("hrp2_like")
+    q = model.half_sitting_at(0.0, 0.0, 0.0)
+    lift = 0.05  # hip -a, knee +2a, ankle -a: the foot rises about 7 mm, kept flat (equal thigh and shank)
+    for joint, factor in (("LLEG_JOINT2", -1.0), ("LLEG_JOINT3", 2.0), ("LLEG_JOINT4", -1.0)):
+        q[model.joint_index(joint).idx_q] += factor * lift
+    q[model.joint_index("RLEG_JOINT5").idx_q] += 0.005  # the standing sole rolled onto an edge
+    soles = {side: model.sole_pose(q, side) for side in ("left", "right")}
+    length, width = (float(v) for v in model.sole_size_m)
+    up = {side: float(T.translation[2]) for side, T in soles.items()}
+    tilt = {side: math.acos(min(1.0, float(T.rotation[2, 2]))) for side, T in soles.items()}
+    assert up["left"] > 0.004 and tilt["left"] < tilt["right"], (up, tilt)  # in the air, the flatter one
+    assert anchor_side(soles, length, width) == "right"
+    flat = {side: pin.SE3(np.eye(3), T.translation * [1, 1, 0]) for side, T in soles.items()}
+    assert anchor_side({**flat, "left": soles["left"]}, length, width) == "right"

@@ -22,6 +22,7 @@ from services.contacts.sets import Contact
 from services.errors import InfeasibleError
 from services.ik import PostureTask
 from services.model import RobotModel
+from services.model.ground import yaw_of
 
 SEAT = "chair.seat"
 START_PAIRS = (("left_sole", "floor"), ("right_sole", "floor"), ("left_thigh", SEAT), ("right_thigh", SEAT))
@@ -148,7 +149,7 @@ def leaning_posture(
 
 def yaw_of_q(q: np.ndarray) -> float:
     """The waist's heading [rad] (world frame) of configuration ``q``."""
-    return float(pin.rpy.matrixToRpy(pin.Quaternion(np.asarray(q[3:7], float)).toRotationMatrix())[2])
+    return yaw_of(pin.Quaternion(np.asarray(q[3:7], float)).normalized().toRotationMatrix())
 
 
 def _ahead(q: np.ndarray, forward_m: float, left_m: float) -> tuple[float, float]:
@@ -177,7 +178,7 @@ def hands_on_a_top(env: Environment, q_start: np.ndarray, seat: str) -> tuple[Co
             pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw_of_q(q_start)), np.array([*waist, top_z]))
         )
         rx, ry = float(local.translation[0]), float(local.translation[1])
-        heading = float(pin.rpy.matrixToRpy(local.rotation)[2])
+        heading = yaw_of(local.rotation)
         hx, hy = surface.half_size_m
         # the edge facing the robot: the one the robot's line of sight crosses (heading along +-x or +-y)
         axis = 0 if abs(math.cos(heading)) >= abs(math.sin(heading)) else 1

@@ -24,6 +24,7 @@ import pinocchio as pin
 
 from services.errors import InvalidRequestError
 from services.ik import Task
+from services.model.ground import yaw_of
 
 
 def base_point(q: np.ndarray, R_ref: np.ndarray | None = None) -> np.ndarray:
@@ -39,7 +40,7 @@ def base_point(q: np.ndarray, R_ref: np.ndarray | None = None) -> np.ndarray:
 def heading_rotation(q: np.ndarray) -> np.ndarray:
     """The rotation about the vertical by the heading (yaw) of the base of ``q`` (3x3)."""
     R = pin.Quaternion(np.asarray(q[3:7], dtype=float)).normalized().toRotationMatrix()
-    return pin.rpy.rpyToMatrix(0.0, 0.0, float(pin.rpy.matrixToRpy(R)[2]))
+    return pin.rpy.rpyToMatrix(0.0, 0.0, yaw_of(R))
 
 
 @dataclass(frozen=True)

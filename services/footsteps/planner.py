@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
+from services.bus.schemas.common import START_SOLE_MAX_HEIGHT_M, START_SOLE_MAX_TILT_RAD
 from services.bus.schemas.footsteps import (
     REASON_MAX_ITERATIONS,
     REASON_MAX_STEPS,
@@ -41,8 +42,8 @@ from services.model.ground import sole_pose_of
 from services.walking.footsteps import Side, SolePose
 
 CONSTRAINT_TOL = 1e-3  # level-0 value (eqs. 5-6) accepted in a solution [m, rad]
-FLAT_TOL_M = 5e-3  # q_start: soles within this of the ground
-FLAT_TOL_RAD = 2e-2  # q_start: soles within this of horizontal
+FLAT_TOL_M = START_SOLE_MAX_HEIGHT_M  # q_start: soles within this of the ground
+FLAT_TOL_RAD = START_SOLE_MAX_TILT_RAD  # q_start: soles within this of horizontal
 # Each level's QP by the dual active-set method (services.ik.active_set): the same optimum as
 # proxsuite's, but bitwise reproducible, so that identical requests give identical plans (the
 # threshold decisions of Algorithm 1 amplify 1e-16 differences into different step counts).

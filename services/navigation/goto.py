@@ -23,6 +23,7 @@ import numpy as np
 
 from services import budget
 from services.bus.schemas import navigation as nav_msg
+from services.bus.schemas.common import START_SOLE_MAX_HEIGHT_M, START_SOLE_MAX_TILT_RAD
 from services.collision.carried import CarriedBar
 from services.collision.obstacles import Scene
 from services.errors import InfeasibleError, InvalidRequestError
@@ -52,7 +53,7 @@ ESCAPE_EXTRA_MARGIN_M = 0.02
 """A start overlapping an obstacle escapes to a pose this much clearer [m] than stage 1 requires."""
 log = logging.getLogger("humanoid.navigation")
 
-MAX_START_SOLE_HEIGHT_M = 0.005
+MAX_START_SOLE_HEIGHT_M = START_SOLE_MAX_HEIGHT_M
 """The starting configuration must have both soles on the floor (flat ground z = 0) within this [m]."""
 
 
@@ -112,7 +113,7 @@ def start_soles(robot: Any, q: np.ndarray) -> tuple[SolePose, SolePose]:
     for side in ("left", "right"):
         T = robot.sole_pose(q, side, data)
         tilt = math.acos(max(-1.0, min(1.0, float(T.rotation[2, 2]))))
-        if abs(T.translation[2]) > MAX_START_SOLE_HEIGHT_M or tilt > 0.02:
+        if abs(T.translation[2]) > MAX_START_SOLE_HEIGHT_M or tilt > START_SOLE_MAX_TILT_RAD:
             raise InvalidRequestError(
                 f"the {side} sole of the starting configuration is at z={T.translation[2]:.3f} m, tilted "
                 f"{math.degrees(tilt):.1f} deg: navigation starts standing on flat ground (soles within "

@@ -9,13 +9,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from services.bus.schemas.common import START_SOLE_MAX_HEIGHT_M, START_SOLE_MAX_TILT_RAD
 from services.bus.schemas.reaching import MAX_FINAL_HOLD_S, MAX_HAND_SPEED_M_S, MIN_DURATION_RANGE_S
 from services.errors import InvalidRequestError
 from services.ik.hand_obstacles import SphereObstacle, check_spheres
 from services.model.specs import check_side
 
-MAX_SOLE_HEIGHT_M = 0.005  # a starting sole farther than this from the ground is not standing
-MAX_SOLE_TILT_RAD = 0.02  # nor a sole tilted by more than this
+MAX_SOLE_HEIGHT_M = START_SOLE_MAX_HEIGHT_M  # a starting sole farther from the ground is not standing
+MAX_SOLE_TILT_RAD = START_SOLE_MAX_TILT_RAD  # nor a sole tilted by more than this
 MAX_HAND_CLEARANCE_M = 0.2  # a hand_clearance_m above this is not a clearance but a request to stay away
 MAX_APPROACH_ABOVE_M = 0.5  # the hand's detour above its target at most [m]
 

@@ -5,12 +5,15 @@ or tilted by a few degrees (measured 3 mm - 1.4 cm, 0.025 - 0.16 rad). Every pla
 flat to start from (footsteps, reaching, walking: 5 mm, 0.02 rad), so nothing could be planned from
 there. The settle is the motion that brings the robot back to such a stance, quasi-statically:
 
-1. the *anchor* sole is the flatter of the two (the one the robot stands on, maybe rolled onto an edge
-   of it); the motion starts at the measured configuration, base included, and every target is in the
-   world frame, the ground at z = 0;
+1. the *anchor* sole is the one the robot stands on: the one whose lowest corner is nearer the ground
+   (maybe rolled onto an edge of it), the flatter one when both touch (a step stopped mid-swing keeps
+   its foot flat in the air: the lower sole, not the flatter, holds the robot); the motion starts at
+   the measured configuration, base included, and every target is in the world frame, the ground at
+   z = 0;
 2. the other sole comes down flat onto the ground below it (its x, y and heading kept), the anchor
    sole and the CoM held where they are (the robot is at rest there: what holds it up holds it while
-   the other foot comes down);
+   the other foot comes down; while that sole is in the air, the balance is checked on the anchor
+   sole alone);
 3. the anchor sole turns flat below where it is, and the CoM moves over the middle of the two soles;
    a short hold.
 
@@ -49,13 +52,16 @@ from services.model.ground import (
     sole_pose_of,
     yaw_of,
 )
-from services.walking.timing import DOUBLE
+from services.walking.timing import DOUBLE, LEFT, RIGHT
 from services.walking.two_stage import SupportSamples
 from services.walking.wholebody import WholeBodyOptions, WholeBodyPlanner, _spline_configurations
 
 #: Both soles within this of the ground [m] and of horizontal [rad]: nothing to settle.
 SETTLED_M = 0.001
 SETTLED_RAD = 0.005
+#: A sole whose lowest corner is this far above the ground [m] is in the air: it supports nothing while
+#: it comes down (the anchor's lone sole is then the support polygon).
+AIRBORNE_M = 0.002
 #: Durations of the stages [s]: the CoM's shift with the anchor sole's flattening, the other sole's
 #: lowering, the final hold.
 SHIFT_S = 1.5
@@ -107,6 +113,25 @@ def _upright(R: np.ndarray) -> np.ndarray:
     return pin.rpy.rpyToMatrix(0.0, 0.0, yaw_of(R))
 
 
+def _lowest_corner_z(T: pin.SE3, length_m: float, width_m: float) -> float:
+    """Height [m] of the lowest corner of a sole rectangle (``length_m`` x ``width_m`` centred on its frame
+    ``T``): about 0 for a sole touching the ground, flat or rolled onto an edge."""
+    local = np.array([[sx * length_m / 2, sy * width_m / 2, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
+    return float(np.min(T.translation[2] + local @ T.rotation[2, :]))
+
+
+def anchor_side(soles: dict[str, pin.SE3], length_m: float, width_m: float) -> str:
+    """The side of the sole the robot stands on (module docstring, 1.), of the sole frames ``soles``
+    (world) and the sole rectangle's size [m]: the one whose lowest corner is on the ground (to the
+    millimetre), then the flatter (a walk keeps its raised foot flat: flatness alone picks it)."""
+
+    def key(side: str) -> tuple[int, float]:
+        T = soles[side]
+        return round(1e3 * max(_lowest_corner_z(T, length_m, width_m), 0.0)), _tilt(T)
+
+    return min(("left", "right"), key=key)
+
+
 def _row(T: pin.SE3) -> np.ndarray:
     """(x, y, z, yaw) of a frame."""
     return np.array([*T.translation, yaw_of(T.rotation)])
@@ -134,11 +159,12 @@ def settle_motion(robot: Any, q_measured: np.ndarray, *, zmp_margin_m: float = 0
             f"both soles are flat on the ground already ({described}): nothing to settle",
             {"reason": REASON_ALREADY_SETTLED},
         )
-    anchor = min(state, key=lambda side: (state[side][1], state[side][0]))
+    length, width = (float(v) for v in robot.sole_size_m)
+    lowest = {side: _lowest_corner_z(T, length, width) for side, T in soles.items()}
+    anchor = anchor_side(soles, length, width)
     other = "right" if anchor == "left" else "left"
     q0 = q
     flat = {side: _flat(T) for side, T in soles.items()}
-    length, width = (float(v) for v in robot.sole_size_m)
     rect = {side: sole_corners(sole_pose_of(T), length, width) for side, T in flat.items()}
     if rectangles_overlap_depth(rect[anchor], rect[other]) > 0.0:
         raise InfeasibleError(
@@ -162,6 +188,8 @@ def settle_motion(robot: Any, q_measured: np.ndarray, *, zmp_margin_m: float = 0
     n = 1 + n_lower + n_centre + n_hold
     com_ref = np.tile(com0, (n, 1))
     phase = np.full(n, DOUBLE, dtype=np.int8)
+    if lowest[other] > AIRBORNE_M:  # the other foot in the air until it lands: the anchor alone holds
+        phase[: 1 + n_lower] = LEFT if anchor == "left" else RIGHT
     sole_T: dict[str, list[pin.SE3]] = {anchor: [soles[anchor]] * n, other: [soles[other]] * n}
     for side, start, m in ((other, 1, n_lower), (anchor, 1 + n_lower, n_centre)):
         screw = pin.log6(soles[side].inverse() * flat[side]).vector

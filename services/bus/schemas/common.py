@@ -9,6 +9,12 @@ import msgspec
 from services.bus.limits import Point3, Size
 from services.bus.spec import TopicSpec
 
+#: The planners (footsteps, reaching, navigation, walking's goals) start from a measured ``q_start`` only
+#: when both soles are within this of the ground [m] and of horizontal [rad]: a robot standing. The
+#: supervisor asks walking to settle the feet when they are not (``walking/goal`` ``kind: settle``).
+START_SOLE_MAX_HEIGHT_M = 0.005
+START_SOLE_MAX_TILT_RAD = 0.02
+
 
 class Heartbeat(msgspec.Struct, kw_only=True, frozen=True):
     """Published at 2 Hz on ``hrp/<robot>/<service>/heartbeat`` once a service is ready."""

@@ -16,7 +16,8 @@ from services.bus.spec import TopicSpec
 REASON_WORLD_LOST = "world_lost"
 #: ``details["reason"]`` of the ``infeasible`` failure of a reach when something on the map lies in both
 #: hands' way to the object and the jaws' approach clear of it was refused (``details.gaps_m``: the
-#: clearances per hand's side [m], ``needed_gap_m``). Final: given before the hand comes down.
+#: clearances per hand's side [m], ``needed_gap_m``), given before the hand comes down. Retried once after a
+#: fresh look (the map may show room then).
 REASON_NO_CLEAR_WAY = "no_clear_way"
 #: ``details["reason"]`` of the ``infeasible`` failure of a reach refused from near an object that rests on
 #: nothing known (a ball on the floor): ``height_m``, ``hand_height_m``, ``distance_m`` and reaching's

@@ -203,11 +203,14 @@ class GoalRequest(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fiel
       if the stance is already square).
     * ``"settle"``: from ``q_start`` as measured (a sole left up to a few cm up or tilted by a stopped
       motion), both soles back flat on the ground and the body over them, no step
-      (:mod:`services.walking.settle`: the CoM over the flatter sole, the other one lowered flat below
-      where it is, the CoM to the middle; the multibody ZMP checked). ``invalid_request`` with reason
-      ``already_settled`` when both soles are flat; ``infeasible`` with reason ``leaning`` when the
-      robot is held up by something it touches (neither sole flat, or the CoM outside the feet). The
-      obstacles are not used (the sole comes down where it is).
+      (:mod:`services.walking.settle`: the anchor is the sole on the ground; the other one comes down
+      flat below where it is, the anchor and the CoM held; then the anchor turns flat and the CoM moves
+      to the middle; the multibody ZMP checked, on the anchor alone while the other sole is in the
+      air). ``invalid_request`` with reason ``already_settled`` when both soles are within 1 mm and
+      0.005 rad of flat; ``infeasible`` with reason ``leaning`` when the CoM is outside the two soles
+      laid flat (the robot is held up by something it touches), ``out_of_bounds`` when a sole would
+      land on the other, is out of reach, or the ZMP check fails. The obstacles are not used (the
+      sole comes down where it is).
 
     Obstacle test (``obstacles``: the map's boxes, ``kind`` "box"): the mid-feet path keeps
     ``clearance_m`` from every box (or as far as its start or its end is, if nearer), every landing sole
