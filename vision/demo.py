@@ -43,7 +43,12 @@ def demo_scene() -> tuple[syn.Scene, dict[str, np.ndarray]]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m vision.demo", description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, default=Path("out/vision/figure9.png"), help="figure path")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out/vision/figure9.png"),
+        help="figure path (.png), or a folder to write figure9.png in",
+    )
     args = parser.parse_args(argv)
 
     rig = StereoRig(CameraIntrinsics.from_hfov(640, 480, np.deg2rad(60.0)), 0.144)
@@ -82,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
             overlay, loc.name, box.min(axis=0) - [0, 4], cv2.FONT_HERSHEY_SIMPLEX, 0.45, COLOURS[loc.name], 1
         )
     figure = np.hstack([hsv, bp, overlay])
+    if args.out.suffix.lower() != ".png":  # a folder (or a name without the extension): the figure in it
+        args.out = args.out / "figure9.png"
     args.out.parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(args.out), figure)
     print(f"wrote {args.out} (HSV image | back projection of the table model + CamShift box | detections)")
