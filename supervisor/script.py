@@ -63,9 +63,10 @@ ACTIONS: dict[str, Signature] = {
     "put": Signature(("object",), ("on",), help="put the held object on a place"),
     "look_at": Signature(("object",), help="turn the head toward an object"),
     "stand_up": Signature(
-        ("goal_y", "budget_s"),
+        ("beside_m", "budget_s"),
         optional_positional=2,
-        help="get out of the chair (contact planning), stand beside it (waist y > goal_y [m]; budget [s])",
+        help="get out of the chair (contact planning), stand beside it (the waist beside_m [m] to the left; "
+        "budget [s])",
     ),
 }
 
@@ -78,7 +79,7 @@ EITHER_HAND = "either"
 CHOOSES_HAND = ("reach", "grasp")
 #: Arguments (positional or ``key=value``) that are numbers: checked when the script is read, not when
 #: the action runs (after connecting, after the actions before it).
-NUMBERS = ("angle_deg", "forward_m", "left_m", "yaw_deg", "goal_y", "budget_s", "distance")
+NUMBERS = ("angle_deg", "forward_m", "left_m", "yaw_deg", "beside_m", "budget_s", "distance")
 
 
 @dataclass(frozen=True)

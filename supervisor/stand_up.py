@@ -14,6 +14,7 @@ goal as data.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 from services.bus.schemas import contacts as contacts_msg
@@ -23,14 +24,15 @@ from supervisor.calls import ServiceCaller
 from supervisor.report import ActionReport
 
 # The seated robot's contacts (soles on the floor, thighs on the chair's seat) and the goal: the waist
-# beyond y = 0.6 m, standing on both soles (the chair_egress scene, §3.1 of the paper).
+# BESIDE_M to the robot's left of where it sits, standing on both soles (in the chair_egress scene, §3.1
+# of the paper: beyond y = 0.6 m, beside the table).
 SEATED_CONTACTS = [
     ["left_sole", "floor"],
     ["right_sole", "floor"],
     ["left_thigh", "chair.seat"],
     ["right_thigh", "chair.seat"],
 ]
-GOAL_AXIS, GOAL_VALUE_M = "y", 0.6
+BESIDE_M = 0.6
 PLAN_BUDGET_S = 300.0
 SUPPORTS = ("chair", "table")
 N_INTERPOLATION = 10  # posture generations per transition (§3.3's n)
@@ -40,25 +42,42 @@ TRANSITION_BUDGET_S = 60.0  # contacts/transition's time budget [s] (the whole r
 REPLY_MARGIN_S = 60.0
 
 
+def beside_goal(waist_xy_m: tuple[float, float], yaw_rad: float, beside_m: float) -> tuple[str, float, bool]:
+    """The goal of ``contacts/plan`` (``goal_axis``, ``goal_value_m``, ``goal_below``) for a waist at
+    ``waist_xy_m`` [m] (world) to end ``beside_m`` [m] to the left of a robot seated facing ``yaw_rad``
+    [rad]: the world axis nearest that direction, its coordinate there, passed downward when the
+    direction points to that axis' negative side (a chair facing any way: the planner's goal is one
+    coordinate)."""
+    left = (-math.sin(yaw_rad), math.cos(yaw_rad))
+    i = 0 if abs(left[0]) > abs(left[1]) else 1
+    return "xy"[i], waist_xy_m[i] + beside_m * left[i], left[i] < 0.0
+
+
 def stand_up(
     bus: ServiceCaller, body: Body, progress: Callable[[str], None], args: tuple[str, ...] = ()
 ) -> ActionReport:
-    """Plan and execute getting up; ``args``: optional goal value [m] of the waist's y, optional plan
-    budget [s] (``PLAN_BUDGET_S``)."""
+    """Plan and execute getting up; ``args``: optional distance [m] of the waist to the robot's left at
+    the end (``BESIDE_M``; :func:`beside_goal`), optional plan budget [s] (``PLAN_BUDGET_S``)."""
     state = body.state()
     if state.fallen:
         raise FellError("the robot is on the ground: reset the sim")
-    goal = float(args[0]) if args else GOAL_VALUE_M
+    beside = float(args[0]) if args else BESIDE_M
     budget = float(args[1]) if len(args) > 1 else PLAN_BUDGET_S
     if not 0.0 < budget <= 600.0:
         raise InvalidRequestError(f"stand_up: the plan budget must be in ]0, 600] s, got {budget}")
-    progress(f"stand up: planning contacts in scene {state.scene} (budget {budget:.0f} s)")
+    _feet_x, _feet_y, yaw = body.base_xy_yaw(state.q)
+    axis, value, below = beside_goal((float(state.q[0]), float(state.q[1])), yaw, beside)
+    progress(
+        f"stand up: planning contacts in scene {state.scene} (the waist's {axis} "
+        f"{'below' if below else 'beyond'} {value:.2f} m, budget {budget:.0f} s)"
+    )
     request = contacts_msg.PlanRequest(
         scene=state.scene,
         q_start=state.q,
         start_contacts=SEATED_CONTACTS,
-        goal_axis=GOAL_AXIS,
-        goal_value_m=goal,
+        goal_axis=axis,
+        goal_value_m=value,
+        goal_below=below,
         time_budget_s=budget,
         interpolate=False,  # each transition is interpolated from the measured state
     )

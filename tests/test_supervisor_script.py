@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 
 import pytest
@@ -226,3 +227,16 @@ def test_an_object_out_of_reach_from_near_is_not_looked_for_again() -> None:
     assert REASON_LEANING in DEFAULT_POLICY.final  # a remedy failing so ends the retries (the runner)
     assert DEFAULT_POLICY.rule("infeasible", REASON_NO_CLEAR_WAY).retries == 1  # a fresh look may show room
     assert DEFAULT_POLICY.rule("infeasible").retries == 1
+
+
+def test_stand_up_goal_is_beside_the_seated_robot_whichever_way_it_faces() -> None:
+    """The waist's goal 0.6 m to the seated robot's left, as the one coordinate contacts/plan takes: in
+    the shipped scene (facing +x at y = 0) beyond y = 0.6 m, as before; a chair turned a quarter (facing
+    +y): x below -0.6 m; turned half: y below -0.6 m; turned 200 deg: still y, below."""
+    from supervisor.stand_up import beside_goal
+
+    assert beside_goal((-0.11, 0.0), 0.0, 0.6) == ("y", pytest.approx(0.6), False)
+    assert beside_goal((0.0, 0.0), math.pi / 2, 0.6) == ("x", pytest.approx(-0.6), True)
+    assert beside_goal((1.0, 2.0), math.pi, 0.6) == ("y", pytest.approx(1.4), True)
+    axis, value, below = beside_goal((0.0, 0.0), math.radians(200), 0.6)
+    assert (axis, below) == ("y", True) and value == pytest.approx(-0.6 * math.cos(math.radians(20)))
