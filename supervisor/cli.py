@@ -68,7 +68,13 @@ def add_cli(subparsers: Any) -> None:
         epilog=EXAMPLES_CONSOLE,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--hand", choices=("left", "right"), default="right", help="hand for 'take' (right)")
+    p.add_argument(
+        "--hand",
+        choices=("either", "left", "right"),
+        default="either",
+        help="hand for 'take' when the words name none (either: the supervisor's choice, the one whose way "
+        "is clear; 'release' then opens the hand that holds something)",
+    )
     p.add_argument(
         "--explain",
         action="append",

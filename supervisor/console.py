@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 from services.errors import InvalidRequestError
 from supervisor.language import CAN_DO, HELD, Listener, Understanding
+from supervisor.script import EITHER_HAND
 
 __all__ = ["HELD", "Command", "Listener", "explain", "help_text", "interpret"]
 
@@ -31,7 +32,7 @@ EXAMPLES = (
 )
 
 
-def interpret(text: str, known_objects: Sequence[str], hand: str = "right") -> Understanding:
+def interpret(text: str, known_objects: Sequence[str], hand: str = EITHER_HAND) -> Understanding:
     """One line on its own (no conversation): InvalidRequestError for a refusal or a question."""
     understanding = Listener(known_objects, hand).hear(text)
     if understanding.refused or understanding.control == "ask":
@@ -39,7 +40,7 @@ def interpret(text: str, known_objects: Sequence[str], hand: str = "right") -> U
     return understanding
 
 
-def explain(lines: Sequence[str], known_objects: Sequence[str], hand: str = "right") -> str:
+def explain(lines: Sequence[str], known_objects: Sequence[str], hand: str = EITHER_HAND) -> str:
     """What each line would run, in one conversation (a question is answered by the next line)."""
     listener = Listener(known_objects, hand)
     return "\n".join(listener.hear(line).explain() for line in lines)

@@ -35,7 +35,7 @@ from supervisor.lang_objects import (
     resolve,
     spoken,
 )
-from supervisor.script import ACTIONS, Signature, Step
+from supervisor.script import ACTIONS, EITHER_HAND, Signature, Step
 
 #: Verb phrases -> what they mean. Longer phrases are tried first.
 VERBS: dict[str, str] = {
@@ -563,7 +563,7 @@ class Listener:
     def __init__(
         self,
         known_objects: Sequence[str],
-        hand: str = "right",
+        hand: str = EITHER_HAND,
         actions: Mapping[str, Signature] | None = None,
     ) -> None:
         self.known = list(known_objects)

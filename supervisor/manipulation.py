@@ -1066,7 +1066,19 @@ class ManipulationActions(ActionParts):
         )
 
     def do_open(self, step: Step) -> ActionReport:
+        """Open the hand; ``either`` (the console's "release it" naming no hand): the hand that holds
+        something, else the one that reached last."""
         hand = step.args[0]
+        if hand == EITHER_HAND:
+            holding = sorted(self.memory.holding)
+            if len(holding) > 1:
+                raise InvalidRequestError("open: both hands hold something; name the hand to open")
+            if holding:
+                hand = holding[0]
+            elif self.last_reach is not None:
+                hand = self.last_reach[0]
+            else:
+                raise InvalidRequestError("open: no hand holds anything or has reached; name the hand")
         reply = self.body.gripper(hand, "open")
         self.memory.holding.pop(hand, None)
         released = f", released {reply.released}" if reply.released else ""

@@ -19,6 +19,7 @@ from typing import IO
 from services.errors import HumanoidError
 from supervisor.console import Command, Listener, help_text
 from supervisor.core import Supervisor
+from supervisor.script import EITHER_HAND
 
 
 class ConsoleLoop:
@@ -30,7 +31,7 @@ class ConsoleLoop:
         known_objects: list[str],
         out: IO[str],
         *,
-        hand: str = "right",
+        hand: str = EITHER_HAND,
         prompt: bool = False,
     ) -> None:
         self.sup = sup

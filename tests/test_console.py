@@ -31,44 +31,48 @@ ACTIONS_PLUS = {
 }
 
 PHRASINGS = [
-    ("take the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("Take the orange ball.", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("TAKE THE ORANGE BALL!!", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("grab the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("get the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("pick up the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("pick the orange ball up", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("fetch the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("bring me the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("take the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("Take the orange ball.", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("TAKE THE ORANGE BALL!!", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("grab the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("get the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("pick up the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("pick the orange ball up", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("fetch the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("bring me the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
     (
         "please grab the orange ball for me",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
     (
         "could you please pick up the orange ball?",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
     (
         "would you mind grabbing the orange ball",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
     (
         "hey robot, take the orange ball please",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
-    ("wait, take the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("wait, take the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
     (
         "can you take the orange ball now",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
-    ("grab the orange one", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("take the orange thing", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("take the orange_ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("grab the orange one", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("take the orange thing", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("take the orange_ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
     (
         "grab the green box with your left hand",
         "localize green_box; reach left green_box; grasp left as held",
     ),
-    ("take the cube", "localize green_box; reach right green_box; grasp right as held"),
+    (  # a hand named is that hand; none named: the supervisor's choice (either), the one whose way is clear
+        "take the orange ball with the right hand",
+        "localize orange_ball; reach right orange_ball; grasp right as held",
+    ),
+    ("take the cube", "localize green_box; reach either green_box; grasp either as held"),
     ("go to the yellow table", "localize yellow_table; goto yellow_table"),
     ("walk to the table", "localize yellow_table; goto yellow_table"),
     ("head to the table", "localize yellow_table; goto yellow_table"),
@@ -79,50 +83,50 @@ PHRASINGS = [
     ("go over to the green box please", "localize green_box; goto green_box"),
     (
         "put the orange ball on the table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "set the orange ball down on the yellow table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "drop the orange ball on the table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "leave the orange ball on the yellow table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; put orange_ball on=yellow_table",
     ),
     ("put it on the table", "localize yellow_table; put held on=yellow_table"),
     (
         "take the orange ball and put it on the table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "take the orange ball then go to the yellow table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; goto yellow_table",
     ),
     (
         "grab the orange ball, walk to the yellow table, and put it on the table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; goto yellow_table; localize yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "bring the orange ball to the yellow table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; goto yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "carry the orange ball over to the table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; goto yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "take the orange ball to the chair",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize chair; goto chair; put orange_ball on=chair",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize chair; goto chair; put orange_ball on=chair",
     ),
-    ("release the ball", "open right"),
-    ("let go", "open right"),
-    ("let go of it", "open right"),
-    ("open your hand", "open right"),
-    ("drop it", "open right"),
+    ("release the ball", "open either"),
+    ("let go", "open either"),
+    ("let go of it", "open either"),
+    ("open your hand", "open either"),
+    ("drop it", "open either"),
     ("look at the green box", "look_at green_box"),
     ("look at the orange one", "look_at orange_ball"),
     ("find the chair", "localize chair"),
@@ -167,16 +171,16 @@ PHRASINGS = [
     ),
     ("stand up", "stand_up"),
     ("get up", "stand_up"),
-    ("I want the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("give me the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("hand me the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("get me the orange ball please", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("can I have the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("go get the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("go and take the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("I want the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("give me the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("hand me the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("get me the orange ball please", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("can I have the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("go get the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("go and take the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
     (
         "put the orange ball onto the yellow table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; put orange_ball on=yellow_table",
     ),
     ("set it on the desk", "localize yellow_table; put held on=yellow_table"),
     ("get to the table", "localize yellow_table; goto yellow_table"),
@@ -203,14 +207,14 @@ PHRASINGS = [
     ("now go to the chair, then turn left and step back", "localize chair; goto chair; turn 90; walk -0.2 0"),
     (
         "first take the orange ball, then bring it to the chair",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize chair; goto chair; localize chair; put orange_ball on=chair",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize chair; goto chair; localize chair; put orange_ball on=chair",
     ),
-    ("let go of the ball", "open right"),
-    ("open the gripper", "open right"),
+    ("let go of the ball", "open either"),
+    ("open the gripper", "open either"),
     ("face the table", "look_at yellow_table"),
     (
         "find the orange ball and take it",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
     ("where's the chair", "localize chair"),
     ("is there an orange ball", "localize orange_ball"),
@@ -219,17 +223,17 @@ PHRASINGS = [
     # a third batch, tried after the grammar was written
     (
         "grab the orange ball from the green box",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
     (
         "put the orange ball into the green box",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize green_box; put orange_ball on=green_box",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize green_box; put orange_ball on=green_box",
     ),
     ("go near the chair", "localize chair; goto chair"),
     ("go back to the table", "localize yellow_table; goto yellow_table"),
     (
         "move the orange ball to the table",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; goto yellow_table; put orange_ball on=yellow_table",
     ),
     ("head back to the green box", "localize green_box; goto green_box"),
     ("go forward 1 meter and then turn right", "walk 1 0; turn -90"),
@@ -256,27 +260,27 @@ PHRASINGS = [
     ),
     (
         "please, please take the orange ball",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
     ("OK so now go to the table", "localize yellow_table; goto yellow_table"),
     (
         "take the orange ball. go to the table. put it down on the table.",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize yellow_table; goto yellow_table; localize yellow_table; put orange_ball on=yellow_table",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize yellow_table; goto yellow_table; localize yellow_table; put orange_ball on=yellow_table",
     ),
     (
         "Take the ORANGE ball, then the green box",
-        "localize orange_ball; reach right orange_ball; grasp right as held; localize green_box; reach right green_box; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held; localize green_box; reach either green_box; grasp either as held",
     ),
     (
         "put the blue ball on the orange ball",
-        "localize blue_ball; reach right blue_ball; grasp right as held; localize orange_ball; put blue_ball on=orange_ball",
+        "localize blue_ball; reach either blue_ball; grasp either as held; localize orange_ball; put blue_ball on=orange_ball",
     ),
-    ("release", "open right"),
-    ("bring the orange ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("bring the orange ball here", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("release", "open either"),
+    ("bring the orange ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("bring the orange ball here", "localize orange_ball; reach either orange_ball; grasp either as held"),
     (
         "fetch me the orange ball from the box",
-        "localize orange_ball; reach right orange_ball; grasp right as held",
+        "localize orange_ball; reach either orange_ball; grasp either as held",
     ),
     ("turn 360 degrees", "turn 360"),
     ("turn left 1 and a half turns", "turn 540"),
@@ -291,8 +295,8 @@ PHRASINGS = [
     ("turn left twice", "turn 180"),
     ("open the left hand", "open left"),
     ("open your left gripper", "open left"),
-    ("take the ornge ball", "localize orange_ball; reach right orange_ball; grasp right as held"),
-    ("take the orange bal", "localize orange_ball; reach right orange_ball; grasp right as held"),
+    ("take the ornge ball", "localize orange_ball; reach either orange_ball; grasp either as held"),
+    ("take the orange bal", "localize orange_ball; reach either orange_ball; grasp either as held"),
     ("go to the tabel", "localize yellow_table; goto yellow_table"),
     ("turn -45 degrees", "turn -45"),  # the scripts' sign: negative is to the right
     (
@@ -378,8 +382,8 @@ def test_the_next_line_answers_the_question(answer: str, obj: str):
     understanding = listener.hear(answer)
     assert [s.text() for s in understanding.steps] == [
         f"localize {obj}",
-        f"reach right {obj}",
-        "grasp right as held",
+        f"reach either {obj}",
+        "grasp either as held",
         "localize yellow_table",
         f"put {obj} on=yellow_table",
     ]
@@ -444,10 +448,10 @@ def test_putting_the_ball_down_while_holding_one_puts_that_one():
 @pytest.mark.parametrize(
     ("text", "steps"),
     [
-        ("take the red cup", "localize red_cup; reach right red_cup; grasp right as held"),
-        ("grab the bottle", "localize bottle; reach right bottle; grasp right as held"),
-        ("take the mug", "localize coffee_mug; reach right coffee_mug; grasp right as held"),
-        ("put the blue cup on the table", "localize blue_cup; reach right blue_cup; grasp right as held; "
+        ("take the red cup", "localize red_cup; reach either red_cup; grasp either as held"),
+        ("grab the bottle", "localize bottle; reach either bottle; grasp either as held"),
+        ("take the mug", "localize coffee_mug; reach either coffee_mug; grasp either as held"),
+        ("put the blue cup on the table", "localize blue_cup; reach either blue_cup; grasp either as held; "
          "localize yellow_table; put blue_cup on=yellow_table"),
     ],
 )  # fmt: skip
@@ -560,7 +564,7 @@ def test_stateless_interpret_raises_for_questions_and_refusals():
 def test_explain_shows_a_conversation():
     text = explain(["take the ball", "the blue one"], KNOWN)
     assert "asks: which ball: the orange one or the blue one?" in text
-    assert "  3. grasp right as held" in text
+    assert "  3. grasp either as held" in text
 
 
 def test_console_explain_subprocess():
@@ -585,8 +589,8 @@ def test_console_explain_subprocess():
     assert lines[1] == "understood: bring the orange ball to the yellow table"
     assert [ln.strip() for ln in lines[2:]] == [
         "1. localize orange_ball",
-        "2. reach right orange_ball",
-        "3. grasp right as held",
+        "2. reach either orange_ball",
+        "3. grasp either as held",
         "4. localize yellow_table",
         "5. goto yellow_table",
         "6. put orange_ball on=yellow_table",

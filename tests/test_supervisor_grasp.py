@@ -243,3 +243,17 @@ def test_only_an_object_on_the_floor_is_out_of_reach_for_good(actions):
     actions.memory.remember(_ball([2.4, -1.8, 0.76], 0.9))  # on a table top at 0.72 m
     assert not actions._on_floor("orange_ball")
     assert not actions._on_floor("blue_ball")  # never seen
+
+
+def test_opening_either_hand_needs_a_hand_that_holds_or_reached(actions):
+    """The console's "release it" naming no hand opens the hand that holds something (else the one that
+    reached last); with neither, it asks for the hand instead of guessing."""
+    from services.errors import InvalidRequestError
+    from supervisor.script import EITHER_HAND, Step
+
+    actions.last_reach = None
+    with pytest.raises(InvalidRequestError, match="name the hand"):
+        actions.do_open(Step(line=1, action="open", args=(EITHER_HAND,)))
+    actions.memory.holding.update({"left": "orange_ball", "right": "blue_ball"})
+    with pytest.raises(InvalidRequestError, match="both hands hold"):
+        actions.do_open(Step(line=1, action="open", args=(EITHER_HAND,)))
