@@ -141,7 +141,9 @@ class Runner:
                 except HumanoidError as exc:
                     message = f"remedy {rule.remedy} failed: {exc.message}"
                     self._emit("failed", step, attempt, exc.code, message)
-                    if exc.details.get("reason") in self.policy.final:  # no retry can succeed from here
+                    # no retry can succeed from here: a final sub-reason (a robot leaning on what it
+                    # touched), or the robot fell during the remedy (on the ground: reset the sim)
+                    if exc.code == "fell" or exc.details.get("reason") in self.policy.final:
                         details = {**report.details, **exc.details}
                         return dataclasses.replace(report, reason=exc.code, message=message, details=details)
 

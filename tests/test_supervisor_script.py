@@ -240,3 +240,20 @@ def test_stand_up_goal_is_beside_the_seated_robot_whichever_way_it_faces() -> No
     assert beside_goal((1.0, 2.0), math.pi, 0.6) == ("y", pytest.approx(1.4), True)
     axis, value, below = beside_goal((0.0, 0.0), math.radians(200), 0.6)
     assert (axis, below) == ("y", True) and value == pytest.approx(-0.6 * math.cos(math.radians(20)))
+
+
+def test_a_fall_during_a_remedy_ends_the_retries_with_that_reason() -> None:
+    """The robot fell while the remedy moved it: the next attempt would only find it on the ground, so
+    the action fails with ``fell`` at once (before, the retry ran and failed on "the robot is on the
+    ground")."""
+    from services.errors import FellError
+
+    grasp, calls = _flaky(["collision"] * 5)
+
+    def replan(step, report):
+        raise FellError("fell while backing out")
+
+    policy = RetryPolicy((("collision", RetryRule(2, "replan")),))
+    runner = Runner({"grasp": grasp}, policy=policy, remedies={"replan": replan})
+    result = runner.run(parse_script("grasp right"))
+    assert not result.ok and result.failure.reason == "fell" and len(calls) == 1
