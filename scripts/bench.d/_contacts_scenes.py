@@ -193,6 +193,9 @@ def cases(quick: bool = False) -> list[Case]:
     """The generated family (``quick``: the cheap cases only, for the tests)."""
     base = base_doc()
     fast = {"time_budget_s": 60.0, "max_nodes": 60, "n_interpolation": 4}
+    # the right thigh leaves the seat: the final contacts without it, no pair added, the goal (waist z > -1 m)
+    # met at once
+    thigh_off = {**fast, "pairs": [], "final_contacts": SEATED[:3], "goal_axis": "z", "goal_value_m": -1.0}
     out: list[Case] = []
     t90 = turned(base, math.pi / 2, 1.3, -0.7, "cu_turned90")
     # short plans in turned, moved layouts: a thigh, then a sole, leaves its support (§2.3's removal)
@@ -200,7 +203,7 @@ def cases(quick: bool = False) -> list[Case]:
         Case(
             "turned90_release",
             t90["name"],
-            {**fast, "pairs": [], "final_contacts": SEATED[:3], "goal_axis": "z", "goal_value_m": -1.0},
+            thigh_off,
             "plan",
             t90,
             execute=True,
@@ -349,7 +352,7 @@ def cases(quick: bool = False) -> list[Case]:
         Case(
             "high_seat_release",
             high["name"],
-            {**fast, "pairs": [], "final_contacts": SEATED[:3], "goal_axis": "z", "goal_value_m": -1.0},
+            thigh_off,
             "plan",
             high,
             execute=True,
